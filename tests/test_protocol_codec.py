@@ -9,9 +9,12 @@ import numpy as np
 import pytest
 from hypothesis import example, given, strategies as st
 
-from delta6 import cobs, protocol as P
+from delta6 import cobs, protocol as P, wirescale as W
 from delta6.crc import crc16, crc16_rows
+from delta6.design import load
+from delta6.model import wrench
 from delta6.simdevice import native_library
+from conftest import DESIGN_FILES
 
 
 @pytest.fixture(scope="module")
@@ -96,12 +99,12 @@ boundaries = [np.float32(m) * np.float32(f"1e{e}") * np.float32(32767) / np.floa
                  st.sampled_from(boundaries).map(lambda b: float(np.nextafter(np.float32(b), np.float32(0)))),
                  st.sampled_from(boundaries).map(lambda b: float(np.nextafter(np.float32(b), np.float32(1e9))))))
 def test_scale_choice_matches_cpp_even_at_boundaries(lib, fs):
-    assert P.choose_scale(fs) == cpp_scale(lib, fs)
+    assert W.choose_scale(fs) == cpp_scale(lib, fs)
 
 
 @given(st.floats(1e-3, 1e7))
 def test_scale_is_the_smallest_step_with_headroom(fs):
-    m, e = P.choose_scale(fs)
+    m, e = W.choose_scale(fs)
     step = P.lsb_value(m, e)
     assert step * 32767 >= 1.25 * fs * (1 - 1e-6)
     steps = sorted(P.lsb_value(mm, ee) for ee in range(-6, 4) for mm in (1, 2, 5))
@@ -113,19 +116,19 @@ def test_scale_is_the_smallest_step_with_headroom(fs):
 @given(st.floats(allow_nan=True, allow_infinity=True, width=32),
        st.sampled_from([(1, -3), (2, -3), (5, -4), (2, -5), (1, 0)]))
 def test_quantize_matches_cpp_exactly(lib, value, scale):
-    lsb = P.float32_lsb(*scale)
+    lsb = W.float32_lsb(*scale)
     inverse = np.float32(1) / lsb
     clipped = ctypes.c_int()
     expected = lib.d6_quantize(value, float(inverse), ctypes.byref(clipped))
-    q, c = P.quantize(np.array([value]), lsb)
+    q, c = W.quantize(np.array([value]), lsb)
     assert int(q[0]) == expected
     assert bool(c[0]) == bool(clipped.value)
 
 
 @given(st.floats(-30, 30, width=32))
 def test_quantisation_error_is_at_most_half_a_step(value):
-    lsb = P.float32_lsb(1, -3)
-    q, clipped = P.quantize(np.array([value]), lsb)
+    lsb = W.float32_lsb(1, -3)
+    q, clipped = W.quantize(np.array([value]), lsb)
     assert not clipped[0]
     assert abs(int(q[0]) * P.lsb_value(1, -3) - value) <= 0.5e-3 * (1 + 1e-5)
 
@@ -174,3 +177,25 @@ def test_short_or_unknown_payloads_are_rejected():
     # A newer minor version may append fields: the known prefix still parses.
     longer = struct.pack("<BHIH6h", 1, 5, 6, 0, 1, 2, 3, 4, 5, 6) + b"\x01\x02"
     assert P.parse_payload(longer).seq == 5
+
+
+@pytest.mark.parametrize("path", DESIGN_FILES, ids=lambda p: p.stem)
+def test_one_encoder_count_is_never_lost_on_the_wire(path):
+    """For every shipped design, the smallest one-count change anywhere in the joint box moves
+    some axis by at least one LSB, and the range holds 1.25 x full scale."""
+    design = load(path)
+    check = W.resolution_check(design)
+    assert check.force_margin >= 1.0 and check.moment_margin >= 1.0, check
+    assert np.all(check.headroom >= 1.25) and np.all(check.headroom < 3.2)
+    # The minima are real: random configurations never step by less.
+    rng = np.random.default_rng(0)
+    theta = rng.uniform(-design.joint_limit_rad, design.joint_limit_rad, (4000, 6))
+    w0 = wrench(design, theta)
+    for j in range(6):
+        bumped = theta.copy()
+        bumped[:, j] += P.COUNT_RAD
+        step = wrench(design, bumped) - w0
+        if j < 3:
+            assert np.linalg.norm(step[:, :3], axis=1).min() >= check.force_step_min * (1 - 1e-6)
+        else:
+            assert np.linalg.norm(step[:, 3:], axis=1).min() >= check.moment_step_min * (1 - 1e-6)

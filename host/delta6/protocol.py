@@ -350,51 +350,10 @@ def encode_telemetry(t: Telemetry) -> bytes:
                                  t.samples, t.overruns, *t.encoder_errors, *t[6:]))
 
 
-# --- scaling -----------------------------------------------------------------------------
-
-MIN_EXPONENT, MAX_EXPONENT = -6, 3
-HEADROOM = 1.25
-_MANTISSAS = (1, 2, 5)
-
-
-def choose_scale(full_scale: float) -> tuple[int, int]:
-    """The wire LSB for an axis, as (mantissa, exponent): the smallest 1-2-5 step whose
-    +-32767 counts cover 1.25 x full scale. Mirrors the firmware in float32, so both pick the
-    same step even when the full scale sits exactly on a boundary."""
-    f32 = np.float32
-    needed = f32(full_scale) * (f32(1.25) / f32(32767.0))
-    for e in range(MIN_EXPONENT, MAX_EXPONENT + 1):
-        decade = f32(f"1e{e}")
-        for m in _MANTISSAS:
-            if f32(m) * decade >= needed:
-                return m, e
-    return 5, MAX_EXPONENT
-
-
 def lsb_value(mantissa: int, exponent: int) -> float:
-    """The exact decimal step as the nearest double (1e-3, not float32's 0.0010000000475)."""
+    """An info record's scale field as the exact decimal step, the nearest double (1e-3, not
+    float32's 0.0010000000475), so logged values print as the decimals they are."""
     return float(f"{mantissa}e{exponent}")
-
-
-def quantize(values, lsb_float32) -> tuple[np.ndarray, np.ndarray]:
-    """The firmware's quantisation, in float32 like the device: (counts, clipped) with NaN
-    mapped to INVALID_VALUE and values beyond +-32767 clipped. For tests and captures."""
-    f32 = np.float32
-    inverse = f32(1.0) / np.asarray(lsb_float32, dtype=f32)
-    with np.errstate(invalid="ignore", over="ignore"):
-        x = np.asarray(values, dtype=f32) * inverse
-        clipped = np.abs(x) > f32(MAX_VALUE)
-        limited = np.clip(np.nan_to_num(x, nan=0.0), -MAX_VALUE, MAX_VALUE)
-        whole = np.trunc(limited)
-        frac = limited - whole
-        q = whole + (frac >= 0.5) - (frac <= -0.5)
-    q = np.where(np.isnan(x), INVALID_VALUE, q).astype(np.int16)
-    return q, clipped & ~np.isnan(x)
-
-
-def float32_lsb(mantissa: int, exponent: int) -> np.float32:
-    """The device's float32 LSB (mantissa times the float32 decade literal)."""
-    return np.float32(mantissa) * np.float32(f"1e{exponent}")
 
 
 # --- angles ------------------------------------------------------------------------------

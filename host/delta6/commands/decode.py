@@ -11,8 +11,7 @@ from ..bulkdecode import decode_capture
 from ..design import load
 from ..errors import UserError
 from ..logfile import LogWriter
-from ..protocol import choose_scale, lsb_value
-from ..spec import full_scale
+from ..wirescale import design_lsb
 from ._port import Progress, log_meta
 
 NAME = "decode"
@@ -51,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
         meta = log_meta(info, path.name, "delta6 decode")
         zero = _zero_per_row(capture)
     elif design is not None:
-        lsb = np.array([lsb_value(*choose_scale(fs)) for fs in full_scale(design)])
+        lsb = design_lsb(design)
         meta = {"design": design.name, "design_hash": f"0x{design.hash32():08x}",
                 "source": f"delta6 decode {path.name}",
                 "lsb": " ".join(f"{v:g}" for v in lsb)}
