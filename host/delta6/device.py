@@ -15,6 +15,7 @@ running the command twice. Every loss is counted in :attr:`Device.health`.
 from __future__ import annotations
 
 import collections
+import os
 import random
 import threading
 import time
@@ -96,6 +97,11 @@ class SampleBlock:
 
     def __len__(self) -> int:
         return len(self.t)
+
+    def head(self, n: int) -> "SampleBlock":
+        """The first ``n`` samples."""
+        return SampleBlock(self.t[:n], self.host_t[:n], self.seq[:n], self.status[:n],
+                           self.wrench[:n], None if self.theta is None else self.theta[:n])
 
 
 @dataclass
@@ -192,11 +198,15 @@ class Device:
                                                  write_timeout=2.0)
         except (serial.SerialException, OSError, ValueError) as exc:
             raise DeviceError(f"cannot open {self.port}: {_reason(exc)}") from None
-        if self._capture_target is not None:
-            self._capture = (open(self._capture_target, "ab")
-                             if isinstance(self._capture_target, (str, bytes)) or
-                             hasattr(self._capture_target, "__fspath__")
-                             else self._capture_target)
+        target = self._capture_target
+        if isinstance(target, (str, os.PathLike)):
+            try:
+                self._capture = open(target, "ab")
+            except OSError as exc:
+                self._serial.close()
+                raise DeviceError(f"cannot write the capture {target}: {exc.strerror}") from None
+        elif target is not None:
+            self._capture = target            # a binary file object of the caller's
         try:
             self._serial.reset_input_buffer()
         except (serial.SerialException, OSError):

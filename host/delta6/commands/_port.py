@@ -10,18 +10,39 @@ from ..protocol import Info, Mode, Status
 AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 
 
+def number(option: str, kind: type = float, low: float | None = None,
+           high: float | None = None, low_open: bool = False):
+    """An argparse type: a number of ``kind`` within [low, high] (``low_open``: above low),
+    rejected with one line naming the option."""
+    def convert(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            noun = "a whole number" if kind is int else "a number"
+            raise argparse.ArgumentTypeError(f"{option} takes {noun}, got {text!r}") from None
+        if low is not None and (value <= low if low_open else value < low):
+            raise argparse.ArgumentTypeError(
+                f"{option} must be {'positive' if low == 0 and low_open else f'at least {low}'}, "
+                f"got {text}")
+        if high is not None and value > high:
+            raise argparse.ArgumentTypeError(f"{option} must be at most {high}, got {text}")
+        return value
+    return convert
+
+
 def add_port_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--port", required=True, metavar="P",
                         help="serial port (/dev/ttyACM0, COM3) or pyserial URL "
                              "(delta6sim:// for the simulated device, socket://host:port)")
-    parser.add_argument("--baud", type=int, default=DEFAULT_BAUD,
+    parser.add_argument("--baud", type=number("--baud", int, 1), default=DEFAULT_BAUD,
                         help=f"baud rate of the board's firmware (default {DEFAULT_BAUD})")
-    parser.add_argument("--timeout", type=float, default=0.5, metavar="S",
+    parser.add_argument("--timeout", type=number("--timeout", low=0, low_open=True), default=0.5,
+                        metavar="S",
                         help="seconds to wait for each answer (default 0.5; retried twice)")
 
 
 def add_stream_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--rate", type=int, metavar="HZ",
+    parser.add_argument("--rate", type=number("--rate", int, 1, 65535), metavar="HZ",
                         help="sample rate (default: the device's configured rate)")
     parser.add_argument("--raw", action="store_true",
                         help="also stream the six raw encoder counts (the theta_e columns)")

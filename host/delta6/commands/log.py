@@ -1,8 +1,8 @@
 """``delta6 log``: record the stream to a log file (docs/log-format.md), safely.
 
 Rows go to FILE.partial and are flushed as they come; the file is renamed to FILE when the log
-closes: at the end of --duration, on Ctrl-C, and also when the port disappears (the message
-says so and the exit status is non-zero). Nothing received is ever lost.
+closes: at the end of --duration, on Ctrl-C, and also when the port disappears or the device
+restarts (the message says so and the exit status is non-zero). Nothing received is lost.
 """
 from __future__ import annotations
 
@@ -10,29 +10,21 @@ import argparse
 import sys
 import time
 
+import numpy as np
+
 from ..device import DeviceError
 from ..logfile import LogWriter
-from ._port import Progress, add_port_arguments, add_stream_arguments, log_meta, open_device, \
-    start_stream
+from ._port import Progress, add_port_arguments, add_stream_arguments, log_meta, number, \
+    open_device, start_stream
 
 NAME = "log"
 HELP = "record the wrench stream to a CSV log (progress shown; Ctrl-C ends it cleanly)"
 
 
-def _duration(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--duration takes seconds, got {text!r}") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"--duration must be positive, got {text}")
-    return value
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_port_arguments(parser)
     parser.add_argument("-o", "--output", required=True, metavar="FILE", help="log file (CSV)")
-    parser.add_argument("--duration", type=_duration, metavar="S",
+    parser.add_argument("--duration", type=number("--duration", low=0, low_open=True), metavar="S",
                         help="seconds to record (default: until Ctrl-C)")
     add_stream_arguments(parser)
     parser.add_argument("--capture", metavar="FILE.bin",
@@ -75,7 +67,20 @@ class Stats:
         return text
 
 
+class DeviceRestarted(DeviceError):
+    """The device rebooted mid-log: its clock and sequence start again."""
+
+
 def _write(writer: LogWriter, stats: Stats, block) -> None:
+    """Append a block; a device that restarted (time not increasing) ends the log there, as a
+    log's time must increase and the samples after a reboot belong to a new one."""
+    t = np.concatenate(([stats.last_t], block.t)) if stats.rows else block.t
+    back = np.flatnonzero(np.diff(t) <= 0)
+    if back.size:
+        keep = int(back[0]) + (0 if stats.rows else 1)
+        if keep:
+            _write(writer, stats, block.head(keep))
+        raise DeviceRestarted("the device restarted during the log (its clock went back)")
     writer.write_block(block.t, block.theta, block.wrench, seq=block.seq, status=block.status,
                        host_t=block.host_t)
     stats.add(block)
@@ -85,10 +90,9 @@ def _drain(dev, writer: LogWriter, stats: Stats) -> None:
     """Write what was received but not yet read: the log keeps every sample that arrived."""
     while True:
         try:
-            block = dev.read_block(timeout=0.0)
+            _write(writer, stats, dev.read_block(timeout=0.0))
         except DeviceError:
             return
-        _write(writer, stats, block)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -107,10 +111,10 @@ def run(args: argparse.Namespace) -> int:
             while args.duration is None or time.monotonic() - started < args.duration:
                 try:
                     block = dev.read_block(timeout=max(1.0, 20.0 / rate))
+                    _write(writer, stats, block)
                 except DeviceError as exc:
                     lost = exc
                     break
-                _write(writer, stats, block)
                 now = time.monotonic()
                 if now >= next_show:
                     limit = f" / {args.duration:g}" if args.duration else ""
@@ -120,7 +124,8 @@ def run(args: argparse.Namespace) -> int:
         except KeyboardInterrupt:
             interrupted = True
         finally:
-            _drain(dev, writer, stats)
+            if lost is None:
+                _drain(dev, writer, stats)
             path = writer.close()
             progress.end()
         health = dev.health

@@ -8,7 +8,7 @@ import time
 import numpy as np
 
 from ._port import AXES, Progress, add_port_arguments, add_stream_arguments, flag_names, \
-    open_device, start_stream
+    number, open_device, start_stream
 
 NAME = "stream"
 HELP = "show the wrench live (Ctrl-C ends it)"
@@ -17,8 +17,10 @@ HELP = "show the wrench live (Ctrl-C ends it)"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_port_arguments(parser)
     add_stream_arguments(parser)
-    parser.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
-    parser.add_argument("--interval", type=float, default=0.1, metavar="S",
+    parser.add_argument("--duration", type=number("--duration", low=0, low_open=True), metavar="S",
+                        help="stop after S seconds")
+    parser.add_argument("--interval", type=number("--interval", low=0, low_open=True),
+                        default=0.1, metavar="S",
                         help="seconds between display updates (default 0.1)")
 
 

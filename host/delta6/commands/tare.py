@@ -3,25 +3,15 @@ from __future__ import annotations
 
 import argparse
 
-from ._port import AXES, add_port_arguments, open_device
+from ._port import AXES, add_port_arguments, number, open_device
 
 NAME = "tare"
 HELP = "tare the wrench on the device (average N samples); --clear undoes it, --save keeps it"
 
 
-def _samples(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--samples takes a whole number, got {text!r}") from None
-    if not 1 <= n <= 65535:
-        raise argparse.ArgumentTypeError(f"--samples must be 1..65535, got {n}")
-    return n
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_port_arguments(parser)
-    parser.add_argument("--samples", type=_samples, default=100, metavar="N",
+    parser.add_argument("--samples", type=number("--samples", int, 1, 65535), default=100, metavar="N",
                         help="samples to average (default 100)")
     parser.add_argument("--clear", action="store_true", help="remove the tare instead")
     parser.add_argument("--save", action="store_true",
