@@ -209,3 +209,17 @@ def test_a_device_restart_ends_the_log_with_what_came_before(tmp_path, capsys, m
     assert "the device restarted during the log (its clock went back)" in err
     log = read_log(out, require_complete_rows=False)
     assert err.endswith(f"keeps the {len(log)} samples received before") and len(log) > 0
+
+
+def test_decode_stops_at_a_device_restart(tmp_path, capsys):
+    first, _ = capture_from_sim(0.2, raw=False)
+    second, _ = capture_from_sim(0.1, raw=False)             # a fresh boot: clock from 0
+    cap_file = tmp_path / "reboot.bin"
+    cap_file.write_bytes(first + second)
+    out = tmp_path / "r.csv"
+    assert main(["decode", str(cap_file), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "the device restarted at frame" in err and "the 51 samples after it" in err
+    assert "101 samples, 0 missing in 0 gaps" in err
+    log = read_log(out, require_complete_rows=False)
+    assert len(log) == 101 and log.t[-1] == 0.2

@@ -11,6 +11,7 @@ from ..bulkdecode import decode_capture
 from ..design import load
 from ..errors import UserError
 from ..logfile import LogWriter
+from ..protocol import Event, EventCode
 from ..wirescale import design_lsb
 from ._port import Progress, log_meta
 
@@ -58,28 +59,45 @@ def run(args: argparse.Namespace) -> int:
     else:
         raise UserError(f"{path}: the capture holds no device-info record, so the wrench scale "
                         "is unknown: pass --design DESIGN.toml")
-    has_counts = capture.has_counts
+    rows, restart_note = _before_restart(capture)
+    has_counts = capture.has_counts[:rows]
     meta["mode"] = ("wrench_raw" if has_counts.all() else "wrench" if not has_counts.any()
                     else "mixed")
-    wrench = capture.wrench(lsb)
-    theta = capture.theta(zero) if zero is not None and has_counts.any() else None
+    wrench = capture.wrench(lsb)[:rows]
+    theta = (capture.theta(zero)[:rows] if zero is not None and has_counts.any() else None)
     progress = Progress()
     with LogWriter(args.output, meta, optional=("seq", "status")) as log:
-        for start in range(0, len(capture), BLOCK_ROWS):
-            rows = slice(start, start + BLOCK_ROWS)
-            log.write_block(capture.time_us[rows] * 1e-6,
-                            None if theta is None else theta[rows], wrench[rows],
-                            seq=capture.seq[rows], status=capture.status[rows])
-            if len(capture) > BLOCK_ROWS:
-                progress.show(f"{min(start + BLOCK_ROWS, len(capture))} / {len(capture)} rows")
+        for start in range(0, rows, BLOCK_ROWS):
+            part = slice(start, min(start + BLOCK_ROWS, rows))
+            log.write_block(capture.time_us[part] * 1e-6,
+                            None if theta is None else theta[part], wrench[part],
+                            seq=capture.seq[part], status=capture.status[part])
+            if rows > BLOCK_ROWS:
+                progress.show(f"{part.stop} / {rows} rows")
     progress.end()
     s = capture.stats
-    print(f"{args.output}: {len(capture)} samples, {capture.lost} missing in {capture.gaps} "
+    steps = np.diff(capture.seq[:rows])
+    print(f"{args.output}: {rows} samples, {int((steps - 1).sum())} missing in "
+          f"{int((steps > 1).sum())} "
           f"gaps, {s.resyncs} damaged frames ({s.recovered} records recovered), "
           f"{s.bytes_discarded} bytes discarded, {capture.duplicates} duplicates"
           + ("" if theta is not None or zero is None else "; no raw counts: angles left empty")
-          + ("" if infos else "; no device info: angles left empty"), file=sys.stderr)
+          + ("" if infos else "; no device info: angles left empty") + restart_note,
+          file=sys.stderr)
     return 0
+
+
+def _before_restart(capture) -> tuple[int, str]:
+    """Rows before the first device restart that has data on both sides (a log's time must
+    increase; the device's clock starts again at a reboot)."""
+    boots = [i for i, r in capture.other if isinstance(r, Event) and r.code == EventCode.BOOT]
+    for frame in boots:
+        rows = int(np.searchsorted(capture.frame_index, frame))
+        if 0 < rows < len(capture):
+            return rows, (f"; the device restarted at frame {frame}: the {len(capture) - rows} "
+                          "samples after it are not in this log (decode the rest of the "
+                          "capture separately)")
+    return len(capture), ""
 
 
 def _zero_per_row(capture) -> np.ndarray:
