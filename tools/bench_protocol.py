@@ -9,11 +9,13 @@
 3. the incremental decoder fed as a serial port delivers, CPU per record and the share of one
    core at 2,000 records/s (floor: under 5 %); and the whole host path (Device reader thread,
    queue, a consumer reading blocks) at 2,000 records/s in real time through a pty;
-4. the AVR footprint of the protocol core (ATmega328P flash and static RAM), if avr-g++ exists.
+4. the AVR footprint of the protocol core (ATmega328P flash and static RAM), if avr-g++ exists;
+5. its cycle costs on the ATmega328P, run in the simavr emulator, if simavr exists.
 """
 from __future__ import annotations
 
 import argparse
+import re
 import shutil
 import subprocess
 import sys
@@ -187,6 +189,49 @@ def footprint() -> None:
           f"bytes, static RAM {data + bss} bytes (of which the Device object and a stub board)")
 
 
+def avr_cycles() -> None:
+    """Cycle costs on the emulated ATmega328P (firmware/native/avr_cycles.cpp in simavr)."""
+    gxx, simavr = shutil.which("avr-g++"), shutil.which("simavr")
+    if gxx is None or simavr is None:
+        print("5. AVR cycles: avr-g++ or simavr not installed (tools/bootstrap.sh installs them)")
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        elf = Path(tmp) / "cycles.elf"
+        subprocess.run([gxx, "-mmcu=atmega328p", "-DF_CPU=16000000L", "-Os", "-std=gnu++14",
+                        "-fno-exceptions", "-fno-rtti", "-fno-threadsafe-statics",
+                        "-ffunction-sections", "-fdata-sections", "-Wl,--gc-sections",
+                        f"-I{nativebuild.FIRMWARE_CORE}",
+                        str(nativebuild.FIRMWARE_NATIVE / "avr_cycles.cpp"),
+                        *map(str, nativebuild.core_sources()), "-o", str(elf)], check=True)
+        # simavr prints the UART on stderr; the program then idles forever: stop it.
+        proc = subprocess.Popen([simavr, "-m", "atmega328p", "-f", "16000000", str(elf)],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        guard = threading.Timer(20.0, proc.kill)
+        guard.start()
+        line = ""
+        for text in proc.stderr:
+            if "stopped" in text:
+                line = text
+                break
+        proc.kill()
+        proc.wait()
+        guard.cancel()
+    line = re.sub(r"\x1b\[[0-9;]*m", "", line)            # simavr colours the UART text
+    figures = {k: int(v) for k, v in re.findall(r"([a-z_]+) (\d+)", line)}
+    if figures.get("mode") != 2 or figures.get("tare") != 1:
+        print(f"5. AVR cycles: unexpected output {line!r}")
+        return
+    us = {k: v / 16 for k, v in figures.items()}
+    print("5. AVR cycles (ATmega328P at 16 MHz, emulated; per call):")
+    print(f"   onSample, stopped {figures['stopped']} ({us['stopped']:.0f} us); streaming wrench "
+          f"{figures['wrench']} ({us['wrench']:.0f} us); wrench+raw {figures['raw']} "
+          f"({us['raw']:.0f} us); wrench+raw with tare {figures['raw_tared']} "
+          f"({us['raw_tared']:.0f} us)")
+    print(f"   commands (the byte that completes the frame): start {figures['start']}, "
+          f"get_info {figures['get_info']} ({us['get_info']:.0f} us, a 128-byte record), "
+          f"get_telemetry {figures['get_telemetry']}; begin {figures['begin']}")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--records", type=int, default=2_000_000,
@@ -201,6 +246,7 @@ def main() -> int:
     incremental(data)
     host_path()
     footprint()
+    avr_cycles()
     return 0
 
 

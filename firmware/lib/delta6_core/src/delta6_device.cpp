@@ -15,7 +15,13 @@ const uint8_t kConfigLayout = 1;
 const uint16_t kCountsPerTurn = 16384;
 const float kCountsPerRad = 16384.0f / 6.28318530718f;
 
-bool isFinite(float x) { return x - x == 0.0f; }  // false for NaN and +-inf
+// False for NaN and +-inf: an all-ones exponent. A bit test costs a few AVR cycles where a
+// float subtraction and comparison cost about 140.
+bool isFinite(float x) {
+  uint32_t bits;
+  memcpy(&bits, &x, 4);
+  return (bits & 0x7F800000UL) != 0x7F800000UL;
+}
 
 }  // namespace
 
@@ -562,18 +568,18 @@ void Device::onSample(const Sample& s) {
   if (!valid) status |= kStatusWrenchInvalid;
 
   if (averaging_) accumulate(s, status);
-
-  int16_t wrench[6];
-  bool clipped = false;
-  for (uint8_t i = 0; i < 6; ++i) {
-    const float w = config_.tare_active ? s.wrench[i] - config_.tare[i] : s.wrench[i];
-    wrench[i] = valid ? quantize(w, inverse_lsb_[i], &clipped) : kInvalidValue;
-  }
-  if (clipped) status |= kStatusOverrange;
   last_status_ = status;
 
   service();
   if (streaming_) {
+    // Quantised only when sent: about 400 AVR cycles per axis saved while stopped.
+    int16_t wrench[6];
+    bool clipped = false;
+    for (uint8_t i = 0; i < 6; ++i) {
+      const float w = config_.tare_active ? s.wrench[i] - config_.tare[i] : s.wrench[i];
+      wrench[i] = valid ? quantize(w, inverse_lsb_[i], &clipped) : kInvalidValue;
+    }
+    if (clipped) status |= kStatusOverrange;
     sendData(s, static_cast<uint16_t>(status | persistentStatus()), wrench);
     if (s.time_us - last_telemetry_us_ >= kTelemetryPeriodUs) {
       last_telemetry_us_ = s.time_us;
