@@ -327,6 +327,7 @@ def test_overrange_and_joint_limit(bench):
     assert all(r.status & P.Status.OVERRANGE for r in records)
     assert all(P.MAX_VALUE in map(abs, r.wrench) for r in records)
     assert not any(r.status & P.Status.JOINT_LIMIT for r in records)
+    assert bench.answer(bench.send(C.GET_TELEMETRY)).status & P.Status.OVERRANGE
     bench.sim.motion = Motion.static([design.joint_limit_rad + 0.002, 0, 0, 0, 0, 0])
     records = data(bench.run(0.05))
     assert all(r.status & P.Status.JOINT_LIMIT for r in records)

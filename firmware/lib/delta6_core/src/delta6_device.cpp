@@ -580,6 +580,7 @@ void Device::onSample(const Sample& s) {
       wrench[i] = valid ? quantize(w, inverse_lsb_[i], &clipped) : kInvalidValue;
     }
     if (clipped) status |= kStatusOverrange;
+    last_status_ = status;
     sendData(s, static_cast<uint16_t>(status | persistentStatus()), wrench);
     if (s.time_us - last_telemetry_us_ >= kTelemetryPeriodUs) {
       last_telemetry_us_ = s.time_us;
