@@ -191,6 +191,15 @@ def test_rejections_name_the_reason():
             dev.start(1000)
 
 
+def test_a_device_can_be_reopened():
+    dev = Device("delta6sim://")
+    for _ in range(2):
+        with dev:
+            dev.start(500)
+            assert len(take(dev, 10)) == 10
+        assert repr(dev) == "Device('delta6sim://', closed)"
+
+
 def test_unopenable_port_and_idle_stream():
     with pytest.raises(DeviceError, match="cannot open /dev/delta6-no-such-port"):
         Device("/dev/delta6-no-such-port").open()

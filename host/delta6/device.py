@@ -193,6 +193,13 @@ class Device:
     # -- lifetime ----------------------------------------------------------------------
 
     def open(self) -> "Device":
+        if self._serial is not None:
+            return self
+        self._stop.clear()
+        self._failure = None
+        self._decoder = StreamDecoder()          # every session counts afresh
+        self._tracker = SequenceTracker()
+        self._health = Health(decoder=self._decoder.stats)
         try:
             self._serial = serial.serial_for_url(self.port, baudrate=self.baud, timeout=0.05,
                                                  write_timeout=2.0)
@@ -246,7 +253,7 @@ class Device:
             self._capture = None
 
     def __enter__(self) -> "Device":
-        return self.open() if self._serial is None else self
+        return self.open()
 
     def __exit__(self, *exc) -> None:
         self.close()
