@@ -3,7 +3,6 @@ avr-gcc 5.4, fits the ATmega328P comfortably, and survives a sanitizer-instrumen
 whose output the host decodes without a single bad frame."""
 from __future__ import annotations
 
-import shutil
 import subprocess
 
 import pytest
@@ -12,40 +11,26 @@ from delta6 import nativebuild
 from delta6.decoder import StreamDecoder
 from delta6.protocol import WrenchRecord
 
-AVR_GXX = shutil.which("avr-g++")
-AVR_FLAGS = ["-Os", "-std=gnu++14", "-Wall", "-Wextra", "-Werror", "-fno-exceptions",
-             "-fno-rtti", "-fno-threadsafe-statics", "-ffunction-sections", "-fdata-sections"]
 #: Budgets on the ATmega328P (32 KB flash, 2 KB RAM) for the whole protocol core, float
 #: library included; the solver and the board layer need the rest.
 FLASH_BUDGET = 12 * 1024
 RAM_BUDGET = 640
-needs_avr = pytest.mark.skipif(AVR_GXX is None, reason="avr-g++ missing: run tools/bootstrap.sh")
+needs_avr = pytest.mark.skipif(nativebuild.AVR_CXX is None,
+                               reason="avr-g++ missing: run tools/bootstrap.sh")
 
 
 @needs_avr
 @pytest.mark.parametrize("mcu", ["atmega328p", "avrxmega3"])
 def test_core_compiles_for_the_avr(tmp_path, mcu):
     for src in nativebuild.core_sources():
-        proc = subprocess.run([AVR_GXX, f"-mmcu={mcu}", *AVR_FLAGS, "-c", str(src), "-o",
-                               str(tmp_path / (src.stem + ".o"))], capture_output=True, text=True)
-        assert proc.returncode == 0, proc.stderr
-
-
-def avr_footprint(out_dir) -> dict:
-    elf = out_dir / "footprint.elf"
-    cmd = [AVR_GXX, "-mmcu=atmega328p", *AVR_FLAGS, "-Wl,--gc-sections",
-           f"-I{nativebuild.FIRMWARE_CORE}", str(nativebuild.FIRMWARE_NATIVE / "avr_footprint.cpp"),
-           *map(str, nativebuild.core_sources()), "-o", str(elf)]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stderr
-    size = subprocess.run(["avr-size", str(elf)], capture_output=True, text=True, check=True)
-    text, data, bss = map(int, size.stdout.splitlines()[1].split()[:3])
-    return {"flash": text + data, "ram": data + bss}
+        nativebuild.build_avr([src], tmp_path / (src.stem + ".o"), mcu=mcu, link=False)
 
 
 @needs_avr
 def test_core_fits_the_atmega328p(tmp_path):
-    fp = avr_footprint(tmp_path)
+    elf = nativebuild.build_avr([nativebuild.FIRMWARE_NATIVE / "avr_footprint.cpp",
+                                 *nativebuild.core_sources()], tmp_path / "footprint.elf")
+    fp = nativebuild.avr_size(elf)
     assert fp["flash"] <= FLASH_BUDGET, fp
     assert fp["ram"] <= RAM_BUDGET, fp
 

@@ -172,37 +172,26 @@ def host_path(seconds: float = 3.0, rate: int = 2000) -> None:
 
 
 def footprint() -> None:
-    gxx = shutil.which("avr-g++")
-    if gxx is None:
+    if nativebuild.AVR_CXX is None:
         print("4. AVR footprint: avr-g++ not installed (tools/bootstrap.sh installs it)")
         return
     with tempfile.TemporaryDirectory() as tmp:
-        elf = Path(tmp) / "fp.elf"
-        subprocess.run([gxx, "-mmcu=atmega328p", "-Os", "-std=gnu++14", "-fno-exceptions",
-                        "-fno-rtti", "-fno-threadsafe-statics", "-ffunction-sections",
-                        "-fdata-sections", "-Wl,--gc-sections", f"-I{nativebuild.FIRMWARE_CORE}",
-                        str(nativebuild.FIRMWARE_NATIVE / "avr_footprint.cpp"),
-                        *map(str, nativebuild.core_sources()), "-o", str(elf)], check=True)
-        out = subprocess.run(["avr-size", str(elf)], capture_output=True, text=True, check=True)
-        text, data, bss = map(int, out.stdout.splitlines()[1].split()[:3])
-    print(f"4. AVR footprint (ATmega328P, -Os, float library included): flash {text + data} "
-          f"bytes, static RAM {data + bss} bytes (of which the Device object and a stub board)")
+        elf = nativebuild.build_avr([nativebuild.FIRMWARE_NATIVE / "avr_footprint.cpp",
+                                     *nativebuild.core_sources()], Path(tmp) / "fp.elf")
+        size = nativebuild.avr_size(elf)
+    print(f"4. AVR footprint (ATmega328P, -Os, float library included): flash {size['flash']} "
+          f"bytes, static RAM {size['ram']} bytes (of which the Device object and a stub board)")
 
 
 def avr_cycles() -> None:
     """Cycle costs on the emulated ATmega328P (firmware/native/avr_cycles.cpp in simavr)."""
-    gxx, simavr = shutil.which("avr-g++"), shutil.which("simavr")
-    if gxx is None or simavr is None:
+    simavr = shutil.which("simavr")
+    if nativebuild.AVR_CXX is None or simavr is None:
         print("5. AVR cycles: avr-g++ or simavr not installed (tools/bootstrap.sh installs them)")
         return
     with tempfile.TemporaryDirectory() as tmp:
-        elf = Path(tmp) / "cycles.elf"
-        subprocess.run([gxx, "-mmcu=atmega328p", "-DF_CPU=16000000L", "-Os", "-std=gnu++14",
-                        "-fno-exceptions", "-fno-rtti", "-fno-threadsafe-statics",
-                        "-ffunction-sections", "-fdata-sections", "-Wl,--gc-sections",
-                        f"-I{nativebuild.FIRMWARE_CORE}",
-                        str(nativebuild.FIRMWARE_NATIVE / "avr_cycles.cpp"),
-                        *map(str, nativebuild.core_sources()), "-o", str(elf)], check=True)
+        elf = nativebuild.build_avr([nativebuild.FIRMWARE_NATIVE / "avr_cycles.cpp",
+                                     *nativebuild.core_sources()], Path(tmp) / "cycles.elf")
         # simavr prints the UART on stderr; the program then idles forever: stop it.
         proc = subprocess.Popen([simavr, "-m", "atmega328p", "-f", "16000000", str(elf)],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
