@@ -39,19 +39,19 @@ inline float float_of(uint32_t u) {
     return x;
 }
 
-// x * 2^k, exact, for |k| small: adds k to the exponent instead of calling the float
-// multiply (about 150 cycles on the AVR). Zero, subnormal results and overflow fall back
-// to the multiply, which handles them correctly.
+// x * 2^k for k = +-1, +-2: adds k to the exponent field (in the upper 16 bits) instead of
+// calling the float multiply. Zero, subnormal, infinite and NaN inputs, and results that
+// would leave the normal range, fall back to the multiply, which handles them correctly.
 inline float scale2(float x, int8_t k) {
-    uint32_t u = bits_of(x);
-    int16_t e = static_cast<int16_t>((u >> 23) & 0xFFu);
-    int16_t ne = static_cast<int16_t>(e + k);
-    if (e == 0 || e == 0xFF || ne <= 0 || ne >= 0xFF) {
-        return k >= 0 ? x * static_cast<float>(1L << k)
-                      : x / static_cast<float>(1L << -k);
+    const uint32_t u = bits_of(x);
+    const uint16_t hi = static_cast<uint16_t>(u >> 16);
+    const int16_t exponent = static_cast<int16_t>(hi & 0x7F80u);  // in units of 0x80
+    const int16_t shifted = static_cast<int16_t>(exponent + k * 0x80);
+    if (exponent == 0 || exponent == 0x7F80 || shifted <= 0 || shifted >= 0x7F80) {
+        return x * (k >= 0 ? static_cast<float>(1 << k) : 1.0f / static_cast<float>(1 << -k));
     }
-    u = (u & ~(0xFFul << 23)) | (static_cast<uint32_t>(ne) << 23);
-    return float_of(u);
+    const uint16_t new_hi = static_cast<uint16_t>(hi + k * 0x80);
+    return float_of((static_cast<uint32_t>(new_hi) << 16) | (u & 0xFFFFu));
 }
 
 // avr-libc maps sqrtf/sinf/cosf onto its 32-bit double functions; these keep every
@@ -60,31 +60,34 @@ inline float sqrt32(float x) { return static_cast<float>(sqrtf(x)); }
 inline float sin32(float x) { return static_cast<float>(sinf(x)); }
 inline float cos32(float x) { return static_cast<float>(cosf(x)); }
 
+// x >= bound for a positive finite bound, NaN and +inf excluded: finite non-negative floats
+// order like their bit patterns, so this is an integer compare (no float library call).
+inline bool at_least(float x, float bound) {
+    const int32_t bx = static_cast<int32_t>(bits_of(x));
+    return bx >= static_cast<int32_t>(bits_of(bound)) && bx < 0x7F800000L;
+}
+
 // True unless x is NaN or +-infinity (exponent all ones): an integer test, no float compare.
 inline bool is_finite(float x) { return (bits_of(x) & 0x7F800000ul) != 0x7F800000ul; }
 
 inline float absf(float x) { return float_of(bits_of(x) & 0x7FFFFFFFul); }
 
 // cos and sin of an angle given in encoder counts, by angle addition from two tables:
-// angle = q + l with q a multiple of the coarse step (pairs a*cos q, a*sin q, a a constant)
-// and l = 0..step-1 counts (pairs cos l, sin l). Exact to float rounding; 4 multiplies.
-struct CosSin {
-    float c;
-    float s;
-};
-
-inline CosSin table_cos_sin(const float* coarse, const float* fine, uint16_t biased_count,
-                            uint8_t step_shift) {
-    uint16_t j = static_cast<uint16_t>(biased_count >> step_shift);
-    uint16_t l = static_cast<uint16_t>(biased_count & ((1u << step_shift) - 1u));
-    float cq = flash_float(coarse + 2 * j);
-    float sq = flash_float(coarse + 2 * j + 1);
-    float cl = flash_float(fine + 2 * l);
-    float sl = flash_float(fine + 2 * l + 1);
-    CosSin out;
-    out.c = cq * cl - sq * sl;
-    out.s = sq * cl + cq * sl;
-    return out;
+// the angle is q + l with q a multiple of 64 counts (coarse pairs a cos q, a sin q, for a
+// constant a) and l = 0..63 counts (fine pairs cos l, sin l). ``biased`` is the count plus
+// a multiple of 64 that makes it non-negative (the coarse table starts there). Exact to
+// float rounding; 4 multiplies.
+inline void table_cos_sin(const float* coarse, const float* fine, uint16_t biased,
+                          float* cos_out, float* sin_out) {
+    // biased >> 6 as the high byte of biased << 2: avr-gcc shifts by 6 in a loop otherwise.
+    const uint8_t j = static_cast<uint8_t>(static_cast<uint16_t>(biased << 2) >> 8);
+    const uint8_t l = static_cast<uint8_t>(biased & 63u);
+    const float* cq = coarse + 2 * j;
+    const float* cl = fine + 2 * l;
+    const float c_q = flash_float(cq), s_q = flash_float(cq + 1);
+    const float c_l = flash_float(cl), s_l = flash_float(cl + 1);
+    *cos_out = c_q * c_l - s_q * s_l;
+    *sin_out = s_q * c_l + c_q * s_l;
 }
 
 }  // namespace fastmath
