@@ -37,9 +37,9 @@ class SolverConstants:
     min_area: float             # m^2
     min_height_sq: float        # m^2
     min_lever: float            # m^2
-    branch_table: np.ndarray    # float32 (n, 2): la cos(off + q), la sin(off + q)
-    joint_table: np.ndarray     # float32 (n, 2): cos q, sin q
-    fine_table: np.ndarray      # float32 (TABLE_STEP, 2): cos l, sin l
+    branch_table: np.ndarray    # float32 (n, 3): la (cos, sin, cos + sin)(off + q)
+    joint_table: np.ndarray     # float32 (n, 3): cos q, sin q, cos q + sin q
+    fine_table: np.ndarray      # float32 (TABLE_STEP, 3): cos l, sin l - cos l, cos l + sin l
 
     @property
     def scalars(self) -> dict:
@@ -75,9 +75,16 @@ def limit_counts(design: Design) -> int:
     return n
 
 
-def _pairs(angles: np.ndarray, scale: float = 1.0, offset: float = 0.0) -> np.ndarray:
-    return np.stack([scale * np.cos(offset + angles), scale * np.sin(offset + angles)],
-                    axis=-1).astype(np.float32)
+def _coarse(angles: np.ndarray, scale: float = 1.0, offset: float = 0.0) -> np.ndarray:
+    """Rows (a cos, a sin, a (cos + sin)) of offset + angles: see table_cos_sin."""
+    c, s = scale * np.cos(offset + angles), scale * np.sin(offset + angles)
+    return np.stack([c, s, c + s], axis=-1).astype(np.float32)
+
+
+def _fine(angles: np.ndarray) -> np.ndarray:
+    """Rows (cos, sin - cos, cos + sin): see table_cos_sin."""
+    c, s = np.cos(angles), np.sin(angles)
+    return np.stack([c, s - c, c + s], axis=-1).astype(np.float32)
 
 
 def solver_constants(design: Design) -> SolverConstants:
@@ -109,7 +116,7 @@ def solver_constants(design: Design) -> SolverConstants:
         min_area=f32(3.0 * r_min ** 2 / GUARD_FACTOR),
         min_height_sq=f32((MIN_HEIGHT_FRACTION * lb / GUARD_FACTOR) ** 2),
         min_lever=f32(MIN_LEVER_FRACTION * la * lb / GUARD_FACTOR),
-        branch_table=_pairs(coarse, la, off),
-        joint_table=_pairs(coarse),
-        fine_table=_pairs(fine),
+        branch_table=_coarse(coarse, la, off),
+        joint_table=_coarse(coarse),
+        fine_table=_fine(fine),
     )

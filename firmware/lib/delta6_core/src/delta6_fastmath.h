@@ -73,21 +73,22 @@ inline bool is_finite(float x) { return (bits_of(x) & 0x7F800000ul) != 0x7F80000
 inline float absf(float x) { return float_of(bits_of(x) & 0x7FFFFFFFul); }
 
 // cos and sin of an angle given in encoder counts, by angle addition from two tables:
-// the angle is q + l with q a multiple of 64 counts (coarse pairs a cos q, a sin q, for a
-// constant a) and l = 0..63 counts (fine pairs cos l, sin l). ``biased`` is the count plus
-// a multiple of 64 that makes it non-negative (the coarse table starts there). Exact to
-// float rounding; 4 multiplies.
+// the angle is q + l with q a multiple of 64 counts and l = 0..63 counts. ``biased`` is the
+// count plus a multiple of 64 that makes it non-negative (the coarse table starts there).
+// Coarse triples: a cos q, a sin q, a (cos q + sin q) for a constant a; fine triples:
+// cos l, sin l - cos l, cos l + sin l. With those sums precomputed the complex product
+// (cos q + i sin q)(cos l + i sin l) takes 3 multiplies and 2 additions (Gauss), exact to
+// a few float roundings.
 inline void table_cos_sin(const float* coarse, const float* fine, uint16_t biased,
                           float* cos_out, float* sin_out) {
     // biased >> 6 as the high byte of biased << 2: avr-gcc shifts by 6 in a loop otherwise.
     const uint8_t j = static_cast<uint8_t>(static_cast<uint16_t>(biased << 2) >> 8);
     const uint8_t l = static_cast<uint8_t>(biased & 63u);
-    const float* cq = coarse + 2 * j;
-    const float* cl = fine + 2 * l;
-    const float c_q = flash_float(cq), s_q = flash_float(cq + 1);
-    const float c_l = flash_float(cl), s_l = flash_float(cl + 1);
-    *cos_out = c_q * c_l - s_q * s_l;
-    *sin_out = s_q * c_l + c_q * s_l;
+    const float* cq = coarse + 3 * j;
+    const float* cl = fine + 3 * l;
+    const float k1 = flash_float(cl) * flash_float(cq + 2);
+    *cos_out = k1 - flash_float(cq + 1) * flash_float(cl + 2);
+    *sin_out = k1 + flash_float(cq) * flash_float(cl + 1);
 }
 
 }  // namespace fastmath
