@@ -80,6 +80,19 @@ class NativeSolver:
     def solve_radians(self, theta, constants: CConstants | None = None):
         return self._call(self.lib.d6_solve_radians, theta, np.float32, constants)
 
+    def table_trig(self, delta, branch: bool):
+        """(cos, sin) from the design's tables for each count in ``delta`` (1-D)."""
+        delta = np.ascontiguousarray(delta, dtype=np.int16)
+        c = np.empty(len(delta), dtype=np.float32)
+        s = np.empty(len(delta), dtype=np.float32)
+        self.lib.d6_table_trig(ctypes.c_int(int(branch)), ctypes.c_size_t(len(delta)),
+                               ctypes.c_void_p(delta.ctypes.data), ctypes.c_void_p(c.ctypes.data),
+                               ctypes.c_void_p(s.ctypes.data))
+        return c, s
+
+    def wrap_count_delta(self, raw: int, zero: int) -> int:
+        return self.lib.d6_wrap_count_delta(raw, zero)
+
     def design_name(self) -> str:
         buf = ctypes.create_string_buffer(32)
         self.lib.d6_design_name(buf, ctypes.c_size_t(len(buf)))

@@ -1,14 +1,19 @@
 // Solver benchmark and self-check sketch: runs delta6::solve_counts over a fixed, spread-out
-// set of encoder deltas inside (and at the corners of) the design's joint box and reports
-// every input, status and wrench over the serial port, so a host can check what the AVR
-// computed against the Python reference. tools/bench_solver_avr.py runs it in simavr.
+// set of encoder deltas in the design's joint box (rest, the 64 corners, then pseudo-random
+// points) and reports every input, status and wrench over the serial port, so a host can
+// check what the AVR computed against the Python reference (tools/bench_solver_avr.py runs
+// it in simavr; delta6.solverbench decodes it).
 //
 // Timing: each solve is bracketed by writes of 1 and 2 to GPIOR0 with interrupts off; the
-// simulator timestamps those writes (tools/simavr/delta6_sim.c). After the last frame the
-// sketch writes 0xFF to GPIOR0 (end of run) and idles.
+// simulator timestamps those writes (tools/simavr/delta6_sim.c). A 3/4 pair measures the
+// cost of the markers themselves. After the last frame the sketch writes 0xFF (end of run).
 //
-// Frame per solve, little-endian: 0xD6 0x5A, int16 delta[6], uint8 status, float wrench[6].
+// Frames, little-endian, each starting with 0xD6 and a type byte:
+//   'I'  uint32 design hash, uint16 number of solves, char name[24]      (first)
+//   'S'  int16 delta[6], uint8 status, float wrench[6]                  (one per solve)
+//   'E'  uint16 peak stack bytes (high-water mark), uint16 static RAM   (last)
 #include <Arduino.h>
+#include <string.h>
 
 #include "delta6_solver.h"
 #include "generated/delta6_design.h"
@@ -20,6 +25,14 @@
 #define DELTA6_BENCH_BAUD 115200
 #endif
 
+extern char __bss_end;  // end of static RAM (avr-libc linker scripts)
+
+#if defined(RAMSTART)
+#define DELTA6_RAM_START RAMSTART
+#else
+#define DELTA6_RAM_START INTERNAL_SRAM_START  // megaAVR 0-series headers
+#endif
+
 namespace {
 
 constexpr uint8_t kMarkStart = 1;
@@ -27,6 +40,7 @@ constexpr uint8_t kMarkStop = 2;
 constexpr uint8_t kMarkCalibrateStart = 3;
 constexpr uint8_t kMarkCalibrateStop = 4;
 constexpr uint8_t kMarkEnd = 0xFF;
+constexpr uint8_t kStackPaint = 0xA5;
 
 // The memory clobbers keep the compiler from moving the solver's loads and stores (and so
 // its work, which sits between them) across a marker.
@@ -40,15 +54,29 @@ inline void mark(uint8_t value) {
     asm volatile("" ::: "memory");
 }
 
-uint16_t lcg_state = 0xACE1u;
+// Fill the free RAM between static data and the current stack with a pattern; the lowest
+// overwritten byte afterwards gives the deepest stack use.
+void paint_stack() {
+    char* p = &__bss_end;
+    char* limit = reinterpret_cast<char*>(SP) - 16;  // stay clear of this function's frame
+    while (p < limit) *p++ = static_cast<char>(kStackPaint);
+}
 
-// Uniform-ish in [-limit, limit] from a 16-bit xorshift (deterministic run to run).
+uint16_t peak_stack_bytes() {
+    const char* p = &__bss_end;
+    while (p < reinterpret_cast<const char*>(RAMEND) && *p == static_cast<char>(kStackPaint)) ++p;
+    return static_cast<uint16_t>(RAMEND - reinterpret_cast<uint16_t>(p) + 1);
+}
+
+uint16_t xorshift_state = 0xACE1u;
+
+// Uniform-ish in [-limit, limit] from a 16-bit xorshift (the same points on every run).
 int16_t random_delta(int16_t limit) {
-    lcg_state ^= static_cast<uint16_t>(lcg_state << 7);
-    lcg_state ^= static_cast<uint16_t>(lcg_state >> 9);
-    lcg_state ^= static_cast<uint16_t>(lcg_state << 8);
+    xorshift_state ^= static_cast<uint16_t>(xorshift_state << 7);
+    xorshift_state ^= static_cast<uint16_t>(xorshift_state >> 9);
+    xorshift_state ^= static_cast<uint16_t>(xorshift_state << 8);
     const uint32_t span = 2u * static_cast<uint32_t>(limit) + 1u;
-    return static_cast<int16_t>(static_cast<int32_t>((lcg_state * span) >> 16) - limit);
+    return static_cast<int16_t>(static_cast<int32_t>((xorshift_state * span) >> 16) - limit);
 }
 
 // Case i: 0 = rest, 1..64 = the 64 corners of the box, then random points.
@@ -65,19 +93,50 @@ void make_case(uint16_t i, int16_t delta[6]) {
     }
 }
 
-void send_frame(const int16_t delta[6], uint8_t status, const float wrench[6]) {
-    const uint8_t sync[2] = {0xD6, 0x5A};
-    Serial.write(sync, sizeof sync);
-    Serial.write(reinterpret_cast<const uint8_t*>(delta), 6 * sizeof(int16_t));
-    Serial.write(status);
-    Serial.write(reinterpret_cast<const uint8_t*>(wrench), 6 * sizeof(float));
+void send_header(char type) {
+    const uint8_t head[2] = {0xD6, static_cast<uint8_t>(type)};
+    Serial.write(head, sizeof head);
+}
+
+void send_bytes(const void* data, size_t size) {
+    Serial.write(static_cast<const uint8_t*>(data), size);
+}
+
+void send_info() {
+    char name[24];
+    memset(name, 0, sizeof name);
+    strncpy(name, delta6::design::kName, sizeof name - 1);
+    const uint32_t hash = delta6::design::kHash;
+    const uint16_t solves = DELTA6_BENCH_SOLVES;
+    send_header('I');
+    send_bytes(&hash, sizeof hash);
+    send_bytes(&solves, sizeof solves);
+    send_bytes(name, sizeof name);
+}
+
+void send_solve(const int16_t delta[6], uint8_t status, const float wrench[6]) {
+    send_header('S');
+    send_bytes(delta, 6 * sizeof(int16_t));
+    send_bytes(&status, 1);
+    send_bytes(wrench, 6 * sizeof(float));
     Serial.flush();  // nothing may interrupt the next timed solve
+}
+
+void send_end(uint16_t peak_stack) {
+    const uint16_t static_ram = static_cast<uint16_t>(reinterpret_cast<uint16_t>(&__bss_end) -
+                                                      DELTA6_RAM_START);
+    send_header('E');
+    send_bytes(&peak_stack, sizeof peak_stack);
+    send_bytes(&static_ram, sizeof static_ram);
+    Serial.flush();
 }
 
 }  // namespace
 
 void setup() {
+    paint_stack();
     Serial.begin(DELTA6_BENCH_BAUD);
+    send_info();
     uint8_t sreg = SREG;
     cli();
     mark(kMarkCalibrateStart);
@@ -90,11 +149,13 @@ void setup() {
         sreg = SREG;
         cli();
         mark(kMarkStart);
-        const uint8_t status = delta6::solve_counts(delta6::design::kSolverConstants, delta, wrench);
+        const uint8_t status =
+            delta6::solve_counts(delta6::design::kSolverConstants, delta, wrench);
         mark(kMarkStop);
         SREG = sreg;
-        send_frame(delta, status, wrench);
+        send_solve(delta, status, wrench);
     }
+    send_end(peak_stack_bytes());
     mark(kMarkEnd);
 }
 

@@ -191,13 +191,14 @@ def _define_flags(defines) -> list[str]:
 
 
 def build_image(name: str, sources, include_dirs=(), defines=(), *, board: Board = NANO,
-                arduino: bool = True, cxx_std: str = "gnu++14",
-                out_dir: Path | None = None) -> Image:
+                arduino: bool = True, cxx_std: str = "gnu++14", extra_flags=(),
+                link_flags=(), out_dir: Path | None = None) -> Image:
     """Compile ``sources`` (C++/C/asm) for ``board`` and link an ELF (+ Intel HEX), cached.
 
     ``include_dirs`` come first on the include path (put a design's generated-header
-    directory here to build for that design); ``defines`` are ``NAME`` or ``NAME=VALUE``.
-    With ``arduino`` the Arduino core is linked in and its headers are on the path.
+    directory here to build for that design); ``defines`` are ``NAME`` or ``NAME=VALUE``;
+    ``extra_flags`` go to every compile of ``sources``. With ``arduino`` the Arduino core is
+    linked in and its headers are on the path.
     Returns the image with its section sizes. Raises :class:`ToolchainMissing` or
     :class:`BuildError` with the failing command.
     """
@@ -210,10 +211,10 @@ def build_image(name: str, sources, include_dirs=(), defines=(), *, board: Board
     if arduino:
         core_flags = [*_board_defines(board), f"-I{ARDUINO_AVR / 'cores' / 'arduino'}",
                       f"-I{ARDUINO_AVR / 'variants' / board.variant}"]
-    flags = [*(f"-I{d}" for d in includes), *_define_flags(defines), *core_flags]
+    flags = [*(f"-I{d}" for d in includes), *_define_flags(defines), *core_flags, *extra_flags]
     cc = _tool("avr-gcc")
-    key = _digest([_compiler_version(cc), board.mcu, cxx_std, *flags, str(arduino)], sources,
-                  includes)
+    key = _digest([_compiler_version(cc), board.mcu, cxx_std, *flags, *link_flags, str(arduino)],
+                  sources, includes)
     out = Path(out_dir) if out_dir else BUILD_ROOT / f"{name}-{key}"
     elf = out / f"{name}.elf"
     hex_path = out / f"{name}.hex"
@@ -232,7 +233,7 @@ def build_image(name: str, sources, include_dirs=(), defines=(), *, board: Board
         objects.append(obj)
     _compile_all(jobs, f"compiling {name}")
     link = [cc, "-Os", "-g", "-flto", "-fuse-linker-plugin", "-Wl,--gc-sections",
-            f"-mmcu={board.mcu}", "-o", str(elf), *map(str, objects)]
+            f"-mmcu={board.mcu}", *link_flags, "-o", str(elf), *map(str, objects)]
     if core:
         link.append(str(core))
     link += [f"-L{out}", "-lm"]
@@ -249,8 +250,10 @@ def size_check(name: str, sources, include_dirs=(), defines=(), *,
     code: the image does not run, it only tells what the code costs on that instruction set).
     The sources must provide ``main``."""
     board = Board(f"bare-{mcu}", mcu, 20_000_000, "", "DELTA6_BARE", 0, 0)
+    # A bare instruction-set target has no device header (<avr/io.h> warns about that) and
+    # no start-up code: main is made the entry point so that --gc-sections keeps it.
     return build_image(name, sources, include_dirs, defines, board=board, arduino=False,
-                       cxx_std=cxx_std)
+                       cxx_std=cxx_std, extra_flags=("-Wno-cpp",), link_flags=("-Wl,-e,main",))
 
 
 _SECTION = re.compile(r"^(\.\w+)\s+(\d+)\s+\d+", re.M)

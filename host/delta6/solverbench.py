@@ -14,20 +14,34 @@ import numpy as np
 from . import avrbuild, avrsim
 
 BENCH_SOURCE = avrbuild.FIRMWARE / "bench" / "solver_bench.cpp"
+PROBE_SOURCE = avrbuild.FIRMWARE / "bench" / "solver_probe.cpp"
 SOLVER_SOURCES = (avrbuild.CORE_LIB / "delta6_solver.cpp",)
-FRAME = struct.Struct("<2s6hB6f")
-SYNC = b"\xd6\x5a"
+SYNC = 0xD6
+FRAMES = {  # type byte -> payload layout (little-endian, as the AVR stores it)
+    ord("I"): struct.Struct("<IH24s"),
+    ord("S"): struct.Struct("<6hB6f"),
+    ord("E"): struct.Struct("<HH"),
+}
 MARK_START, MARK_STOP, MARK_CAL_START, MARK_CAL_STOP = 1, 2, 3, 4
 #: The emulator's UART runs at 1 Mbaud (exact at 16 MHz with U2X) to keep runs short.
 SIM_BAUD = 1_000_000
 
 
 @dataclass
+class BenchReport:
+    design_name: str
+    design_hash: int
+    delta: np.ndarray        # (n, 6) int16 encoder deltas the AVR solved
+    status: np.ndarray       # (n,) uint8
+    wrench: np.ndarray       # (n, 6) float32 as the AVR computed it
+    peak_stack: int          # bytes, high-water mark of the whole sketch
+    static_ram: int          # bytes of .data + .bss as the AVR sees them
+
+
+@dataclass
 class BenchRun:
-    delta: np.ndarray      # (n, 6) int16 encoder deltas the AVR solved
-    status: np.ndarray     # (n,) uint8
-    wrench: np.ndarray     # (n, 6) float32 as the AVR computed it
-    cycles: np.ndarray     # (n,) cycles per solve (marker overhead removed)
+    report: BenchReport
+    cycles: np.ndarray       # (n,) cycles per solve (marker overhead removed)
     image: avrbuild.Image
 
 
@@ -41,27 +55,51 @@ def build_bench_image(include_dir: Path, *, name: str = "solver-bench", solves: 
         defines=[f"DELTA6_BENCH_SOLVES={solves}", f"DELTA6_BENCH_BAUD={baud}"])
 
 
-def decode_frames(data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Frames sent by the sketch -> (delta, status, wrench). Raises ValueError on garbage."""
-    if len(data) % FRAME.size:
-        raise ValueError(f"{len(data)} UART bytes is not a whole number of "
-                         f"{FRAME.size}-byte frames")
-    rows = [FRAME.unpack_from(data, off) for off in range(0, len(data), FRAME.size)]
-    if any(r[0] != SYNC for r in rows):
-        raise ValueError("frame without sync bytes in the UART stream")
-    delta = np.array([r[1:7] for r in rows], dtype=np.int16).reshape(-1, 6)
-    status = np.array([r[7] for r in rows], dtype=np.uint8)
-    wrench = np.array([r[8:14] for r in rows], dtype=np.float32).reshape(-1, 6)
-    return delta, status, wrench
+def build_probe(include_dir: Path, mcu: str, name: str = "solver-probe") -> avrbuild.Image:
+    """The solver with nothing but a bare ``main`` around it (no Arduino core): what the
+    solver and the float library cost in flash and static RAM on ``mcu``."""
+    return avrbuild.size_check(f"{name}-{mcu}", [PROBE_SOURCE, *SOLVER_SOURCES],
+                               include_dirs=[include_dir, avrbuild.CORE_LIB], mcu=mcu,
+                               cxx_std="gnu++11")
+
+
+def decode(data: bytes) -> BenchReport:
+    """The sketch's frames -> report. Raises ValueError on anything unexpected."""
+    frames: dict[int, list[tuple]] = {t: [] for t in FRAMES}
+    pos = 0
+    while pos < len(data):
+        if pos + 2 > len(data) or data[pos] != SYNC or data[pos + 1] not in FRAMES:
+            raise ValueError(f"bad frame header at byte {pos} of {len(data)}")
+        layout = FRAMES[data[pos + 1]]
+        if pos + 2 + layout.size > len(data):
+            raise ValueError(f"truncated frame at byte {pos}")
+        frames[data[pos + 1]].append(layout.unpack_from(data, pos + 2))
+        pos += 2 + layout.size
+    info, solves, end = frames[ord("I")], frames[ord("S")], frames[ord("E")]
+    if len(info) != 1 or len(end) != 1:
+        raise ValueError("expected one info frame and one end frame")
+    design_hash, count, name = info[0]
+    if len(solves) != count:
+        raise ValueError(f"the AVR announced {count} solves and sent {len(solves)}")
+    rows = np.array([r[:7] for r in solves], dtype=np.int64).reshape(-1, 7)
+    return BenchReport(
+        design_name=name.rstrip(b"\0").decode("ascii", "replace"), design_hash=design_hash,
+        delta=rows[:, :6].astype(np.int16), status=rows[:, 6].astype(np.uint8),
+        wrench=np.array([r[7:] for r in solves], dtype=np.float32).reshape(-1, 6),
+        peak_stack=end[0][0], static_ram=end[0][1])
 
 
 def run_bench(include_dir: Path, *, solves: int = 512, name: str = "solver-bench-sim") -> BenchRun:
+    """Build the benchmark for the design under ``include_dir``, run it in simavr, decode."""
     image = build_bench_image(include_dir, name=name, solves=solves, baud=SIM_BAUD)
     result = avrsim.run(image.elf, mcu=image.mcu)
-    delta, status, wrench = decode_frames(result.uart)
+    try:
+        report = decode(result.uart)
+    except ValueError as exc:
+        raise avrsim.SimulatorError(f"unreadable benchmark output: {exc}") from None
     spans = np.array(result.spans(MARK_START, MARK_STOP), dtype=np.int64)
     overhead = result.spans(MARK_CAL_START, MARK_CAL_STOP)
-    if len(spans) != solves or len(delta) != solves or len(overhead) != 1:
-        raise avrsim.SimulatorError(f"benchmark reported {len(delta)} frames and {len(spans)} "
-                                    f"timed solves, expected {solves}")
-    return BenchRun(delta, status, wrench, spans - overhead[0], image)
+    if len(spans) != solves or len(overhead) != 1:
+        raise avrsim.SimulatorError(f"expected {solves} timed solves, the simulator saw "
+                                    f"{len(spans)}")
+    return BenchRun(report, spans - overhead[0], image)

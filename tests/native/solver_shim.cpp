@@ -4,6 +4,7 @@
 #include <stdint.h>
 #include <string.h>
 
+#include "delta6_fastmath.h"
 #include "delta6_solver.h"
 #include "generated/delta6_design.h"
 
@@ -31,6 +32,17 @@ void d6_solve_radians(const SolverConstants* c, size_t n, const float* theta, fl
                       uint8_t* status) {
     for (size_t i = 0; i < n; ++i) {
         status[i] = delta6::solve_radians(pick(c), theta + 6 * i, wrench + 6 * i);
+    }
+}
+
+// The table trigonometry alone (branch = 1: la cos/sin(theta_offset + q), else cos/sin q),
+// for the exhaustive check over every count of the joint box.
+void d6_table_trig(int branch, size_t n, const int16_t* delta, float* c, float* s) {
+    const SolverConstants& k = delta6::design::kSolverConstants;
+    for (size_t i = 0; i < n; ++i) {
+        const uint16_t biased = static_cast<uint16_t>(delta[i] + k.table_origin);
+        delta6::fastmath::table_cos_sin(branch ? k.branch_table : k.joint_table, k.fine_table,
+                                        biased, c + i, s + i);
     }
 }
 

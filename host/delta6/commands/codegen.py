@@ -91,10 +91,8 @@ def _write_if_changed(path: Path, text: str) -> None:
     try:
         if path.read_text(encoding="utf-8") == text:
             return
-    except FileNotFoundError:
-        pass
-    except OSError as exc:
-        raise UserError(f"cannot read {path}: {exc.strerror}") from None
+    except (OSError, UnicodeDecodeError):
+        pass  # missing or unreadable: writing it says what is wrong, if anything
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + ".partial")
