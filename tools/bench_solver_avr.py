@@ -6,6 +6,7 @@ and the worst error of what the AVR computed against the Python reference (% ful
     .venv/bin/python tools/bench_solver_avr.py                      # designs/delta6.toml
     .venv/bin/python tools/bench_solver_avr.py designs/*.toml       # every variant
     .venv/bin/python tools/bench_solver_avr.py --solves 2000 --csv build/bench.csv
+    .venv/bin/python tools/bench_solver_avr.py --stages             # + cycles per stage
 
 Exit status 1 if a requirement fails (more than 40,000 cycles per solve, an AVR result off by
 more than 0.05 % FS, or a solve that did not succeed inside the box); 2 on bad input.
@@ -38,12 +39,15 @@ def say(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
+def label_of(path: Path) -> str:
+    resolved = path.resolve()
+    return resolved.relative_to(ROOT).as_posix() if resolved.is_relative_to(ROOT) else path.name
+
+
 def include_dir_for(path: Path, design) -> Path:
     """The committed header for the baseline, a generated one under build/ for the others."""
     committed = avrbuild.COMMITTED_DESIGN_INCLUDE
-    label = path.resolve().relative_to(ROOT).as_posix() if path.resolve().is_relative_to(ROOT) \
-        else path.name
-    text = render(design, label)
+    text = render(design, label_of(path))
     if (committed / "generated" / "delta6_design.h").read_text() == text:
         return committed
     include = avrbuild.design_include_dir(design.name)
@@ -54,7 +58,7 @@ def include_dir_for(path: Path, design) -> Path:
     return include
 
 
-def bench_one(path: Path, solves: int, csv_rows: list | None) -> bool:
+def bench_one(path: Path, solves: int, csv_rows: list | None, stages: bool = False) -> bool:
     design = load(path)
     include = include_dir_for(path, design)
     say(f"[{design.name}] building the ATmega328P image and running {solves} solves in simavr ...")
@@ -80,7 +84,7 @@ def bench_one(path: Path, solves: int, csv_rows: list | None) -> bool:
     us = cyc / (F_CPU / 1e6)
     lines = [
         f"Delta6 wrench solver on the ATmega328P at 16 MHz (simavr), design '{rep.design_name}' "
-        f"({path}, hash 0x{rep.design_hash:08x})",
+        f"({label_of(path)}, hash 0x{rep.design_hash:08x})",
         f"  inputs        {solves} solves: rest, the 64 corners of the joint box, {n_random} "
         f"random points (|delta| <= {lim} counts)",
         f"  status        {int(ok.sum())} OK, {int((~ok).sum())} failed   [{verdict(status_ok)}]",
@@ -102,6 +106,14 @@ def bench_one(path: Path, solves: int, csv_rows: list | None) -> bool:
         f" static RAM {probe_328.sizes.ram} B; avrxmega3 (ATmega4809 instruction set) flash "
         f"{probe_x3.sizes.flash:,} B, static RAM {probe_x3.sizes.ram} B",
     ]
+    if stages:
+        say(f"[{design.name}] profile build with stage markers ...")
+        prof = solverbench.run_bench(include, solves=solves, name=f"bench-profile-{design.name}",
+                                     profile=True)
+        lines.append("  stages        mean cycles per stage (profile build: stage markers add "
+                     "a few cycles each)")
+        for label, spans in prof.stages.items():
+            lines.append(f"                {spans.mean():8,.0f}  {label}")
     print("\n".join(lines), flush=True)
     if csv_rows is not None:
         for i in range(len(cyc)):
@@ -116,6 +128,8 @@ def main(argv: list[str] | None = None) -> int:
                         default=[ROOT / "designs" / "delta6.toml"])
     parser.add_argument("--solves", type=int, default=512,
                         help="number of solves (>= 65: rest + 64 corners + random); default 512")
+    parser.add_argument("--stages", action="store_true",
+                        help="also build a profile image and print the cycles of each stage")
     parser.add_argument("--csv", type=Path, metavar="PATH",
                         help="also write every solve (inputs, status, cycles, AVR and reference "
                              "wrench) to a CSV file")
@@ -124,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--solves must be between 65 and 20000")
     rows = [] if args.csv else None
     try:
-        results = [bench_one(path, args.solves, rows) for path in args.designs]
+        results = [bench_one(path, args.solves, rows, args.stages) for path in args.designs]
     except UserError as exc:
         print(f"bench_solver_avr: error: {exc}", file=sys.stderr)
         return 2

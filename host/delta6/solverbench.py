@@ -23,6 +23,12 @@ FRAMES = {  # type byte -> payload layout (little-endian, as the AVR stores it)
     ord("E"): struct.Struct("<HH"),
 }
 MARK_START, MARK_STOP, MARK_CAL_START, MARK_CAL_STOP = 1, 2, 3, 4
+#: Stage markers of the profile build (firmware/bench/delta6_solver_profile_hooks.h), in
+#: order, with what the span ending at each covers.
+STAGES = ((11, "joint terms: table trig, torques"), (12, "kinematics: linear elimination"),
+          (13, "kinematics: quadratic, sqrt"), (14, "statics: levers, 3 divisions"),
+          (15, "statics: link force sum"), (16, "rotation into {E}"),
+          (MARK_STOP, "checks, output"))
 #: The emulator's UART runs at 1 Mbaud (exact at 16 MHz with U2X) to keep runs short.
 SIM_BAUD = 1_000_000
 
@@ -43,16 +49,20 @@ class BenchRun:
     report: BenchReport
     cycles: np.ndarray       # (n,) cycles per solve (marker overhead removed)
     image: avrbuild.Image
+    stages: dict[str, np.ndarray] | None = None   # profile build: cycles per stage
 
 
 def build_bench_image(include_dir: Path, *, name: str = "solver-bench", solves: int = 512,
-                      baud: int = 115200) -> avrbuild.Image:
+                      baud: int = 115200, profile: bool = False) -> avrbuild.Image:
     """The ATmega328P benchmark image for the design whose generated header lives under
-    ``include_dir``/generated/."""
-    return avrbuild.build_image(
-        name, [BENCH_SOURCE, *SOLVER_SOURCES],
-        include_dirs=[include_dir, avrbuild.CORE_LIB],
-        defines=[f"DELTA6_BENCH_SOLVES={solves}", f"DELTA6_BENCH_BAUD={baud}"])
+    ``include_dir``/generated/. ``profile`` adds the solver's stage markers."""
+    defines = [f"DELTA6_BENCH_SOLVES={solves}", f"DELTA6_BENCH_BAUD={baud}"]
+    includes = [include_dir, avrbuild.CORE_LIB]
+    if profile:
+        defines.append("DELTA6_SOLVER_PROFILE")
+        includes.append(BENCH_SOURCE.parent)
+    return avrbuild.build_image(name, [BENCH_SOURCE, *SOLVER_SOURCES], include_dirs=includes,
+                                defines=defines)
 
 
 def build_probe(include_dir: Path, mcu: str, name: str = "solver-probe") -> avrbuild.Image:
@@ -89,9 +99,13 @@ def decode(data: bytes) -> BenchReport:
         peak_stack=end[0][0], static_ram=end[0][1])
 
 
-def run_bench(include_dir: Path, *, solves: int = 512, name: str = "solver-bench-sim") -> BenchRun:
-    """Build the benchmark for the design under ``include_dir``, run it in simavr, decode."""
-    image = build_bench_image(include_dir, name=name, solves=solves, baud=SIM_BAUD)
+def run_bench(include_dir: Path, *, solves: int = 512, name: str = "solver-bench-sim",
+              profile: bool = False) -> BenchRun:
+    """Build the benchmark for the design under ``include_dir``, run it in simavr, decode.
+    With ``profile`` the solver carries stage markers (a few cycles each) and the run also
+    returns the cycles of each stage of every successful solve."""
+    image = build_bench_image(include_dir, name=name, solves=solves, baud=SIM_BAUD,
+                              profile=profile)
     result = avrsim.run(image.elf, mcu=image.mcu)
     try:
         report = decode(result.uart)
@@ -102,4 +116,21 @@ def run_bench(include_dir: Path, *, solves: int = 512, name: str = "solver-bench
     if len(spans) != solves or len(overhead) != 1:
         raise avrsim.SimulatorError(f"expected {solves} timed solves, the simulator saw "
                                     f"{len(spans)}")
-    return BenchRun(report, spans - overhead[0], image)
+    stages = _stage_spans(result.markers) if profile else None
+    return BenchRun(report, spans - overhead[0], image, stages)
+
+
+def _stage_spans(markers: list[tuple[int, int]]) -> dict[str, np.ndarray]:
+    """Cycles between consecutive stage markers within each solve that ran every stage."""
+    order = [MARK_START] + [m for m, _ in STAGES]
+    per_solve, current = [], None
+    for cycle, value in markers:
+        if value == MARK_START:
+            current = [cycle]
+        elif current is not None and len(current) < len(order) and value == order[len(current)]:
+            current.append(cycle)
+            if len(current) == len(order):
+                per_solve.append(np.diff(current))
+                current = None
+    table = np.array(per_solve, dtype=np.int64).reshape(-1, len(STAGES))
+    return {label: table[:, i] for i, (_, label) in enumerate(STAGES)}

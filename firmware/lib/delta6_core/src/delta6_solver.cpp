@@ -5,6 +5,14 @@
 
 #include "delta6_fastmath.h"
 
+// Stage markers for the cycle profile of tools/bench_solver_avr.py --stages: the benchmark
+// build defines DELTA6_SOLVER_PROFILE and provides the hook header; elsewhere they vanish.
+#ifdef DELTA6_SOLVER_PROFILE
+#include "delta6_solver_profile_hooks.h"
+#else
+#define DELTA6_PROFILE_MARK(stage) ((void)0)
+#endif
+
 namespace delta6 {
 namespace {
 
@@ -49,6 +57,7 @@ void rotate_to_e(const JointTerms& t, float w[6]) {
 
 // Forward kinematics, statics and rotation (eqs. 1-13) from the joint terms.
 uint8_t solve_core(const SolverConstants& k, const JointTerms& t, float wrench[6]) {
+    DELTA6_PROFILE_MARK(kProfileForwardKinematics);
     const float r1 = k.d + t.c[0], r2 = k.d + t.c[1], r3 = k.d + t.c[2];
     const float h1 = t.s[0], h2 = t.s[1], h3 = t.s[2];
 
@@ -66,6 +75,7 @@ uint8_t solve_core(const SolverConstants& k, const JointTerms& t, float wrench[6
     const float bx = ((p12 + p13) - scale2(p23, 1)) * d_inv_area;
     const float ay = (scale2(r1, 1) * (dh3 - dh2) + r2 * dh3 - r3 * dh2) * (inv_area * kInvSqrt3);
     const float by = r1 * (r2 - r3) * (d_inv_area * kSqrt3);
+    DELTA6_PROFILE_MARK(kProfileQuadratic);
     // Sphere 1: (x - r1)^2 + y^2 + (z - h1)^2 = lb^2, a quadratic qa z^2 + 2 qb z + qc = 0.
     const float ex = bx - r1;
     const float qa = ax * ax + ay * ay + 1.0f;
@@ -77,6 +87,7 @@ uint8_t solve_core(const SolverConstants& k, const JointTerms& t, float wrench[6
     const float z = (fastmath::sqrt32(disc) - qb) / qa;  // the root below the base (z down)
     const float x = ax * z + bx, y = ay * z + by;
 
+    DELTA6_PROFILE_MARK(kProfileStatics);
     // Statics, eqs. (2)-(10): link i carries tau_i v_i / G_i with v_i = P - c_i and
     // G_i = (u_i . v_i) h_i - v_iz rho_i = la lb * lever_i (eq. 7); lb cancels.
     const float half_x = scale2(x, -1), sy = kHalfSqrt3 * y;
@@ -91,6 +102,7 @@ uint8_t solve_core(const SolverConstants& k, const JointTerms& t, float wrench[6
         return fail(kSolveSingular, wrench);
     }
     const float s1 = t.torque[0] / g1, s2 = t.torque[1] / g2, s3 = t.torque[2] / g3;
+    DELTA6_PROFILE_MARK(kProfileForceSum);
     // E0_F = -sum s_i (P - r_i u_i - h_i z).
     const float sigma = s1 + s2 + s3;
     const float q1 = s1 * r1, q2 = s2 * r2, q3 = s3 * r3;
@@ -102,7 +114,9 @@ uint8_t solve_core(const SolverConstants& k, const JointTerms& t, float wrench[6
         t.torque[4],
         t.torque[5],
     };
+    DELTA6_PROFILE_MARK(kProfileRotation);
     rotate_to_e(t, w);
+    DELTA6_PROFILE_MARK(kProfileOutput);
     for (uint8_t i = 0; i < 6; ++i) {
         if (!fastmath::is_finite(w[i])) return fail(kSolveNonFinite, wrench);
     }
