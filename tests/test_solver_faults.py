@@ -40,17 +40,25 @@ def sample_counts(design, n=6000, seed=11):
     return np.random.default_rng(seed).integers(-lim, lim + 1, size=(n, 6))
 
 
-def reference_terms(design, counts):
-    """Reference quantities behind each flag: squared height, min |G| = min |lever| lb, S."""
+def reference_terms(design, counts) -> dict[str, np.ndarray]:
+    """The reference quantity behind each threshold, keyed by the SolverConstants field:
+    squared trilateration height, min |G_i| = min |lever_i| lb, and S."""
     theta = counts * ENCODER_COUNT_RAD
     p = Params.from_design(design)
     _, height_sq = forward_kinematics(p, theta[:, :3], return_disc=True)
     with np.errstate(invalid="ignore", divide="ignore"):
         _, lever = branch_forces(p, theta[:, :3])
-    g_min = np.abs(lever).min(axis=1) * design.lb_mm * 1e-3
     r = np.hypot(*np.moveaxis(branch_centres(p, theta[:, :3])[..., :2], -1, 0))
-    area = r[:, 0] * r[:, 1] + r[:, 1] * r[:, 2] + r[:, 2] * r[:, 0]
-    return height_sq, g_min, area
+    return {
+        "min_height_sq": height_sq,
+        "min_lever": np.abs(lever).min(axis=1) * design.lb_mm * 1e-3,
+        "min_area": r[:, 0] * r[:, 1] + r[:, 1] * r[:, 2] + r[:, 2] * r[:, 0],
+    }
+
+
+def sides(values, threshold):
+    """(flagged, clear) masks: clearly below / clearly above a threshold."""
+    return values < threshold * (1 - AMBIGUOUS), values > threshold * (1 + AMBIGUOUS)
 
 
 def check_flag(solver, design, constants, counts, flag, flagged_where, clear_where):
@@ -75,21 +83,10 @@ def test_links_that_cannot_close_report_no_solution(solver):
     design = load(DESIGNS / "delta6.toml").replace(lb_mm=85.0)
     sc = solver_constants(design)
     counts = sample_counts(design)
-    height_sq, _, _ = reference_terms(design, counts)
-    flagged = height_sq < sc.min_height_sq * (1 - AMBIGUOUS)
-    clear = height_sq > sc.min_height_sq * (1 + AMBIGUOUS)
+    height_sq = reference_terms(design, counts)["min_height_sq"]
+    flagged, clear = sides(height_sq, sc.min_height_sq)
     assert flagged.mean() > 0.2 and clear.mean() > 0.2       # both sides are exercised
     assert np.isnan(wrench(design, counts[height_sq < 0] * ENCODER_COUNT_RAD)[:, :3]).all()
-    check_flag(solver, design, sc, counts, NO_SOLUTION, flagged, clear)
-
-
-def test_height_threshold_is_where_the_constant_says(solver):
-    design = load(DESIGNS / "delta6.toml")
-    counts = sample_counts(design)
-    height_sq, _, _ = reference_terms(design, counts)
-    sc = replace(solver_constants(design), min_height_sq=f32(np.median(height_sq)))
-    flagged = height_sq < sc.min_height_sq * (1 - AMBIGUOUS)
-    clear = height_sq > sc.min_height_sq * (1 + AMBIGUOUS)
     check_flag(solver, design, sc, counts, NO_SOLUTION, flagged, clear)
 
 
@@ -98,34 +95,25 @@ def test_singular_pose_reports_singular(solver):
     design = load(DESIGNS / "delta6.toml").replace(theta_offset_rad=-0.6)
     sc = solver_constants(design)
     counts = sample_counts(design, n=20000)
-    _, g_min, _ = reference_terms(design, counts)
-    flagged = g_min < sc.min_lever * (1 - AMBIGUOUS)
-    clear = g_min > sc.min_lever * (1 + AMBIGUOUS)
+    flagged, clear = sides(reference_terms(design, counts)["min_lever"], sc.min_lever)
     assert flagged.sum() > 50
-    status = check_flag(solver, design, sc, counts[clear | flagged], SINGULAR,
-                        flagged[clear | flagged], clear[clear | flagged])
+    either = clear | flagged
+    status = check_flag(solver, design, sc, counts[either], SINGULAR, flagged[either],
+                        clear[either])
     assert (status != OK).sum() == flagged.sum()
 
 
-def test_lever_threshold_is_where_the_constant_says(solver):
+@pytest.mark.parametrize("field, flag", [("min_height_sq", NO_SOLUTION),
+                                         ("min_lever", SINGULAR), ("min_area", SINGULAR)])
+def test_threshold_is_where_the_constant_says(solver, field, flag):
+    """Move one threshold to the median of its quantity over the box: half the samples must
+    be flagged, exactly those the reference puts below it."""
     design = load(DESIGNS / "delta6.toml")
     counts = sample_counts(design)
-    _, g_min, _ = reference_terms(design, counts)
-    sc = replace(solver_constants(design), min_lever=f32(np.median(g_min)))
-    flagged = g_min < sc.min_lever * (1 - AMBIGUOUS)
-    clear = g_min > sc.min_lever * (1 + AMBIGUOUS)
-    check_flag(solver, design, sc, counts, SINGULAR, flagged, clear)
-
-
-def test_area_threshold_is_where_the_constant_says(solver):
-    """S (the centres' projected triangle) guards the elimination's division."""
-    design = load(DESIGNS / "delta6.toml")
-    counts = sample_counts(design)
-    _, _, area = reference_terms(design, counts)
-    sc = replace(solver_constants(design), min_area=f32(np.median(area)))
-    flagged = area < sc.min_area * (1 - AMBIGUOUS)
-    clear = area > sc.min_area * (1 + AMBIGUOUS)
-    check_flag(solver, design, sc, counts, SINGULAR, flagged, clear)
+    values = reference_terms(design, counts)[field]
+    sc = replace(solver_constants(design), **{field: f32(np.median(values))})
+    flagged, clear = sides(values, getattr(sc, field))
+    check_flag(solver, design, sc, counts, flag, flagged, clear)
 
 
 def test_shipped_thresholds_never_fire_inside_the_box():
@@ -133,10 +121,8 @@ def test_shipped_thresholds_never_fire_inside_the_box():
     for path in sorted(DESIGNS.glob("*.toml")):
         design = load(path)
         sc = solver_constants(design)
-        height_sq, g_min, area = reference_terms(design, sample_counts(design, 20000))
-        assert height_sq.min() > 4 * sc.min_height_sq
-        assert g_min.min() > 4 * sc.min_lever
-        assert area.min() > 4 * sc.min_area
+        for field, values in reference_terms(design, sample_counts(design, 20000)).items():
+            assert values.min() > 4 * getattr(sc, field), (path.name, field)
 
 
 def test_codegen_refuses_designs_the_solver_cannot_serve():

@@ -90,7 +90,7 @@ def bench_one(path: Path, solves: int, csv_rows: list | None, stages: bool = Fal
         f"  status        {int(ok.sum())} OK, {int((~ok).sum())} failed   [{verdict(status_ok)}]",
         f"  cycles/solve  mean {cyc.mean():,.0f}  min {cyc.min():,}  max {cyc.max():,}"
         "   (the GPIOR0 marker overhead removed)",
-        f"  time/solve    mean {us.mean() / 1000:.3f} ms  max {us.max() / 1000:.3f} ms at 16 MHz"
+        f"  time/solve    mean {us.mean():,.0f} us  max {us.max():,.0f} us at 16 MHz"
         f"  ->  {F_CPU / cyc.max():,.0f} solves/s worst case",
         f"  budget        required <= {REQUIRED_CYCLES:,} cycles: {verdict(cycles_ok)} "
         f"(max is {100 * cyc.max() / REQUIRED_CYCLES:.0f} % of it); goal {GOAL_CYCLES:,}: "

@@ -14,7 +14,7 @@ from delta6.spec import full_scale
 from .solver_constants import CONSTANTS_VERSION, TABLE_STEP, SolverConstants, f32, solver_constants
 
 COMMAND = "delta6 codegen"
-VALUES_PER_LINE = 4
+LINE_LIMIT = 100
 
 
 def c_float(x: float) -> str:
@@ -34,12 +34,26 @@ def _float_list(values) -> str:
     return "{" + ", ".join(c_float(v) for v in values) + "}"
 
 
-def _table(name: str, pairs: np.ndarray, comment: str) -> list[str]:
-    flat = [float(v) for v in np.asarray(pairs, dtype=np.float32).reshape(-1)]
-    lines = [f"// {comment}", f"const float {name}[{len(flat)}] DELTA6_FLASH = {{"]
-    for start in range(0, len(flat), VALUES_PER_LINE):
-        chunk = flat[start:start + VALUES_PER_LINE]
-        lines.append("    " + ", ".join(c_float(v) for v in chunk) + ",")
+def _array(decl: str, values, comment: str) -> list[str]:
+    """``decl = {...};  // comment``, broken after the brace when the line would be long."""
+    line = f"{decl} = {_float_list(values)};  // {comment}"
+    if len(line) <= LINE_LIMIT:
+        return [line]
+    return [f"// {comment}", f"{decl} = {{", "    " + ", ".join(c_float(v) for v in values),
+            "};"]
+
+
+def _six_on_two_lines(values) -> list[str]:
+    """A 6-float brace list as a struct member, three values per line."""
+    first, second = (", ".join(c_float(v) for v in part) for part in (values[:3], values[3:]))
+    return [f"    {{{first},", f"     {second}}},"]
+
+
+def _table(name: str, rows: np.ndarray, comment: str) -> list[str]:
+    """A flash table, one row (triple) per line."""
+    rows = np.asarray(rows, dtype=np.float32)
+    lines = [f"// {comment}", f"const float {name}[{rows.size}] DELTA6_FLASH = {{"]
+    lines += ["    " + ", ".join(c_float(float(v)) for v in row) + "," for row in rows]
     lines.append("};")
     return lines
 
@@ -76,18 +90,19 @@ def render(design: Design, source_label: str, constants: SolverConstants | None 
         f"constexpr float kLa = {c_float(design.la_mm * mm)};  // m",
         f"constexpr float kLb = {c_float(design.lb_mm * mm)};  // m",
         f"constexpr float kThetaOffset = {c_float(design.theta_offset_rad)};  // rad",
-        f"constexpr float kSpringRate[6] = {_float_list(design.k_nm_per_rad)};  // N*m/rad",
+        *_array("constexpr float kSpringRate[6]", design.k_nm_per_rad, "N*m/rad, joints 1..6"),
         "// Joint box: |theta_e| <= kJointLimitRad, i.e. |count delta| <= kJointLimitCounts.",
         f"constexpr float kJointLimitRad = {c_float(c.limit_rad)};",
         f"constexpr int16_t kJointLimitCounts = {c.limit_counts};",
-        "// Full scale of Fx, Fy, Fz (N), Mx, My, Mz (N*m): delta6.spec.full_scale(design).",
-        f"constexpr float kFullScale[6] = {_float_list(fs)};",
+        *_array("constexpr float kFullScale[6]", fs,
+                "full scale of Fx, Fy, Fz (N), Mx, My, Mz (N*m): delta6.spec.full_scale"),
         "",
-        "// Solver tables: one coarse entry every kTableStep counts from -table_origin, and the",
-        "// fine angles 0 .. kTableStep-1 counts (see delta6_fastmath.h).",
-        *_table("kBranchTable", c.branch_table, "la cos(theta_offset + q), la sin(theta_offset + q)"),
-        *_table("kJointTable", c.joint_table, "cos q, sin q"),
-        *_table("kFineTable", c.fine_table, "cos l, sin l"),
+        "// Solver tables (fastmath::table_cos_sin): coarse rows every kTableStep counts from",
+        "// q = -table_origin counts, fine rows for l = 0 .. kTableStep-1 counts.",
+        *_table("kBranchTable", c.branch_table,
+                "la cos(theta_offset + q), la sin(theta_offset + q), their sum"),
+        *_table("kJointTable", c.joint_table, "cos q, sin q, cos q + sin q"),
+        *_table("kFineTable", c.fine_table, "cos l, sin l - cos l, cos l + sin l"),
         "",
         "// Constants of delta6::solve_counts / solve_radians for this design.",
         "constexpr SolverConstants kSolverConstants = {",
@@ -95,8 +110,9 @@ def render(design: Design, source_label: str, constants: SolverConstants | None 
         f"    {c_float(c.la)},  // la, m",
         f"    {c_float(c.theta_offset)},  // theta_offset, rad",
         f"    {c_float(c.lb_sq)},  // lb^2, m^2",
-        f"    {_float_list(c.spring_rate)},  // N*m/rad",
-        f"    {_float_list(c.torque_per_count)},  // N*m per count",
+        "    // spring_rate, N*m/rad; torque_per_count, N*m per encoder count",
+        *_six_on_two_lines(c.spring_rate),
+        *_six_on_two_lines(c.torque_per_count),
         f"    {c_float(c.limit_rad)},  // limit_rad",
         f"    {c.limit_counts},  // limit_counts",
         f"    {c.table_origin},  // table_origin",

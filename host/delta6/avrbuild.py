@@ -246,12 +246,14 @@ def build_image(name: str, sources, include_dirs=(), defines=(), *, board: Board
 
 def size_check(name: str, sources, include_dirs=(), defines=(), *,
                mcu: str = "avrxmega3", cxx_std: str = "gnu++14") -> Image:
-    """Compile and link portable sources for a bare ``mcu`` (no Arduino core, no start-up
-    code: the image does not run, it only tells what the code costs on that instruction set).
-    The sources must provide ``main``."""
-    board = Board(f"bare-{mcu}", mcu, 20_000_000, "", "DELTA6_BARE", 0, 0)
-    # A bare instruction-set target has no device header (<avr/io.h> warns about that) and
-    # no start-up code: main is made the entry point so that --gc-sections keeps it.
+    """Compile and link ``sources`` for ``mcu`` without the Arduino core, to tell what they
+    cost in flash and RAM. The sources must provide ``main``. For a bare instruction set
+    such as avrxmega3 (Debian's avr-libc has no ATmega4809) the image has no start-up code:
+    it is for sizes only, never for running."""
+    board = Board(f"bare-{mcu}", mcu, f_cpu=0, variant="", board_define="", flash_bytes=0,
+                  ram_bytes=0)
+    # Without a device <avr/io.h> warns (-Wno-cpp); main is the entry point so that
+    # --gc-sections keeps it when there is no start-up code to reference it.
     return build_image(name, sources, include_dirs, defines, board=board, arduino=False,
                        cxx_std=cxx_std, extra_flags=("-Wno-cpp",), link_flags=("-Wl,-e,main",))
 
@@ -269,7 +271,12 @@ def elf_sizes(elf: Path) -> Sizes:
                  bss=sections.get(".bss", 0) + sections.get(".noinit", 0))
 
 
+def design_build_dir(design_name: str) -> Path:
+    """``build/designs/NAME``: where ``delta6 codegen --build`` puts a design's header and
+    image, one directory per design, so building a variant never touches the committed
+    header."""
+    return REPO_ROOT / "build" / "designs" / design_name
+
+
 def design_include_dir(design_name: str) -> Path:
-    """Where ``delta6 codegen --build`` puts a design's header: outside the source tree, one
-    directory per design, so building a variant never touches the committed header."""
-    return REPO_ROOT / "build" / "designs" / design_name / "include"
+    return design_build_dir(design_name) / "include"

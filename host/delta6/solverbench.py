@@ -53,16 +53,18 @@ class BenchRun:
 
 
 def build_bench_image(include_dir: Path, *, name: str = "solver-bench", solves: int = 512,
-                      baud: int = 115200, profile: bool = False) -> avrbuild.Image:
+                      baud: int = 115200, profile: bool = False,
+                      out_dir: Path | None = None) -> avrbuild.Image:
     """The ATmega328P benchmark image for the design whose generated header lives under
-    ``include_dir``/generated/. ``profile`` adds the solver's stage markers."""
+    ``include_dir``/generated/. ``profile`` adds the solver's stage markers; ``out_dir``
+    (default: a cache directory under build/avr/) is where the ELF and HEX go."""
     defines = [f"DELTA6_BENCH_SOLVES={solves}", f"DELTA6_BENCH_BAUD={baud}"]
     includes = [include_dir, avrbuild.CORE_LIB]
     if profile:
         defines.append("DELTA6_SOLVER_PROFILE")
         includes.append(BENCH_SOURCE.parent)
     return avrbuild.build_image(name, [BENCH_SOURCE, *SOLVER_SOURCES], include_dirs=includes,
-                                defines=defines)
+                                defines=defines, out_dir=out_dir)
 
 
 def build_probe(include_dir: Path, mcu: str, name: str = "solver-probe") -> avrbuild.Image:

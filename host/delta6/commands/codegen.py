@@ -75,22 +75,24 @@ def run(args: argparse.Namespace) -> int:
             return 1
         print(f"{_rel(out)} is up to date")
         return 0
-    _write_if_changed(out, text)
-    print(f"wrote {_rel(out)} for design '{design.name}' (hash 0x{design.hash32():08x})")
+    verb = "wrote" if _write_if_changed(out, text) else "unchanged:"
+    print(f"{verb} {_rel(out)} for design '{design.name}' (hash 0x{design.hash32():08x})")
     if args.build:
         from ..solverbench import build_bench_image
-        image = build_bench_image(include_dir_of(out), name=f"delta6-{design.name}")
+        image = build_bench_image(include_dir_of(out), name=f"delta6-{design.name}",
+                                  out_dir=avrbuild.design_build_dir(design.name) / "atmega328p")
         sizes = image.sizes
-        print(f"built {_rel(image.elf)} ({image.mcu}): flash {sizes.flash} B of "
+        print(f"built {_rel(image.elf)} and .hex ({image.mcu}): flash {sizes.flash} B of "
               f"{avrbuild.NANO.flash_bytes}, static RAM {sizes.ram} B of {avrbuild.NANO.ram_bytes}")
     return 0
 
 
-def _write_if_changed(path: Path, text: str) -> None:
-    # Same bytes: leave the file (and its timestamp) alone, so builds do not redo work.
+def _write_if_changed(path: Path, text: str) -> bool:
+    """Write ``text`` unless the file already holds it (its timestamp then stays, so builds
+    do not redo work). Returns whether it wrote."""
     try:
         if path.read_text(encoding="utf-8") == text:
-            return
+            return False
     except (OSError, UnicodeDecodeError):
         pass  # missing or unreadable: writing it says what is wrong, if anything
     try:
@@ -100,6 +102,7 @@ def _write_if_changed(path: Path, text: str) -> None:
         tmp.replace(path)
     except OSError as exc:
         raise UserError(f"cannot write {path}: {exc.strerror}") from None
+    return True
 
 
 def _rel(path: Path) -> str:

@@ -22,6 +22,7 @@ using fastmath::scale2;
 constexpr float kSqrt3 = 1.73205081f;
 constexpr float kHalfSqrt3 = 0.866025404f;
 constexpr float kInvSqrt3 = 0.577350269f;
+static_assert(kTableStep == 64, "fastmath::table_cos_sin splits counts into 64-count steps");
 
 // What the trigonometry of the six joints contributes; the rest is the same for both entry
 // points. Index i = joint i+1. Branches (i < 3): c = rho_i = la cos theta_i, s = h_i =
@@ -45,8 +46,8 @@ inline void rotate_back(float c, float s, float& a, float& b) {
 }
 
 // Eq. (12): force and moment (w[0..2], w[3..5]) into {E} with R^T, where R = Rz(theta6)
-// Rx(theta4) Ry(theta5), so R^T = Ry^T Rx^T Rz^T: three plane rotations per vector (12
-// multiplies instead of the 14 + 9 of building R and multiplying by it).
+// Rx(theta4) Ry(theta5), so R^T = Ry^T Rx^T Rz^T: three plane rotations per vector, 24
+// multiplies for both, against 14 to build R and 18 to apply it.
 void rotate_to_e(const JointTerms& t, float w[6]) {
     for (uint8_t v = 0; v < 6; v += 3) {
         rotate_back(t.c[5], t.s[5], w[v], w[v + 1]);      // Rz(theta6)^T: x, y
