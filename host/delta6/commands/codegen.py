@@ -68,7 +68,10 @@ def run(args: argparse.Namespace) -> int:
     design, text = header_text(args.design)
     out = output_path(args, design)
     if args.check:
-        current = out.read_text(encoding="utf-8") if out.exists() else None
+        try:
+            current = out.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError):
+            current = None
         if current != text:
             print(f"{_rel(out)} is out of date with {source_label(args.design)}; "
                   f"run: delta6 codegen {source_label(args.design)}", file=sys.stderr)
