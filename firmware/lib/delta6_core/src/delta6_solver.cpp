@@ -90,7 +90,8 @@ uint8_t solve_core(const SolverConstants& k, const JointTerms& t, float wrench[6
 
     DELTA6_PROFILE_MARK(kProfileStatics);
     // Statics, eqs. (2)-(10): link i carries tau_i v_i / G_i with v_i = P - c_i and
-    // G_i = (u_i . v_i) h_i - v_iz rho_i = la lb * lever_i (eq. 7); lb cancels.
+    // G_i = (u_i . v_i) h_i - v_iz rho_i = lb * eq. 7's lever la (v_x sin - v_z cos); the
+    // link length lb cancels between the lever and the unit vector.
     const float half_x = scale2(x, -1), sy = kHalfSqrt3 * y;
     const float uv1 = x - r1, uv2 = (sy - half_x) - r2, uv3 = -(half_x + sy) - r3;
     const float vz1 = z - h1, vz2 = z - h2, vz3 = z - h3;

@@ -46,7 +46,7 @@ struct SolverConstants {
     int16_t table_origin;       // count + table_origin >= 0 for every count in the box
     float min_area;             // lower bound on S = r1 r2 + r2 r3 + r3 r1 (m^2)
     float min_height_sq;        // lower bound on the squared trilateration height (m^2)
-    float min_lever;            // lower bound on |G_i| = la lb |lever_i / la| (m^2)
+    float min_lever;            // lower bound on |G_i| = lb |eq. 7 lever_i| (m^2)
     // Tables in flash (PROGMEM on AVR), triples of floats; see fastmath::table_cos_sin.
     const float* branch_table;  // la (cos, sin, cos + sin)(off + q), q = j*step - origin
     const float* joint_table;   // (cos, sin, cos + sin)(q)
