@@ -10,26 +10,23 @@
    core at 2,000 records/s (floor: under 5 %); and the whole host path (Device reader thread,
    queue, a consumer reading blocks) at 2,000 records/s in real time through a pty;
 4. the AVR footprint of the protocol core (ATmega328P flash and static RAM), if avr-g++ exists;
-5. its cycle costs on the ATmega328P, run in the simavr emulator, if simavr exists.
+5. its cycle costs on the ATmega328P, a scripted session run in the simavr emulator (the same
+   session the tests compare byte for byte with the native build), if simavr exists.
 """
 from __future__ import annotations
 
 import argparse
-import re
 import shutil
-import subprocess
 import sys
-import tempfile
 import threading
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "host"))
+sys.path.insert(0, str(ROOT / "tests"))     # avr_session: the scripted AVR session
 
-from delta6 import nativebuild, protocol as P  # noqa: E402
+from delta6 import avrbuild, nativebuild, protocol as P  # noqa: E402
 from delta6.bulkdecode import decode_capture  # noqa: E402
 from delta6.decoder import StreamDecoder  # noqa: E402
 from delta6.device import Device  # noqa: E402
@@ -172,53 +169,36 @@ def host_path(seconds: float = 3.0, rate: int = 2000) -> None:
 
 
 def footprint() -> None:
-    if nativebuild.AVR_CXX is None:
+    if shutil.which("avr-g++") is None:
         print("4. AVR footprint: avr-g++ not installed (tools/bootstrap.sh installs it)")
         return
-    with tempfile.TemporaryDirectory() as tmp:
-        elf = nativebuild.build_avr([nativebuild.FIRMWARE_NATIVE / "avr_footprint.cpp",
-                                     *nativebuild.core_sources()], Path(tmp) / "fp.elf")
-        size = nativebuild.avr_size(elf)
-    print(f"4. AVR footprint (ATmega328P, -Os, float library included): flash {size['flash']} "
-          f"bytes, static RAM {size['ram']} bytes (of which the Device object and a stub board)")
+    program = [nativebuild.FIRMWARE_NATIVE / "avr_footprint.cpp", *nativebuild.core_sources()]
+    includes = [nativebuild.FIRMWARE_CORE, avrbuild.COMMITTED_DESIGN_INCLUDE / "generated"]
+    sizes = avrbuild.build_image("protocol_footprint", program, includes, arduino=False).sizes
+    print(f"4. AVR footprint (ATmega328P, -Os -flto, float library included): flash "
+          f"{sizes.flash} bytes, static RAM {sizes.ram} bytes (the Device object, a stub board)")
 
 
 def avr_cycles() -> None:
-    """Cycle costs on the emulated ATmega328P (firmware/native/avr_cycles.cpp in simavr)."""
-    simavr = shutil.which("simavr")
-    if nativebuild.AVR_CXX is None or simavr is None:
+    """Cycle costs on the emulated ATmega328P: the scripted session of
+    firmware/native/avr_session.cpp (whose output the tests compare with the native build)."""
+    if shutil.which("avr-g++") is None or shutil.which("simavr") is None:
         print("5. AVR cycles: avr-g++ or simavr not installed (tools/bootstrap.sh installs them)")
         return
-    with tempfile.TemporaryDirectory() as tmp:
-        elf = nativebuild.build_avr([nativebuild.FIRMWARE_NATIVE / "avr_cycles.cpp",
-                                     *nativebuild.core_sources()], Path(tmp) / "cycles.elf")
-        # simavr prints the UART on stderr; the program then idles forever: stop it.
-        proc = subprocess.Popen([simavr, "-m", "atmega328p", "-f", "16000000", str(elf)],
-                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-        guard = threading.Timer(20.0, proc.kill)
-        guard.start()
-        line = ""
-        for text in proc.stderr:
-            if "stopped" in text:
-                line = text
-                break
-        proc.kill()
-        proc.wait()
-        guard.cancel()
-    line = re.sub(r"\x1b\[[0-9;]*m", "", line)            # simavr colours the UART text
-    figures = {k: int(v) for k, v in re.findall(r"([a-z_]+) (\d+)", line)}
-    if figures.get("mode") != 2 or figures.get("tare") != 1:
-        print(f"5. AVR cycles: unexpected output {line!r}")
-        return
-    us = {k: v / 16 for k, v in figures.items()}
-    print("5. AVR cycles (ATmega328P at 16 MHz, emulated; per call):")
-    print(f"   onSample, stopped {figures['stopped']} ({us['stopped']:.0f} us); streaming wrench "
-          f"{figures['wrench']} ({us['wrench']:.0f} us); wrench+raw {figures['raw']} "
-          f"({us['raw']:.0f} us); wrench+raw with tare {figures['raw_tared']} "
-          f"({us['raw_tared']:.0f} us)")
-    print(f"   commands (the byte that completes the frame): start {figures['start']}, "
-          f"get_info {figures['get_info']} ({us['get_info']:.0f} us, a 128-byte record), "
-          f"get_telemetry {figures['get_telemetry']}; begin {figures['begin']}")
+    import avr_session
+    result = avr_session.run_on_avr()
+    same = result.uart == avr_session.run_natively()
+    c = avr_session.cycles(result)
+
+    def fig(name):
+        return f"{c[name]:.0f} ({c[name] / 16:.0f} us)"
+
+    print("5. AVR cycles (ATmega328P at 16 MHz, emulated; mean per call; output "
+          f"{'identical to' if same else 'DIFFERENT FROM'} the native build):")
+    print(f"   onSample: stopped {fig('stopped')}, streaming wrench {fig('wrench')}, "
+          f"wrench+raw {fig('raw')}, wrench+raw tared {fig('raw_tared')}")
+    print(f"   the byte completing a command: start {fig('start')}, get_info {fig('get_info')} "
+          f"(a 128-byte record), get_telemetry {fig('get_telemetry')}; begin {fig('begin')}")
 
 
 def main() -> int:

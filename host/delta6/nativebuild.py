@@ -82,29 +82,3 @@ def core_sources() -> list[Path]:
     """The portable firmware core's protocol and device sources (not the solver's)."""
     return [FIRMWARE_CORE / f"delta6_{part}.cpp" for part in ("crc16", "cobs", "protocol", "device")]
 
-
-# --- the AVR (compile and size checks, cycle counts in the emulator) ------------------------
-
-AVR_CXX = shutil.which("avr-g++")
-AVR_FLAGS = ("-Os", "-std=gnu++14", "-Wall", "-Wextra", "-Werror", "-fno-exceptions",
-             "-fno-rtti", "-fno-threadsafe-statics", "-ffunction-sections", "-fdata-sections")
-
-
-def build_avr(sources, out: Path, mcu: str = "atmega328p", link: bool = True) -> Path:
-    """Compile (``link=False``: one source to an object) or link ``sources`` with the core's
-    headers for an AVR. Raises NativeBuildError with the compiler's message."""
-    if AVR_CXX is None:
-        raise NativeBuildError("avr-g++ not found (tools/bootstrap.sh installs gcc-avr)")
-    cmd = [AVR_CXX, f"-mmcu={mcu}", "-DF_CPU=16000000L", *AVR_FLAGS, f"-I{FIRMWARE_CORE}",
-           *(["-Wl,--gc-sections"] if link else ["-c"]), *map(str, sources), "-o", str(out)]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise NativeBuildError(f"AVR build failed:\n{' '.join(cmd)}\n{proc.stderr}")
-    return Path(out)
-
-
-def avr_size(elf: Path) -> dict:
-    """Flash (text + data) and static RAM (data + bss) of an AVR image, bytes."""
-    out = subprocess.run(["avr-size", str(elf)], capture_output=True, text=True, check=True)
-    text, data, bss = map(int, out.stdout.splitlines()[1].split()[:3])
-    return {"flash": text + data, "ram": data + bss}
