@@ -38,6 +38,7 @@ from .logfile import LogError, read_log
 from .model import ENCODER_COUNT_RAD
 
 HARNESS_DIR = avrbuild.REPO_ROOT / "tools" / "simavr" / "virtual_board"
+SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 CONTRACT = avrbuild.FIRMWARE / "src" / "board_contract.h"
 BUILD_DIR = avrbuild.REPO_ROOT / "build" / "simavr"
 SIMAVR_LIBS = ("-lsimavr", "-lsimavrparts", "-lutil", "-lpthread", "-lm")
@@ -97,7 +98,7 @@ def harness() -> Path:
     cc = shutil.which("gcc") or shutil.which("cc")
     if not cc:
         raise VirtualBoardError("no host C compiler (gcc) found; install gcc")
-    if not Path("/usr/include/simavr/sim_avr.h").exists():
+    if not SIMAVR_HEADER.exists():
         raise VirtualBoardError(f"simavr headers not found; {APT_HINT}")
     sources = sorted(HARNESS_DIR.glob("*.c"))
     digest = hashlib.sha256()
@@ -243,6 +244,13 @@ class VirtualBoard:
     # -- lifetime --
 
     def start(self) -> "VirtualBoard":
+        try:
+            return self._start()
+        except BaseException:
+            self.close()
+            raise
+
+    def _start(self) -> "VirtualBoard":
         exe = harness()
         self._tmp = tempfile.TemporaryDirectory(prefix="delta6-vboard-")
         tmp = Path(self._tmp.name)

@@ -3,7 +3,7 @@
  * of the published firmware, docs/firmware.md "Encoder bus"). Kept apart so that the tests can
  * load it through ctypes and check it against the firmware's decoder.
  */
-#include "vb.h"
+#include "frame.h"
 
 #define STATUS_VALID 0x0001u
 #define STATUS_ERROR 0x0002u

@@ -256,6 +256,17 @@ static void parse_options(options_t *o, int argc, char **argv)
 		vb_die("implausible --freq or --baud");
 }
 
+/* simavr's EEPROM, directly: its ioctls return -1 on success too, and some versions refuse
+ * a transfer of the whole size; asked with no buffer, GET hands out the memory itself. */
+static uint8_t *eeprom_memory(void)
+{
+	avr_eeprom_desc_t d = {.ee = NULL, .offset = 0, .size = 0};
+	avr_ioctl(vb_avr, AVR_IOCTL_EEPROM_GET, &d);
+	if (!d.ee)
+		vb_die("simavr has no EEPROM for this MCU");
+	return d.ee;
+}
+
 static void load_eeprom(const char *path)
 {
 	FILE *f = fopen(path, "rb");
@@ -270,25 +281,15 @@ static void load_eeprom(const char *path)
 	fclose(f);
 	if (n != sizeof image || extra)
 		vb_die("%s is not a %d-byte EEPROM image", path, EEPROM_SIZE);
-	avr_eeprom_desc_t d = {.ee = image, .offset = 0, .size = EEPROM_SIZE};
-	if (avr_ioctl(vb_avr, AVR_IOCTL_EEPROM_SET, &d) != 0)
-		vb_die("simavr refused the EEPROM image");
+	memcpy(eeprom_memory(), image, EEPROM_SIZE);
 }
 
 static void save_eeprom(const char *path)
 {
-	uint8_t image[EEPROM_SIZE];
-	avr_eeprom_desc_t d = {.ee = image, .offset = 0, .size = EEPROM_SIZE};
-	if (avr_ioctl(vb_avr, AVR_IOCTL_EEPROM_GET, &d) != 0) {
-		vb_warn("could not read the EEPROM back; %s not written", path);
-		return;
-	}
-	/* simavr may hand back its own buffer instead of filling ours */
-	const uint8_t *src = d.ee ? d.ee : image;
 	char tmp[4096];
 	snprintf(tmp, sizeof tmp, "%s.partial", path);
 	FILE *f = fopen(tmp, "wb");
-	if (!f || fwrite(src, 1, EEPROM_SIZE, f) != EEPROM_SIZE || fclose(f) != 0 ||
+	if (!f || fwrite(eeprom_memory(), 1, EEPROM_SIZE, f) != EEPROM_SIZE || fclose(f) != 0 ||
 	    rename(tmp, path) != 0)
 		vb_warn("could not save the EEPROM image %s: %s", path, strerror(errno));
 }

@@ -4,6 +4,7 @@
  * describes the behaviour; this header ties the modules together:
  *
  *   main.c      options, set-up, the run loop, pacing against the wall clock, shutdown
+ *   frame.c     what one sensor sends for a count or a fault
  *   encoders.c  the six sensors at the bit level: chip selects, clock edges, data lines,
  *               timing checks, bus contention, injected faults, the read log
  *   angles.c    what the sensors measure: a replay schedule and live timed updates
@@ -18,6 +19,8 @@
 #include <stdio.h>
 
 #include <simavr/sim_avr.h>
+
+#include "frame.h"
 
 #define VB_ENCODERS 6
 
@@ -44,14 +47,6 @@ int angles_queue_space(void);
 void angles_at(vb_cycles_t now, uint16_t out[VB_ENCODERS]);
 
 /* --- encoders.c --------------------------------------------------------------------------- */
-enum vb_fault {
-	VB_FAULT_NONE = 0,
-	VB_FAULT_BITERROR,   /* one bit of the frame flipped on the wire */
-	VB_FAULT_WEAK,       /* error status, field too weak */
-	VB_FAULT_STRONG,     /* error status, field too strong */
-	VB_FAULT_NOANSWER,   /* the sensor never drives its line */
-	VB_FAULT_KINDS
-};
 extern const char *const vb_fault_names[VB_FAULT_KINDS];
 int vb_fault_parse(const char *name);   /* -1 if unknown */
 
@@ -69,11 +64,6 @@ void encoders_clear_faults(int e);   /* e = -1: all */
 void encoders_set_test_pin(int low); /* test builds: hold PB1 low to hang the loop */
 void encoders_close(void);
 void encoders_json(FILE *f);
-
-/* --- frame.c: what a sensor sends (shared with the tests through ctypes) ------------------ */
-/* The 32 bits a sensor clocks out for a count and a fault: word << 16 | inverse. `flip` picks
- * the bit a VB_FAULT_BITERROR flips (0..31, from the first bit sent). */
-uint32_t vb_frame(uint16_t count, int fault, unsigned flip);
 
 /* --- link.c: UART <-> pty ----------------------------------------------------------------- */
 void link_init(uint32_t baud);
