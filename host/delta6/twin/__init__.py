@@ -12,7 +12,7 @@ from .measurement import Measurement
 from .realtime import EncoderSample, iter_realtime, to_counts, write_log
 from .scenarios import (SCENARIOS, EffectRequest, build_effects, make_effect, parse_request,
                         random_effect, random_effects, scenario_effects)
-from .simulate import SimResult, simulate
+from .simulator import SimResult, simulate
 from .temperature import TemperatureSettings
 from .trajectory import FunctionPath, RandomTrajectory, TrajectorySettings
 from .truth import effects_from_truth, read_truth, replay_arguments, truth_path, write_truth

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .effects import EFFECT_NAMES, Effect, EffectError, effect_class
-from .simulate import stream
+from .streams import stream
 
 #: Magnitude of an effect requested without one (the middle of its realistic range, log scale).
 DEFAULT_MAGNITUDE = 0.5
@@ -115,21 +115,21 @@ def _joint(effect: str, text: str) -> int:
 #: model's error reproduces the paper's Table V analytical row (docs/twin.md explains how).
 PAPER = (
     EffectRequest("stiffness_mismatch", params={
-        "deviation": [0.045, -0.05, 0.035, 0.075, -0.07, 0.01]}),
+        "deviation": [0.0476, -0.0404, 0.0724, 0.0762, -0.065, 0.005]}),
     EffectRequest("encoder_offset", params={
-        "offset_rad": [0.003, -0.002, 0.0025, -0.003, 0.0035, -0.001]}),
+        "offset_rad": [0.002, -0.0015, 0.0025, -0.002, 0.0015, -0.001]}),
     EffectRequest("geometry_error", params={
         "delta_a_mm": [0.2, -0.15, 0.1], "delta_b_mm": [-0.1, 0.15, 0.05],
         "delta_la_mm": [0.15, -0.1, 0.2], "delta_lb_mm": [0.5, -0.4, 0.3],
         "delta_azimuth_rad": [0.004, -0.003, 0.002], "delta_rest_angle_rad": [0.005, -0.004, 0.003],
         "gimbal_misalignment_rad": [0.006, -0.005, 0.004]}),
     EffectRequest("spring_hysteresis", formulation="bouc_wen", params={
-        "half_width_nm": 0.006, "reversal_angle_rad": 0.03}),
+        "half_width_nm": 0.003, "reversal_angle_rad": 0.03}),
     EffectRequest("joint_friction", formulation="coulomb_viscous", params={
-        "coulomb_nm": 0.003, "viscous_nm_s_per_rad": 0.002, "smoothing_rad_s": 0.005}),
-    EffectRequest("backlash", formulation="dead_zone", params={"play_rad": 0.01}),
+        "coulomb_nm": 0.002, "viscous_nm_s_per_rad": 0.002, "smoothing_rad_s": 0.005}),
+    EffectRequest("backlash", formulation="dead_zone", params={"play_rad": 0.008}),
     EffectRequest("link_compliance", formulation="linear", params={
-        "elbow_mm_per_n": 0.06, "rod_mm_per_n": 0.01, "tilt_rad_per_nm": 0.06}),
+        "elbow_mm_per_n": 0.15, "rod_mm_per_n": 0.02, "tilt_rad_per_nm": 0.08}),
     EffectRequest("sensor_latency", formulation="delay", params={"latency_s": 0.01}),
 )
 

@@ -6,13 +6,12 @@ records what a real one would (``measurement``): 14-bit encoder angles, the refe
 with noise mapped to {E} by eq. (14), and the air temperature when asked. The analytical model
 applied to the logged angles then shows the sim-to-real gap.
 
-Random streams are keyed by the seed and a name (trajectory, temperature, noise, each
-effect), so adding or removing an effect changes nothing else of a run.
+Random streams are keyed by the seed and a name (``twin.streams``): adding or removing an
+effect changes nothing else of a run.
 """
 from __future__ import annotations
 
 import time
-import zlib
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
@@ -24,6 +23,7 @@ from ..spec import full_scale
 from . import plant
 from .effects import Effect, Signals, Stage
 from .measurement import Measurement
+from .streams import stream
 from .temperature import TemperatureSettings, ambient
 from .trajectory import RandomTrajectory, TrajectorySettings
 
@@ -32,11 +32,6 @@ PRE_ROLL_S = 1.0
 MAX_SAMPLES = 20_000_000
 
 Progress = Callable[[str, float], None]
-
-
-def stream(seed: int, name: str) -> np.random.Generator:
-    """The random stream of one part of a run."""
-    return np.random.default_rng([int(seed), zlib.crc32(name.encode())])
 
 
 @dataclass
@@ -51,6 +46,7 @@ class SimResult:
     true_angles: np.ndarray       # (N, 6) true joint deflections (not in the log)
     true_wrench: np.ndarray       # (N, 6) plant wrench, before latency and noise (not logged)
     truth: dict = field(default_factory=dict)
+    path: object = None           # the joint path the robot followed (evaluate(t) -> q, qd)
 
     def __len__(self) -> int:
         return len(self.t)
@@ -115,7 +111,8 @@ def simulate(design: Design, effects: Sequence[Effect] = (), duration_s: float =
     say("measurement", 1.0)
 
     result = SimResult(design=design, t=fine_t[logged], theta=theta, wrench=wrench,
-                       temp_c=temp_c, true_angles=q[logged], true_wrench=out.wrench[logged])
+                       temp_c=temp_c, true_angles=q[logged], true_wrench=out.wrench[logged],
+                       path=path)
     from .truth import build_truth
     result.truth = build_truth(
         result, effects=effects, seed=seed, duration_s=duration_s, rate_hz=rate_hz,
