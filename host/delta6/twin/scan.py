@@ -35,6 +35,8 @@ def _blocked_scan(maps: Maps, identity: tuple[float, ...], x0: np.ndarray,
     n = len(maps[0])
     tail = maps[0].shape[1:]
     x0 = np.broadcast_to(np.asarray(x0, dtype=float), tail).reshape(-1)
+    if n == 0:
+        return np.empty((0,) + tail)
     flat = [np.asarray(m, dtype=float).reshape(n, -1) for m in maps]
     out = np.empty((n, x0.size))
     for c in range(0, x0.size, _COLUMNS_PER_PASS):
@@ -47,8 +49,6 @@ def _blocked_scan(maps: Maps, identity: tuple[float, ...], x0: np.ndarray,
 def _scan_columns(maps: Maps, identity, x0, compose, apply) -> np.ndarray:
     n = len(maps[0])
     tail = maps[0].shape[1:]
-    if n == 0:
-        return np.empty((0,) + tail)
     size = max(1, math.isqrt(n))
     blocks = -(-n // size)
     # Layout (position in block, block, ...): one position of every block is contiguous.
