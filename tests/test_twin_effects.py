@@ -169,3 +169,30 @@ def test_each_effect_alone_opens_a_gap_and_leaves_the_rest_alone(baseline, name)
         assert np.array_equal(r.theta, ideal.theta)
     if stages == (Stage.ANGLE,):
         assert np.array_equal(r.wrench, ideal.wrench)
+
+
+@given(st.text(max_size=60))
+def test_effect_request_parser_fails_only_with_a_clear_error(text):
+    try:
+        request = twin.parse_request(text)
+    except twin.EffectError as exc:
+        assert str(exc) and "\n" not in str(exc)
+    else:
+        assert request.name in twin.EFFECT_NAMES
+
+
+@given(st.sampled_from(twin.EFFECT_NAMES), st.data())
+def test_effect_requests_round_trip(name, data):
+    cls = twin.REGISTRY[name]
+    formulation = data.draw(st.sampled_from(cls.FORMULATIONS))
+    spec = data.draw(st.sampled_from(cls.specs_for(formulation)))
+    count = int(np.prod(spec.dims)) if spec.dims else 1
+    values = data.draw(st.lists(st.floats(spec.low, spec.high), min_size=count, max_size=count))
+    magnitude = data.draw(st.floats(0, 1))
+    text = (f"{name}:formulation={formulation},magnitude={magnitude!r},"
+            f"{spec.name}={'/'.join(repr(v) for v in values)}")
+    request = twin.parse_request(text)
+    assert (request.formulation, request.magnitude) == (formulation, magnitude)
+    effect = twin.build_effects([request], 1)[0]
+    expected = np.asarray(values if count > 1 else values[0])
+    assert np.array_equal(effect.p(spec.name), np.broadcast_to(expected, spec.dims))

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from delta6 import model, twin
+from delta6.errors import UserError
 from delta6.logfile import read_log
 
 from twinkit import CLEAN
@@ -130,3 +131,24 @@ def test_latency_reaches_back_before_the_log_starts(baseline):
                  measurement=CLEAN, duration=5)
     assert np.all(np.isfinite(result.wrench))
     assert np.allclose(result.wrench[:2], 0.0, atol=1e-12)   # at rest before t = 0
+
+
+def test_removing_effects_from_a_recorded_run_keeps_everything_else(baseline):
+    """The "true shrink" of a diagnosis: the same run without the effects it models."""
+    result = run(baseline, twin.scenario_effects("paper", 5), seed=5, duration=20)
+    rest = twin.simulate(**twin.without(result.truth, ["backlash", "sensor_latency"]))
+    assert [e["name"] for e in rest.truth["effects"]] == [
+        r.name for r in twin.SCENARIOS["paper"] if r.name not in ("backlash", "sensor_latency")]
+    assert np.array_equal(rest.true_angles, result.true_angles)
+    bare = twin.simulate(**twin.without(result.truth, [r.name for r in twin.SCENARIOS["paper"]]))
+    ideal = run(baseline, seed=5, duration=20)
+    assert np.array_equal(bare.wrench, ideal.wrench) and np.array_equal(bare.theta, ideal.theta)
+    with pytest.raises(UserError, match="no effect 'thermal_drift'"):
+        twin.without(result.truth, ["thermal_drift"])
+
+
+def test_registry_is_plain_data():
+    info = twin.registry_info()
+    json.dumps(info)
+    assert info["backlash"]["parameters"]["play_rad"]["unit"] == "rad"
+    assert info["thermal_drift"]["acts_on"] == ["torque", "angle"]

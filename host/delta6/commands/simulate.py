@@ -102,22 +102,21 @@ def _effects(args, seed: int, magnitude: float | None):
     name = args.scenario or "ideal"
     if name not in SCENARIOS:
         raise UserError(f"unknown scenario {name!r} (one of {', '.join(SCENARIOS)})")
-    requests = list(SCENARIOS[name])
-    if magnitude is not None and requests and all(r.params for r in requests):
+    fixed = list(SCENARIOS[name])
+    if magnitude is not None and fixed and all(r.params for r in fixed):
         raise UserError(f"--magnitude does not apply to scenario {name}: its parameters are fixed")
-    requests += [parse_request(spec) for spec in args.effect]
-    if args.random:
-        if not args.effect:
-            raise UserError("--random draws the --effect entries; give at least one --effect")
-        if magnitude is not None:
-            raise UserError("--random draws the magnitudes; drop --magnitude")
-        drawn = [r for r in requests if r.name in {parse_request(s).name for s in args.effect}]
-        fixed = [r for r in requests if r not in drawn]
-        for r in drawn:
-            if r.params or r.formulation or r.magnitude is not None or r.joints:
-                raise UserError(f"--random draws {r.name} entirely; give it without settings")
-        return build_effects(fixed, seed) + [random_effect(r.name, seed) for r in drawn]
-    return build_effects(requests, seed, magnitude)
+    extra = [parse_request(spec) for spec in args.effect]
+    if not args.random:
+        return build_effects(fixed + extra, seed, magnitude)
+    if not extra:
+        raise UserError("--random draws the --effect entries; give at least one --effect")
+    if magnitude is not None:
+        raise UserError("--random draws the magnitudes; drop --magnitude")
+    for r in extra:
+        if r.params or r.formulation or r.magnitude is not None or r.joints:
+            raise UserError(f"--random draws {r.name} entirely; give it without settings")
+    build_effects(fixed + extra, seed)   # refuses duplicates
+    return build_effects(fixed, seed) + [random_effect(r.name, seed) for r in extra]
 
 
 class Progress:

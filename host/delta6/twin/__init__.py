@@ -7,7 +7,8 @@
 """
 from __future__ import annotations
 
-from .effects import EFFECT_NAMES, REGISTRY, Effect, EffectError, ParamSpec, Stage, effect_class
+from .effects import (EFFECT_NAMES, REGISTRY, Effect, EffectError, ParamSpec, Stage, effect_class,
+                      registry_info)
 from .measurement import Measurement
 from .realtime import EncoderSample, iter_realtime, to_counts, write_log
 from .scenarios import (SCENARIOS, EffectRequest, build_effects, make_effect, parse_request,
@@ -15,7 +16,8 @@ from .scenarios import (SCENARIOS, EffectRequest, build_effects, make_effect, pa
 from .simulator import SimResult, simulate
 from .temperature import TemperatureSettings
 from .trajectory import FunctionPath, RandomTrajectory, TrajectorySettings
-from .truth import effects_from_truth, read_truth, replay_arguments, truth_path, write_truth
+from .truth import (effects_from_truth, read_truth, replay_arguments, truth_path, without,
+                    write_truth)
 
 __all__ = [
     "EFFECT_NAMES", "REGISTRY", "Effect", "EffectError", "ParamSpec", "Stage", "effect_class",
@@ -23,5 +25,5 @@ __all__ = [
     "EffectRequest", "build_effects", "make_effect", "parse_request", "random_effect",
     "random_effects", "scenario_effects", "SimResult", "simulate", "TemperatureSettings",
     "FunctionPath", "RandomTrajectory", "TrajectorySettings", "effects_from_truth",
-    "read_truth", "replay_arguments", "truth_path", "write_truth",
+    "read_truth", "replay_arguments", "truth_path", "write_truth", "without", "registry_info",
 ]

@@ -106,3 +106,16 @@ def replay_arguments(truth: dict) -> dict:
         "record_temp": truth["temperature"]["recorded"],
         "oversample": truth["oversample"], "scenario": truth["scenario"],
     }
+
+
+def without(truth: dict, names) -> dict:
+    """``simulate`` arguments for the recorded run with some effects removed (same seed, same
+    trajectory, same noise): the analytical model's error on that run is what is left when the
+    removed effects are modelled perfectly (the "true shrink" of a diagnosis)."""
+    names = set(names)
+    unknown = names - {e["name"] for e in truth["effects"]}
+    if unknown:
+        raise UserError(f"the run has no effect {sorted(unknown)[0]!r}")
+    args = replay_arguments(truth)
+    args["effects"] = [e for e in args["effects"] if e.NAME not in names]
+    return args

@@ -27,5 +27,20 @@ def effect_class(name: str) -> type[Effect]:
         raise EffectError(f"unknown effect {name!r} (one of {', '.join(EFFECT_NAMES)})") from None
 
 
-__all__ = ["Effect", "EffectError", "ParamSpec", "Signals", "Stage", "REGISTRY", "EFFECT_NAMES",
+def registry_info() -> dict:
+    """The vocabulary as plain data (JSON-able): per effect, where it acts, its formulations,
+    and per parameter its unit, shape, realistic range, sign and which formulations use it."""
+    return {name: {
+        "acts_on": [s.value for s in cls.ACTS_ON],
+        "formulations": list(cls.FORMULATIONS),
+        "per_joint": cls.PER_JOINT,
+        "parameters": {s.name: {"unit": s.unit, "shape": s.shape, "realistic": [s.low, s.high],
+                                "sign": s.sign, "primary": s.primary, "valid": list(s.valid),
+                                "formulations": list(s.formulations or cls.FORMULATIONS),
+                                "doc": s.doc} for s in cls.SPECS},
+        "doc": " ".join((cls.__doc__ or "").split()),
+    } for name, cls in REGISTRY.items()}
+
+
+__all__ = ["registry_info", "Effect", "EffectError", "ParamSpec", "Signals", "Stage", "REGISTRY", "EFFECT_NAMES",
            "effect_class"]

@@ -174,7 +174,9 @@ class Effect:
                 mask = np.isin(np.arange(1, JOINTS + 1), joints)
                 value = np.where(mask, value, spec.neutral)
             params[name] = value
-        effect = cls(formulation=formulation, params=params, magnitude=magnitude,
+        # The magnitude the draws used; none when every strength parameter was given.
+        drawn_with = None if all(s.name in overrides for s in specs.values() if s.primary) else m
+        effect = cls(formulation=formulation, params=params, magnitude=drawn_with,
                      joints=joints)
         effect.validate()
         return effect
