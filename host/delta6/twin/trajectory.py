@@ -2,9 +2,10 @@
 
 The paper's rig moved the Delta6 against the reference sensor along a random trajectory
 covering most of the workspace, and its durability test issued a new sampled Cartesian command
-every few seconds. :class:`RandomTrajectory` does the same in joint space: point-to-point moves
-to random waypoints in the joint box, each a minimum-jerk profile (what a robot's trajectory
-generator produces) with its own peak speed, an optional hold, plus a small smooth dither
+every 4 s. :class:`RandomTrajectory` does the same in joint space: point-to-point moves to
+random waypoints in the joint box, each a minimum-jerk profile (what a robot's trajectory
+generator produces) of random duration (so the speeds vary with distance and duration), an
+optional hold, plus a small smooth dither
 whose envelope comes and goes (small reversals at varied amplitudes: minor hysteresis loops).
 Every joint reverses at about half of the waypoints and many more times with the dither.
 
@@ -30,10 +31,10 @@ class TrajectorySettings:
     """Knobs of the random trajectory (recorded in the truth file)."""
 
     coverage: float = 0.9                 # waypoints within +-coverage * joint limit
-    speed_min_rad_s: float = 0.03         # peak joint speed of a move, log-uniform in range
-    speed_max_rad_s: float = 0.6
-    accel_max_rad_s2: float = 4.0         # moves are slowed down to respect it
-    min_move_s: float = 0.4
+    move_min_s: float = 1.0               # duration of a move, log-uniform in range (a new
+    move_max_s: float = 8.0               # command every ~4 s with the holds, as in the paper)
+    speed_max_rad_s: float = 1.0          # moves are slowed down to respect both limits
+    accel_max_rad_s2: float = 4.0
     hold_probability: float = 0.25        # a hold after a move
     hold_max_s: float = 2.0
     dither_rad: float = 0.02              # peak dither per joint (sum of three sinusoids)
@@ -44,10 +45,10 @@ class TrajectorySettings:
     def check(self) -> None:
         if not 0 < self.coverage <= 1:
             raise ValueError("coverage must lie in (0, 1]")
-        if not 0 < self.speed_min_rad_s <= self.speed_max_rad_s:
-            raise ValueError("need 0 < speed_min <= speed_max")
-        if self.accel_max_rad_s2 <= 0 or self.min_move_s <= 0:
-            raise ValueError("accel_max and min_move must be positive")
+        if not 0 < self.move_min_s <= self.move_max_s:
+            raise ValueError("need 0 < move_min <= move_max")
+        if self.accel_max_rad_s2 <= 0 or self.speed_max_rad_s <= 0:
+            raise ValueError("speed_max and accel_max must be positive")
         if not 0 <= self.hold_probability <= 1 or self.hold_max_s < 0:
             raise ValueError("bad hold settings")
         if self.dither_rad < 0 or not 0 < self.dither_min_hz <= self.dither_max_hz:
@@ -74,9 +75,9 @@ class RandomTrajectory:
         while now < duration_s:
             target = rng.uniform(-reach, reach, 6)
             distance = float(np.abs(target - here).max())
-            speed = math.exp(rng.uniform(math.log(s.speed_min_rad_s), math.log(s.speed_max_rad_s)))
-            length = max(_PEAK_RATE * distance / speed,
-                         math.sqrt(_PEAK_ACCEL * distance / s.accel_max_rad_s2), s.min_move_s)
+            length = math.exp(rng.uniform(math.log(s.move_min_s), math.log(s.move_max_s)))
+            length = max(length, _PEAK_RATE * distance / s.speed_max_rad_s,
+                         math.sqrt(_PEAK_ACCEL * distance / s.accel_max_rad_s2))
             starts.append(now), durations.append(length), origins.append(here), targets.append(target)
             now += length
             here = target
