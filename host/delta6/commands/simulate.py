@@ -14,7 +14,7 @@ from ..errors import UserError
 from ..twin import (EFFECT_NAMES, REGISTRY, SCENARIOS, build_effects, parse_request,
                     random_effect, simulate, write_log)
 from ..twin.scenarios import SCENARIO_HELP
-from ..twin.truth import truth_path
+from ..twin.truth import effects_from_truth, truth_path
 
 NAME = "simulate"
 HELP = "simulate a calibration run (digital twin): a log of encoder angles and reference wrench"
@@ -162,7 +162,6 @@ def summary(result, log_path: Path, truth_file: Path, simulated: float, written:
         f"{truth['scenario'] or '-'}, seed {truth['seed']}",
         "effects:" if truth["effects"] else "effects: none (ideal plant; noise and quantization only)",
     ]
-    from ..twin.truth import effects_from_truth
     lines += [f"  {describe(e)}" for e in effects_from_truth(truth)]
     table = {k: v for k, v in truth["analytical_error_pct_fs"].items() if k != "p100"}
     lines.append("analytical model vs reference (percent of full scale):")

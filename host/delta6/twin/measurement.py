@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import model
+from .statics import rotation_from_vector
 
 
 @dataclass(frozen=True)
@@ -36,7 +37,6 @@ class Measurement:
         return 2 * np.pi / 2**self.encoder_bits
 
     def sensor_rotation(self) -> np.ndarray:
-        from .statics import rotation_from_vector
         return rotation_from_vector(np.asarray(self.sensor_turn_rad, dtype=float))
 
     def encoders(self, angle: np.ndarray) -> np.ndarray:

@@ -26,6 +26,7 @@ from .measurement import Measurement
 from .streams import stream
 from .temperature import TemperatureSettings, ambient
 from .trajectory import RandomTrajectory, TrajectorySettings
+from .truth import build_truth
 
 #: Seconds at rest simulated before t = 0 (the lags and the latency start settled).
 PRE_ROLL_S = 1.0
@@ -113,7 +114,6 @@ def simulate(design: Design, effects: Sequence[Effect] = (), duration_s: float =
     result = SimResult(design=design, t=fine_t[logged], theta=theta, wrench=wrench,
                        temp_c=temp_c, true_angles=q[logged], true_wrench=out.wrench[logged],
                        path=path)
-    from .truth import build_truth
     result.truth = build_truth(
         result, effects=effects, seed=seed, duration_s=duration_s, rate_hz=rate_hz,
         oversample=oversample, scenario=scenario,

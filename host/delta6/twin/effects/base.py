@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
@@ -136,7 +136,6 @@ class Effect:
     params: dict[str, np.ndarray]
     magnitude: float | None = None
     joints: tuple[int, ...] = tuple(range(1, JOINTS + 1))
-    extra: dict = field(default_factory=dict)
 
     # -- construction ---------------------------------------------------------------------
 
@@ -176,10 +175,7 @@ class Effect:
             params[name] = value
         # The magnitude the draws used; none when every strength parameter was given.
         drawn_with = None if all(s.name in overrides for s in specs.values() if s.primary) else m
-        effect = cls(formulation=formulation, params=params, magnitude=drawn_with,
-                     joints=joints)
-        effect.validate()
-        return effect
+        return cls(formulation=formulation, params=params, magnitude=drawn_with, joints=joints)
 
     @classmethod
     def _joints(cls, joints) -> tuple[int, ...]:
@@ -191,9 +187,6 @@ class Effect:
         if not joints or joints[0] < 1 or joints[-1] > JOINTS:
             raise EffectError(f"{cls.NAME}: joints must be numbers 1..6")
         return joints
-
-    def validate(self) -> None:
-        """Cross-parameter checks (subclasses)."""
 
     # -- hooks, by stage (the plant calls only those of the stages in ACTS_ON); the defaults
     # -- change nothing, so a TORQUE effect implements one or both of its two hooks.
@@ -250,10 +243,8 @@ class Effect:
             if name not in record["parameters"]:
                 raise EffectError(f"{cls.NAME}: truth record lacks parameter {name!r}")
             params[name] = np.asarray(record["parameters"][name], dtype=float).reshape(spec.dims)
-        effect = cls(formulation=formulation, params=params, magnitude=record.get("magnitude"),
-                     joints=tuple(record.get("joints", range(1, JOINTS + 1))))
-        effect.validate()
-        return effect
+        return cls(formulation=formulation, params=params, magnitude=record.get("magnitude"),
+                   joints=tuple(record.get("joints", range(1, JOINTS + 1))))
 
 
 def _jsonable(value):
