@@ -10,7 +10,7 @@ from __future__ import annotations
 from .effects import (EFFECT_NAMES, REGISTRY, Effect, EffectError, ParamSpec, Stage, effect_class,
                       registry_info)
 from .measurement import Measurement
-from .realtime import EncoderSample, iter_realtime, to_counts, write_log
+from .realtime import EncoderSample, EncoderTrack, iter_realtime, to_counts, write_log
 from .scenarios import (SCENARIOS, EffectRequest, build_effects, make_effect, parse_request,
                         random_effect, random_effects, scenario_effects)
 from .simulator import SimResult, simulate
@@ -21,7 +21,7 @@ from .truth import (effects_from_truth, read_truth, replay_arguments, truth_path
 
 __all__ = [
     "EFFECT_NAMES", "REGISTRY", "Effect", "EffectError", "ParamSpec", "Stage", "effect_class",
-    "Measurement", "EncoderSample", "iter_realtime", "to_counts", "write_log", "SCENARIOS",
+    "Measurement", "EncoderSample", "EncoderTrack", "iter_realtime", "to_counts", "write_log", "SCENARIOS",
     "EffectRequest", "build_effects", "make_effect", "parse_request", "random_effect",
     "random_effects", "scenario_effects", "SimResult", "simulate", "TemperatureSettings",
     "FunctionPath", "RandomTrajectory", "TrajectorySettings", "effects_from_truth",

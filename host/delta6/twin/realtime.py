@@ -73,6 +73,30 @@ def iter_realtime(source, *, speed: float = 1.0, loop: bool = False,
         lap += 1
 
 
+class EncoderTrack:
+    """A run's encoder angles as a function of time, held between samples (zero-order hold),
+    for consumers that sample at their own times: ``angles(t_s)`` (s from the run's start,
+    any shape (M,)) -> (M, 6) rad. This is the ``motion`` interface of
+    ``delta6.simdevice.SimulatedDevice``: ``SimulatedDevice(motion=EncoderTrack(result))`` runs
+    the firmware core on the twin's encoder angles. ``loop`` repeats the run; otherwise the last
+    sample holds."""
+
+    def __init__(self, source, loop: bool = False):
+        self.t = np.asarray(source.t, dtype=float) - float(source.t[0])
+        self.theta = np.asarray(source.theta, dtype=float)
+        self.loop = loop
+        self.period = self.t[-1] + (self.t[-1] - self.t[-2] if len(self.t) > 1 else 1.0)
+
+    def angles(self, t_s) -> np.ndarray:
+        t = np.asarray(t_s, dtype=float)
+        if self.loop:
+            t = np.mod(t, self.period)
+        # A nanosecond of slack: a time computed to be a sample's (from microseconds, or a
+        # lap later) may land a rounding error before it.
+        index = np.clip(np.searchsorted(self.t, t + 1e-9, side="right") - 1, 0, len(self.t) - 1)
+        return self.theta[index]
+
+
 def to_counts(theta: np.ndarray, zero: int | np.ndarray = 0, bits: int = 14) -> np.ndarray:
     """Encoder angles (rad) as the raw absolute counts an encoder would report, given the count
     at zero deflection (``zero``): what a virtual board's encoder model serves."""
