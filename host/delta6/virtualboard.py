@@ -35,7 +35,7 @@ import numpy as np
 from . import appbuild, avrbuild
 from .errors import UserError
 from .logfile import LogError, read_log
-from .model import ENCODER_COUNT_RAD
+from .twin.realtime import to_counts
 
 HARNESS_DIR = avrbuild.REPO_ROOT / "tools" / "simavr" / "virtual_board"
 SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
@@ -132,9 +132,8 @@ def firmware(design_include: Path | None = None, *, test_hooks: bool = False,
 
 def theta_to_counts(theta, zero=0) -> np.ndarray:
     """Encoder angles (rad) -> the raw 14-bit counts a sensor reports, given the counts at zero
-    deflection: round to the nearest count, wrap to one turn."""
-    raw = np.rint(np.asarray(theta, dtype=float) / ENCODER_COUNT_RAD).astype(np.int64)
-    return np.mod(raw + np.asarray(zero, dtype=np.int64), COUNTS_PER_TURN).astype(np.uint16)
+    deflection (the digital twin's encoder model)."""
+    return to_counts(theta, np.asarray(zero, dtype=np.int64))
 
 
 def write_replay(path: Path, t, counts) -> Path:

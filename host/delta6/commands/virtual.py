@@ -16,6 +16,9 @@ from ..errors import UserError
 from ._port import number
 
 NAME = "virtual"
+DEFAULT_DESIGN = Path(__file__).resolve().parents[3] / "designs" / "delta6.toml"
+#: The twin's sample rate when it drives the board: above any rate the board samples at.
+TWIN_RATE_HZ = 1000.0
 HELP = ("run the virtual board (the firmware on an emulated ATmega328P with six emulated "
         "encoders); prints its port, then runs until Ctrl-C")
 
@@ -31,6 +34,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     motion.add_argument("--static", action="store_true",
                         help="encoders at rest (zero deflection) unless the live channel moves "
                              "them")
+    motion.add_argument("--twin", metavar="SCENARIO",
+                        help="the digital twin drives the encoders live: a simulated run of "
+                             "SCENARIO (ideal, paper, or one effect's name; delta6 simulate "
+                             "--list), fed through the live channel at the board's pace")
+    parser.add_argument("--seed", type=number("--seed", int, 0), default=0, metavar="N",
+                        help="the twin's random seed (default 0)")
+    parser.add_argument("--twin-duration", type=number("--twin-duration", low=1), default=120.0,
+                        metavar="S", help="seconds of twin run, looped (default 120)")
     parser.add_argument("--loop", action="store_true", help="start the replay over at its end")
     parser.add_argument("--live", metavar="SOCKET", type=Path,
                         help="listen for live angle updates, faults and queries on this Unix "
@@ -71,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
     zero = parse_zero(args.zero)
     if args.loop and args.replay is None:
         raise UserError("--loop goes with --replay")
+    run_of_twin = _simulate_twin(args) if args.twin else None
     if args.design is not None:
         from .codegen import design_firmware
         image = design_firmware(args.design)
@@ -80,22 +92,53 @@ def run(args: argparse.Namespace) -> int:
         replay, loop, what = args.replay, args.loop, None
         if replay is not None:
             what = f"replaying {replay}"
+        elif run_of_twin is not None:
+            what = (f"the digital twin, scenario {args.twin} (seed {args.seed}, "
+                    f"{args.twin_duration:g} s looped), through the live channel")
         elif not args.static and args.live is None:
             t, theta = vb.demo_trajectory()
             replay = vb.write_replay(Path(tmp) / "demo.d6rp", t, vb.theta_to_counts(theta, zero))
             loop, what = True, "a demo motion (20 s, looping; --static for rest)"
-        board = vb.VirtualBoard(image=image, replay=replay, loop=loop, zero=zero,
-                                live=args.live if args.live is not None else False,
+        live = args.live if args.live is not None else run_of_twin is not None
+        board = vb.VirtualBoard(image=image, replay=replay, loop=loop, zero=zero, live=live,
                                 faults=faults, eeprom=args.eeprom, speed=args.speed,
                                 duration=args.duration)
-        return _serve(board, args, what)
+        return _serve(board, args, what, run_of_twin)
 
 
-def _serve(board: vb.VirtualBoard, args: argparse.Namespace, what: str | None) -> int:
+def _simulate_twin(args: argparse.Namespace):
+    from .. import design as design_mod
+    from .. import twin
+    try:
+        effects = twin.scenario_effects(args.twin, args.seed)
+    except twin.EffectError as exc:
+        raise UserError(str(exc)) from None
+    design = design_mod.load(args.design or DEFAULT_DESIGN)
+    print(f"simulating {args.twin_duration:g} s of the twin (scenario {args.twin}) ...",
+          file=sys.stderr, flush=True)
+    return twin.simulate(design, effects, args.twin_duration, TWIN_RATE_HZ, args.seed,
+                         scenario=args.twin)
+
+
+def _drive(board: vb.VirtualBoard, run_of_twin, speed: float, stop: threading.Event) -> None:
+    """Feed the twin's angles through the live channel, paced by the board's clock."""
+    from ..twin import iter_realtime
+    samples = iter_realtime(run_of_twin, speed=speed if speed > 0 else 1e6, loop=True)
+    try:
+        board.live.drive(samples, stop=stop)
+    except UserError:
+        pass   # the board went away: the main thread reports how it ended
+
+
+def _serve(board: vb.VirtualBoard, args: argparse.Namespace, what: str | None,
+           run_of_twin=None) -> int:
     stop = threading.Event()
     previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         board.start()
+        if run_of_twin is not None:
+            threading.Thread(target=_drive, args=(board, run_of_twin, args.speed, stop),
+                             daemon=True).start()
         print(board.port, flush=True)
         notes = [f"virtual board on {board.port}: firmware {board.image.elf.name} on an emulated "
                  "ATmega328P at 16 MHz, 500000 baud"]
