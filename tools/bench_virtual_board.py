@@ -29,7 +29,7 @@ sys.path.insert(0, str(ROOT / "host"))
 from delta6 import protocol as P  # noqa: E402
 from delta6.device import Device  # noqa: E402
 from delta6.virtualboard import (VirtualBoard, demo_trajectory, firmware,  # noqa: E402
-                                 theta_to_counts, write_replay)
+                                 stack_depth, theta_to_counts, write_replay)
 
 F_CPU = 16_000_000
 DEFAULT_RATES = (250, 300, 350, 400, 425, 450, 475, 500, 550)
@@ -107,7 +107,9 @@ def main() -> int:
     results = {}
     with tempfile.TemporaryDirectory() as tmp:
         replay = write_replay(Path(tmp) / "motion.d6rp", t, theta_to_counts(theta))
-        with VirtualBoard(image=image, replay=replay, loop=True, live=True, speed=0) as board:
+        ram_dump = Path(tmp) / "ram.bin"
+        with VirtualBoard(image=image, replay=replay, loop=True, live=True, speed=0,
+                          ram_dump=ram_dump) as board:
             with Device(board.port, timeout=2.0) as dev:
                 for mode in ("wrench", "raw"):
                     dev.set_mode(mode)
@@ -116,7 +118,12 @@ def main() -> int:
                         rows.append(measure(board, dev, rate, args.seconds))
                         print(".", end="", flush=True, file=sys.stderr)
                     results[mode] = rows
+                    # A command answered under load: the 128-byte INFO record (the costliest).
+                    dev.info(refresh=True)
             print(file=sys.stderr)
+            board.stop()
+            byte_cycles = board.stats()["timing"]["byte_cycles"]
+        stack = stack_depth(ram_dump, image.sizes.ram)
 
     for mode, rows in results.items():
         print_table("wrench" if mode == "wrench" else "wrench+raw", rows)
@@ -148,6 +155,12 @@ def main() -> int:
           f"({cycles_to_us(first['solve']['mean']):.0f} us)")
     print("latency = encoder latch to the last byte of the record out of the UART (paper: "
           "10.6-25.8 ms end to end, host included)")
+    print(f"received byte fed to the device: {byte_cycles['mean']:.0f} cycles mean, "
+          f"{byte_cycles['max']:.0f} max ({cycles_to_us(byte_cycles['max']):.0f} us: a command "
+          "completed and answered)")
+    print(f"RAM: {image.sizes.ram} B static + {stack} B peak stack = "
+          f"{image.sizes.ram + stack} B of 2048 (ATmega328P; the 4809 has 6144)")
+    print("emu x = board seconds per wall second, unpaced; delta6 virtual paces to 1.0")
     return 0 if ok else 1
 
 

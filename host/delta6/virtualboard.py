@@ -207,7 +207,8 @@ class VirtualBoard:
     process to drive: ``self.live_path``);
     ``faults``: :class:`Fault` windows; ``eeprom``: an EEPROM image file kept across runs;
     ``speed``: 1.0 paces board time to the wall clock, 0 runs as fast as it can;
-    ``duration``: board seconds to run; ``read_log``: write the encoder read log there.
+    ``duration``: board seconds to run; ``read_log``: write the encoder read log there;
+    ``ram_dump``: the SRAM at the end (:func:`stack_depth` reads it).
     """
 
     def __init__(self, *, image: avrbuild.Image | None = None, replay: Path | None = None,
@@ -216,7 +217,7 @@ class VirtualBoard:
                  eeprom: Path | None = None, speed: float = 1.0,
                  duration: float | None = None, read_log: Path | None = None,
                  wait_for_client: bool = True, bus_timing_ns: tuple[int, int, int] | None = None,
-                 baud: int = 500_000):
+                 baud: int = 500_000, ram_dump: Path | None = None):
         self.image = image or firmware()
         self.replay = Path(replay) if replay else None
         self.loop = loop
@@ -232,6 +233,7 @@ class VirtualBoard:
         self.wait_for_client = wait_for_client
         self.bus_timing_ns = bus_timing_ns
         self.baud = baud
+        self.ram_dump = Path(ram_dump) if ram_dump else None
         self.port: str | None = None
         self.live: LiveChannel | None = None
         self.live_path: Path | None = None
@@ -277,6 +279,8 @@ class VirtualBoard:
             cmd.append("--no-wait")
         if self.bus_timing_ns is not None:
             cmd += ["--bus-timing", ",".join(str(int(v)) for v in self.bus_timing_ns)]
+        if self.ram_dump is not None:
+            cmd += ["--ram-dump", str(self.ram_dump)]
         self.proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                      stderr=subprocess.PIPE, text=True)
         threading.Thread(target=self._drain_stderr, daemon=True).start()
@@ -355,6 +359,16 @@ class VirtualBoard:
         if self.stats_path is None or not self.stats_path.exists():
             raise VirtualBoardError("no statistics: the board has not run to its end")
         return json.loads(self.stats_path.read_text())
+
+
+def stack_depth(ram_dump: Path, static_ram: int, ram_start: int = 0x100) -> int:
+    """Bytes of stack the firmware used at most, from a RAM dump of a run: simavr starts the
+    SRAM zeroed, so the lowest non-zero byte above the static data (.data + .bss, which start
+    at ``ram_start``) is as deep as the stack went (a lower bound, exact unless the deepest
+    bytes pushed were all zero)."""
+    ram = np.frombuffer(Path(ram_dump).read_bytes(), dtype=np.uint8)
+    above = np.flatnonzero(ram[static_ram:])
+    return 0 if len(above) == 0 else int(len(ram) - static_ram - above[0])
 
 
 class LiveChannel:

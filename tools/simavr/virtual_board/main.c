@@ -14,6 +14,8 @@
  *     --stats FILE          timing and counters as JSON at exit
  *     --read-log FILE       one line per encoder scan: cycle, six counts, six fault kinds,
  *                           mask of complete frames
+ *     --ram-dump FILE       the SRAM at exit (0x100..RAMEND; simavr starts it zeroed, so the
+ *                           lowest non-zero byte above the static data bounds the stack depth)
  *     --speed X             1 = real time (default), 2 = twice as fast, 0 = as fast as it runs
  *     --duration S          stop after S seconds of board time
  *     --no-wait             start at once instead of waiting for a client on the pty
@@ -113,7 +115,7 @@ void vb_report_json(FILE *f)
 }
 
 typedef struct {
-	const char *elf, *replay, *live, *eeprom, *stats, *read_log;
+	const char *elf, *replay, *live, *eeprom, *stats, *read_log, *ram_dump;
 	uint32_t freq, baud;
 	int loop, no_wait;
 	double speed, duration;
@@ -222,6 +224,8 @@ static void parse_options(options_t *o, int argc, char **argv)
 			o->stats = v;
 		} else if (!strcmp(a, "--read-log")) {
 			o->read_log = v;
+		} else if (!strcmp(a, "--ram-dump")) {
+			o->ram_dump = v;
 		} else if (!strcmp(a, "--speed")) {
 			o->speed = parse_double(v, a);
 			if (o->speed < 0)
@@ -292,6 +296,14 @@ static void save_eeprom(const char *path)
 	if (!f || fwrite(eeprom_memory(), 1, EEPROM_SIZE, f) != EEPROM_SIZE || fclose(f) != 0 ||
 	    rename(tmp, path) != 0)
 		vb_warn("could not save the EEPROM image %s: %s", path, strerror(errno));
+}
+
+static void write_ram(const char *path)
+{
+	FILE *f = fopen(path, "wb");
+	size_t n = (size_t)vb_avr->ramend + 1 - 0x100;
+	if (!f || fwrite(vb_avr->data + 0x100, 1, n, f) != n || fclose(f) != 0)
+		vb_warn("cannot write the RAM dump %s: %s", path, strerror(errno));
 }
 
 static void write_stats(const char *path)
@@ -430,6 +442,8 @@ int main(int argc, char **argv)
 		save_eeprom(o.eeprom);
 	if (o.stats)
 		write_stats(o.stats);
+	if (o.ram_dump)
+		write_ram(o.ram_dump);
 	encoders_close();
 	live_close();
 	link_close();
