@@ -21,11 +21,14 @@ def delta6(*args, **kwargs):
                           capture_output=True, text=True, timeout=120, **kwargs)
 
 
-def test_virtual_board_serves_the_host_commands(tmp_path):
+@pytest.mark.parametrize("motion, note", [([], "demo motion"),
+                                           (["--twin", "ideal", "--twin-duration", "5"],
+                                            "the digital twin, scenario ideal")])
+def test_virtual_board_serves_the_host_commands(motion, note, tmp_path):
     stats = tmp_path / "stats.json"
     board = subprocess.Popen([sys.executable, "-m", "delta6", "virtual", "--speed", "0",
-                              "--stats", str(stats)], cwd=ROOT, stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, text=True)
+                              "--stats", str(stats), *motion], cwd=ROOT,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         port = board.stdout.readline().strip()
         assert port.startswith("/dev/")
@@ -35,6 +38,7 @@ def test_virtual_board_serves_the_host_commands(tmp_path):
         assert " 0 lost in 0 gaps" in streamed.stderr
         lines = [ln for ln in streamed.stdout.splitlines() if ln.startswith("t ")]
         assert len(lines) >= 3 and all(ln.endswith("ok") for ln in lines)
+        assert len({ln.split("Fx")[1][:9] for ln in lines}) > 1     # the encoders move
         info = delta6("info", "--port", port, "--json")
         assert info.returncode == 0, info.stderr
         assert json.loads(info.stdout)["design_name"] == "delta6"
@@ -42,7 +46,7 @@ def test_virtual_board_serves_the_host_commands(tmp_path):
         board.send_signal(signal.SIGTERM)
         _, err = board.communicate(timeout=30)
     assert board.returncode == 0, err
-    assert "ran " in err and "missed periods" in err
+    assert note in err and "ran " in err and " 0 missed periods" in err
     report = json.loads(stats.read_text())
     assert report["timing"]["samples"] > 250 and report["link"]["clients"] == 2
 

@@ -396,8 +396,10 @@ class LiveChannel:
                 time.sleep(0.02)
         self._file = self.sock.makefile("r", encoding="ascii", newline="\n")
         self._lock = threading.Lock()
+        self.closed = False
 
     def close(self) -> None:
+        self.closed = True
         try:
             self._file.close()
             self.sock.close()
@@ -464,20 +466,25 @@ class LiveChannel:
               stop: threading.Event | None = None) -> int:
         """Send every (t, theta) of ``samples`` as a timed update at board time
         ``t - t_first + t0`` (t0: the board's clock when the first sample arrives), never more
-        than ``lead`` s ahead of the board. Returns the number of samples sent."""
+        than ``lead`` s ahead of the board. Returns the number of samples sent; ends quietly
+        when ``stop`` is set or the channel is closed (the board stopped)."""
         sent = 0
-        offset = None
-        board_now = self.time()
-        for sample in samples:
-            if stop is not None and stop.is_set():
-                break
-            t, theta = float(sample[0]), sample[1]
-            if offset is None:
-                offset = (board_now if t0 is None else t0) - t
-            at = t + offset
-            while at - board_now > lead:
-                time.sleep(min(0.05, at - board_now - lead))
-                board_now = self.time()
-            self.set_theta(at, theta)
-            sent += 1
+        try:
+            offset = None
+            board_now = self.time()
+            for sample in samples:
+                if (stop is not None and stop.is_set()) or self.closed:
+                    break
+                t, theta = float(sample[0]), sample[1]
+                if offset is None:
+                    offset = (board_now if t0 is None else t0) - t
+                at = t + offset
+                while at - board_now > lead:
+                    time.sleep(min(0.05, at - board_now - lead))
+                    board_now = self.time()
+                self.set_theta(at, theta)
+                sent += 1
+        except VirtualBoardError:
+            if not self.closed:
+                raise
         return sent
