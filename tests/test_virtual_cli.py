@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from delta6 import virtualboard
+from delta6 import avrsim
 from delta6.cli import main
 from delta6.logfile import LogWriter
 
@@ -81,6 +81,6 @@ def test_bad_options_are_one_line_and_exit_2(args, words, capsys):
 
 
 def test_missing_simavr_says_what_to_install(monkeypatch, tmp_path, capsys):
-    monkeypatch.setattr(virtualboard, "SIMAVR_HEADER", tmp_path / "nothing.h")
+    monkeypatch.setattr(avrsim, "SIMAVR_HEADER", tmp_path / "nothing.h")
     assert main(["virtual", "--static"]) == 2
     assert "apt-get install" in capsys.readouterr().err

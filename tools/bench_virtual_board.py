@@ -17,7 +17,6 @@ It prints a table per mode, the highest rate with no overrun, and the requiremen
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import tempfile
 import time

@@ -6,13 +6,14 @@
 #include <avr/eeprom.h>
 #include <avr/interrupt.h>
 #include <avr/io.h>
-#include <avr/sleep.h>
+#include <avr/sleep.h>   // set_sleep_mode
 #include <avr/wdt.h>
 
 #include "app.h"
 #include "board.h"
 #include "board_contract.h"
 #include "encoder_bus.h"
+#include "uart_queue.h"
 
 static_assert(F_CPU == 16000000UL, "the UART and timer settings assume 16 MHz");
 
@@ -40,18 +41,7 @@ struct Pins {
 };
 static_assert(D6_328P_DATA_SHIFT == 0, "Pins::readData returns encoder j in bit j");
 
-// Transmit ring (256: the indices wrap by themselves) and receive ring.
-uint8_t tx_buffer[board::kTxQueue];
-volatile uint8_t tx_head = 0;   // written by the main loop
-volatile uint8_t tx_tail = 0;   // written by the interrupt
-const uint8_t kRxSize = 128;    // a power of two
-uint8_t rx_buffer[kRxSize];
-volatile uint8_t rx_head = 0;
-volatile uint8_t rx_tail = 0;
-
 uint8_t saved_reset_flags __attribute__((section(".noinit")));
-
-uint8_t txQueued() { return static_cast<uint8_t>(tx_head - tx_tail); }
 
 }  // namespace
 
@@ -65,26 +55,21 @@ extern "C" void delta6_capture_reset_cause() {
 }
 
 ISR(USART_UDRE_vect) {
-  const uint8_t tail = tx_tail;
-  if (tail != tx_head) {
-    UDR0 = tx_buffer[tail];
-    tx_tail = static_cast<uint8_t>(tail + 1);
+  uint8_t b;
+  if (uartq::txTake(&b)) {
+    UDR0 = b;
   } else {
     UCSR0B &= static_cast<uint8_t>(~_BV(UDRIE0));
   }
 }
 
-ISR(USART_RX_vect) {
-  const uint8_t b = UDR0;
-  const uint8_t head = rx_head;
-  const uint8_t next = static_cast<uint8_t>((head + 1) & (kRxSize - 1));
-  if (next != rx_tail) {   // a full ring drops the byte: the command's CRC fails, it is retried
-    rx_buffer[head] = b;
-    rx_head = next;
-  }
-}
+ISR(USART_RX_vect) { uartq::rxPut(UDR0); }
 
-// Nestable: the UART interrupts must preempt the encoder scan (about 0.1 ms), or received
+// A read-modify-write of UCSR0B that the transmit interrupt may interleave with: it can only
+// clear UDRIE after the ring ran empty, and setting it again then costs one empty interrupt.
+void uartq::enableTxInterrupt() { UCSR0B |= _BV(UDRIE0); }
+
+// Nestable: the UART interrupts must preempt the encoder scan (about 0.2 ms), or received
 // bytes would overrun the 2-byte receive buffer at 500000 baud.
 ISR(TIMER1_COMPA_vect, ISR_NOBLOCK) { app::onSampleTick(); }
 
@@ -153,32 +138,6 @@ uint32_t micros() { return ::micros(); }
 
 void scanEncoders(uint16_t word[6], uint16_t inverse[6]) { bus::scan<Pins>(word, inverse); }
 
-uint16_t txSpace() { return static_cast<uint16_t>(kTxQueue - 1 - txQueued()); }
-
-void markRecordQueued() {
-  const uint8_t sreg = SREG;
-  cli();
-  mark(D6_MARK_RECORD_QUEUED, txQueued());
-  SREG = sreg;
-}
-
-void txWrite(const uint8_t* data, uint16_t n) {
-  uint8_t head = tx_head;
-  for (uint16_t i = 0; i < n; ++i) tx_buffer[head++] = data[i];
-  tx_head = head;
-  UCSR0B |= _BV(UDRIE0);
-}
-
-bool rxAvailable() { return rx_head != rx_tail; }
-
-int16_t rxRead() {
-  const uint8_t tail = rx_tail;
-  if (tail == rx_head) return -1;
-  const uint8_t b = rx_buffer[tail];
-  rx_tail = static_cast<uint8_t>((tail + 1) & (kRxSize - 1));
-  return b;
-}
-
 void eepromRead(uint16_t address, uint8_t* data, uint16_t n) {
   eeprom_read_block(data, reinterpret_cast<const void*>(address), n);
 }
@@ -194,20 +153,6 @@ void eepromWrite(uint16_t address, const uint8_t* data, uint16_t n) {
 void watchdogStart(uint16_t rate_hz) { wdt_enable(rate_hz >= 10 ? WDTO_250MS : WDTO_2S); }
 
 void watchdogKick() { wdt_reset(); }
-
-void idle(bool (*pending)()) {
-  cli();
-  if (pending()) {
-    sei();
-    return;
-  }
-  mark(D6_MARK_IDLE);
-  sleep_enable();
-  sei();
-  sleep_cpu();   // sei's next instruction runs first: no interrupt slips in between
-  sleep_disable();
-  mark(D6_MARK_WAKE);
-}
 
 #if defined(DELTA6_TEST_HOOKS)
 bool testHangRequested() { return !(PINB & _BV(D6_328P_TEST_BIT)); }

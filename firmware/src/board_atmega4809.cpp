@@ -16,12 +16,13 @@
 #include <avr/eeprom.h>
 #include <avr/interrupt.h>
 #include <avr/io.h>
-#include <avr/sleep.h>
+#include <avr/sleep.h>   // set_sleep_mode
 
 #include "app.h"
 #include "board.h"
 #include "board_contract.h"
 #include "encoder_bus.h"
+#include "uart_queue.h"
 
 namespace {
 
@@ -50,20 +51,10 @@ struct Pins {
   static uint8_t readData() { return VPORTD.IN; }
 };
 
-uint8_t tx_buffer[board::kTxQueue];
-volatile uint8_t tx_head = 0;
-volatile uint8_t tx_tail = 0;
-const uint8_t kRxSize = 128;   // a power of two
-uint8_t rx_buffer[kRxSize];
-volatile uint8_t rx_head = 0;
-volatile uint8_t rx_tail = 0;
-
 uint8_t sample_postscale = 1;   // timer periods per sample (below ~4 Hz)
 volatile uint8_t sample_countdown = 1;
 
 uint8_t saved_reset_flags __attribute__((section(".noinit")));
-
-uint8_t txQueued() { return static_cast<uint8_t>(tx_head - tx_tail); }
 
 void waitWatchdogSync() {
   while (WDT.STATUS & WDT_SYNCBUSY_bm) {
@@ -80,24 +71,17 @@ extern "C" void delta6_capture_reset_cause() {
 }
 
 ISR(USART3_DRE_vect) {
-  const uint8_t tail = tx_tail;
-  if (tail != tx_head) {
-    USART3.TXDATAL = tx_buffer[tail];
-    tx_tail = static_cast<uint8_t>(tail + 1);
+  uint8_t b;
+  if (uartq::txTake(&b)) {
+    USART3.TXDATAL = b;
   } else {
     USART3.CTRLA &= static_cast<uint8_t>(~USART_DREIE_bm);
   }
 }
 
-ISR(USART3_RXC_vect) {
-  const uint8_t b = USART3.RXDATAL;
-  const uint8_t head = rx_head;
-  const uint8_t next = static_cast<uint8_t>((head + 1) & (kRxSize - 1));
-  if (next != rx_tail) {
-    rx_buffer[head] = b;
-    rx_head = next;
-  }
-}
+ISR(USART3_RXC_vect) { uartq::rxPut(USART3.RXDATAL); }
+
+void uartq::enableTxInterrupt() { USART3.CTRLA |= USART_DREIE_bm; }
 
 // Level 0; the receive interrupt is level 1 (board::init) and preempts the encoder scan.
 ISR(TCB0_INT_vect) {
@@ -179,32 +163,6 @@ uint32_t micros() { return ::micros(); }
 
 void scanEncoders(uint16_t word[6], uint16_t inverse[6]) { bus::scan<Pins>(word, inverse); }
 
-uint16_t txSpace() { return static_cast<uint16_t>(kTxQueue - 1 - txQueued()); }
-
-void markRecordQueued() {
-  const uint8_t sreg = SREG;
-  cli();
-  mark(D6_MARK_RECORD_QUEUED, txQueued());
-  SREG = sreg;
-}
-
-void txWrite(const uint8_t* data, uint16_t n) {
-  uint8_t head = tx_head;
-  for (uint16_t i = 0; i < n; ++i) tx_buffer[head++] = data[i];
-  tx_head = head;
-  USART3.CTRLA |= USART_DREIE_bm;
-}
-
-bool rxAvailable() { return rx_head != rx_tail; }
-
-int16_t rxRead() {
-  const uint8_t tail = rx_tail;
-  if (tail == rx_head) return -1;
-  const uint8_t b = rx_buffer[tail];
-  rx_tail = static_cast<uint8_t>((tail + 1) & (kRxSize - 1));
-  return b;
-}
-
 void eepromRead(uint16_t address, uint8_t* data, uint16_t n) {
   eeprom_read_block(data, reinterpret_cast<const void*>(address), n);
 }
@@ -224,20 +182,6 @@ void watchdogStart(uint16_t rate_hz) {
 }
 
 void watchdogKick() { __builtin_avr_wdr(); }
-
-void idle(bool (*pending)()) {
-  cli();
-  if (pending()) {
-    sei();
-    return;
-  }
-  mark(D6_MARK_IDLE);
-  sleep_enable();
-  sei();
-  sleep_cpu();
-  sleep_disable();
-  mark(D6_MARK_WAKE);
-}
 
 }  // namespace board
 

@@ -14,11 +14,8 @@ and/or the live channel (:class:`LiveChannel`), which the digital twin can drive
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import math
-import os
-import shutil
 import signal
 import socket
 import struct
@@ -32,18 +29,13 @@ from typing import Iterable
 
 import numpy as np
 
-from . import appbuild, avrbuild
+from . import appbuild, avrbuild, avrsim
 from .errors import UserError
 from .logfile import LogError, read_log
 from .twin.realtime import to_counts
 
 HARNESS_DIR = avrbuild.REPO_ROOT / "tools" / "simavr" / "virtual_board"
-SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 CONTRACT = avrbuild.FIRMWARE / "src" / "board_contract.h"
-BUILD_DIR = avrbuild.REPO_ROOT / "build" / "simavr"
-SIMAVR_LIBS = ("-lsimavr", "-lsimavrparts", "-lutil", "-lpthread", "-lm")
-APT_HINT = ("install it with: sudo apt-get install --no-install-recommends simavr "
-            "libsimavr-dev (or run bash tools/bootstrap.sh)")
 FAULT_KINDS = ("biterror", "weak", "strong", "noanswer")
 COUNTS_PER_TURN = 16384
 EEPROM_SIZE = 1024
@@ -95,28 +87,9 @@ class Fault:
 
 def harness() -> Path:
     """The compiled harness (built on first use, rebuilt when a source changes)."""
-    cc = shutil.which("gcc") or shutil.which("cc")
-    if not cc:
-        raise VirtualBoardError("no host C compiler (gcc) found; install gcc")
-    if not SIMAVR_HEADER.exists():
-        raise VirtualBoardError(f"simavr headers not found; {APT_HINT}")
-    sources = sorted(HARNESS_DIR.glob("*.c"))
-    digest = hashlib.sha256()
-    for path in [*sources, *sorted(HARNESS_DIR.glob("*.h")), CONTRACT]:
-        digest.update(path.name.encode() + b"\0" + path.read_bytes())
-    exe = BUILD_DIR / f"delta6_vboard-{digest.hexdigest()[:12]}"
-    if exe.exists():
-        return exe
-    BUILD_DIR.mkdir(parents=True, exist_ok=True)
-    tmp = exe.with_name(f"{exe.name}.{os.getpid()}.tmp")
-    cmd = [cc, "-O2", "-Wall", "-Wextra", "-Werror", "-std=gnu11", *map(str, sources),
-           "-o", str(tmp), *SIMAVR_LIBS]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise VirtualBoardError(f"building the virtual board failed ({APT_HINT}):\n"
-                                f"{' '.join(cmd)}\n{proc.stderr.strip()}")
-    tmp.replace(exe)
-    return exe
+    return avrsim.build_tool("delta6_vboard", sorted(HARNESS_DIR.glob("*.c")),
+                             [*sorted(HARNESS_DIR.glob("*.h")), CONTRACT],
+                             error=VirtualBoardError)
 
 
 def firmware(design_include: Path | None = None, *, test_hooks: bool = False,

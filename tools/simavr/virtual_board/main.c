@@ -54,13 +54,18 @@ static FILE *protocol_out;   /* the original stdout: simavr prints chatter on st
 static double wall_start;
 static vb_cycles_t duration_cycles;
 
+static void say(const char *prefix, const char *fmt, va_list ap)
+{
+	fprintf(stderr, "delta6_vboard: %s", prefix);
+	vfprintf(stderr, fmt, ap);
+	fputc('\n', stderr);
+}
+
 void vb_die(const char *fmt, ...)
 {
 	va_list ap;
 	va_start(ap, fmt);
-	fputs("delta6_vboard: error: ", stderr);
-	vfprintf(stderr, fmt, ap);
-	fputc('\n', stderr);
+	say("error: ", fmt, ap);
 	va_end(ap);
 	exit(2);
 }
@@ -69,9 +74,7 @@ void vb_warn(const char *fmt, ...)
 {
 	va_list ap;
 	va_start(ap, fmt);
-	fputs("delta6_vboard: ", stderr);
-	vfprintf(stderr, fmt, ap);
-	fputc('\n', stderr);
+	say("", fmt, ap);
 	va_end(ap);
 }
 

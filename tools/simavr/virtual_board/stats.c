@@ -269,20 +269,17 @@ void stats_json(FILE *f)
 	        (unsigned long long)missed_ticks, (unsigned long long)records,
 	        (unsigned long long)boots, (unsigned long long)marker_errors,
 	        window ? 1.0 - (double)sleeping / (double)window : 0.0);
-	span_json(f, "scan_cycles", &scan);
-	fputs(", ", f);
-	span_json(f, "period_cycles", &period);
-	fputs(", ", f);
-	span_json(f, "solve_cycles", &solve);
-	fputs(", ", f);
-	span_json(f, "process_cycles", &process);
-	fputs(", ", f);
-	span_json(f, "on_sample_cycles", &on_sample);
-	fputs(", ", f);
-	span_json(f, "byte_cycles", &byte_span);
-	fputs(", ", f);
-	span_json(f, "latency_cycles", &latency);
-	fprintf(f, ", \"latency_us_p50\": %.0f, \"latency_us_p99\": %.0f, \"uart_bytes\": %llu, "
+	const struct {
+		const char *name;
+		const span_t *span;
+	} spans[] = {{"scan_cycles", &scan}, {"period_cycles", &period}, {"solve_cycles", &solve},
+	             {"process_cycles", &process}, {"on_sample_cycles", &on_sample},
+	             {"byte_cycles", &byte_span}, {"latency_cycles", &latency}};
+	for (size_t i = 0; i < sizeof spans / sizeof spans[0]; i++) {
+		span_json(f, spans[i].name, spans[i].span);
+		fputs(", ", f);
+	}
+	fprintf(f, "\"latency_us_p50\": %.0f, \"latency_us_p99\": %.0f, \"uart_bytes\": %llu, "
 	        "\"uart_occupancy\": %.4f}",
 	        percentile_us(0.5), percentile_us(0.99), (unsigned long long)window_bytes,
 	        seconds > 0 ? window_bytes * 10.0 / baud / seconds : 0.0);
