@@ -3,7 +3,6 @@
 #if defined(__AVR_ATmega328P__)
 
 #include <Arduino.h>
-#include <avr/eeprom.h>
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <avr/sleep.h>   // set_sleep_mode
@@ -134,21 +133,7 @@ void startSampling(uint16_t rate_hz) {
   SREG = sreg;
 }
 
-uint32_t micros() { return ::micros(); }
-
 void scanEncoders(uint16_t word[6], uint16_t inverse[6]) { bus::scan<Pins>(word, inverse); }
-
-void eepromRead(uint16_t address, uint8_t* data, uint16_t n) {
-  eeprom_read_block(data, reinterpret_cast<const void*>(address), n);
-}
-
-void eepromWrite(uint16_t address, const uint8_t* data, uint16_t n) {
-  for (uint16_t i = 0; i < n; ++i) {
-    wdt_reset();
-    eeprom_update_byte(reinterpret_cast<uint8_t*>(address + i), data[i]);
-  }
-  eeprom_busy_wait();
-}
 
 void watchdogStart(uint16_t rate_hz) { wdt_enable(rate_hz >= 10 ? WDTO_250MS : WDTO_2S); }
 

@@ -1,8 +1,10 @@
 // The parts of the board layer that both AVRs share: the UART rings' main-loop side, the
-// queued-record marker and sleeping. The register work is in board_atmega4809.cpp and
+// queued-record marker, sleeping, the EEPROM (avr-libc) and the clock (the Arduino core). The register work is in board_atmega4809.cpp and
 // board_atmega328p.cpp.
 #if defined(__AVR_ATmega328P__) || defined(__AVR_ATmega4809__)
 
+#include <Arduino.h>
+#include <avr/eeprom.h>
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <avr/sleep.h>
@@ -50,6 +52,20 @@ int16_t rxRead() {
   const uint8_t b = uartq::rx_buffer[tail];
   uartq::rx_tail = static_cast<uint8_t>((tail + 1) & (uartq::kRxSize - 1));
   return b;
+}
+
+uint32_t micros() { return ::micros(); }
+
+void eepromRead(uint16_t address, uint8_t* data, uint16_t n) {
+  eeprom_read_block(data, reinterpret_cast<const void*>(address), n);
+}
+
+void eepromWrite(uint16_t address, const uint8_t* data, uint16_t n) {
+  for (uint16_t i = 0; i < n; ++i) {
+    watchdogKick();   // a byte takes about 3.4 ms; a whole blob longer than the timeout
+    eeprom_update_byte(reinterpret_cast<uint8_t*>(address + i), data[i]);
+  }
+  eeprom_busy_wait();
 }
 
 void idle(bool (*pending)()) {
