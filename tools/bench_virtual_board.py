@@ -80,12 +80,12 @@ def measure(board: VirtualBoard, dev: Device, rate: int, seconds: float) -> dict
 def print_table(mode: str, rows: list[dict]) -> None:
     print(f"\n{mode}: {P.wire_bytes(P.data_record_type(P.Mode.WRENCH if mode == 'wrench' else P.Mode.WRENCH_RAW))} "
           "bytes per record at 500000 baud")
-    print(f"  {'Hz':>5} {'missed':>6} {'busy':>6} {'scan us':>8} {'solve cyc':>10} "
+    print(f"  {'Hz':>5} {'missed':>6} {'busy':>6} {'scan us':>8} {'work us':>8} {'solve cyc':>10} "
           f"{'onSample cyc':>12} {'latency us mean/p99/max':>24} {'UART':>6} {'emu x':>6}")
     for r in rows:
         lat = r["latency"]
         print(f"  {r['rate']:>5} {r['missed']:>6} {r['busy']:>6.1%} {r['scan_us']:>8.0f} "
-              f"{r['solve']['mean']:>10.0f} {r['on_sample']:>12.0f} "
+              f"{r['scan_us'] + r['process_us']:>8.0f} {r['solve']['mean']:>10.0f} {r['on_sample']:>12.0f} "
               f"{cycles_to_us(lat['mean']):>8.0f}/{r['latency_p99_us']:>5.0f}/"
               f"{cycles_to_us(lat['max']):>6.0f}   {r['uart']:>6.1%} {r['speed']:>6.2f}")
 
@@ -159,7 +159,9 @@ def main() -> int:
           "completed and answered)")
     print(f"RAM: {image.sizes.ram} B static + {stack} B peak stack = "
           f"{image.sizes.ram + stack} B of 2048 (ATmega328P; the 4809 has 6144)")
-    print("emu x = board seconds per wall second, unpaced; delta6 virtual paces to 1.0")
+    print("work = scan + the main loop's work on one sample (frame checks, solve, onSample),\n"
+          "  interrupts included; emu x = board seconds per wall second, unpaced "
+          "(delta6 virtual paces to 1.0)")
     return 0 if ok else 1
 
 
