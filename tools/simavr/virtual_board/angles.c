@@ -81,7 +81,7 @@ void angles_load_replay(const char *path, int loop)
 	memcpy(current, replay[0].counts, sizeof current);
 }
 
-int angles_queue_space(void)
+static int angles_queue_space(void)
 {
 	return (int)(LIVE_QUEUE - 1 - ((live_head - live_tail) & (LIVE_QUEUE - 1)));
 }

@@ -264,15 +264,15 @@ int live_fill_fds(void *pollfds, int max)
 {
 	struct pollfd *p = pollfds;
 	int n = 0;
-	if (listener >= 0 && n < max)
+	if (listener < 0)
+		return 0;   /* no live channel (and the client table was never set up) */
+	if (n < max)
 		p[n++] = (struct pollfd){listener, POLLIN, 0};
 	for (int i = 0; i < MAX_CLIENTS && n < max; i++)
 		if (clients[i].fd >= 0)
 			p[n++] = (struct pollfd){clients[i].fd, POLLIN, 0};
 	return n;
 }
-
-int live_fd_count(void) { return listener < 0 ? 0 : 1 + MAX_CLIENTS; }
 
 void live_close(void)
 {

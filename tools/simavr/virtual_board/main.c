@@ -324,13 +324,12 @@ static void write_stats(const char *path)
 		vb_warn("cannot write %s: %s", path, strerror(errno));
 }
 
-/* Wait for a client on the pty, then for it to settle: a byte from it, or 0.2 s. */
+/* Wait for a client on the pty, then for it to settle: a byte from it, or 0.2 s. (Polling
+ * the master while no client is there returns at once with a hang-up: sleep instead.) */
 static void wait_for_client(void)
 {
-	while (!stop_requested && !link_client_present()) {
-		struct pollfd p = {link_fd(), POLLIN, 0};
-		poll(&p, 1, 50);
-	}
+	while (!stop_requested && !link_client_present())
+		usleep(20000);
 	double settle_until = now_wall() + 0.2;
 	while (!stop_requested && now_wall() < settle_until) {
 		struct pollfd p = {link_fd(), POLLIN, 0};
@@ -349,7 +348,8 @@ static void pace(double speed, vb_cycles_t start_cycle, double start_wall)
 			return;
 		struct pollfd fds[16];
 		int n = 0;
-		fds[n++] = (struct pollfd){link_fd(), POLLIN, 0};
+		if (link_client_present())   /* without a client the master only says "hang-up" */
+			fds[n++] = (struct pollfd){link_fd(), POLLIN, 0};
 		n += live_fill_fds(fds + n, 16 - n);
 		struct timespec ts = {(time_t)wait, (long)((wait - (time_t)wait) * 1e9)};
 		if (ppoll(fds, (nfds_t)n, &ts, NULL) > 0) {

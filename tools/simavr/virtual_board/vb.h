@@ -42,7 +42,6 @@ void angles_load_replay(const char *path, int loop);
 /* A live update: from board time `at` (cycles) on, report counts. Returns 0 if queued, -1 if
  * the queue is full (the caller retries later). */
 int angles_push(vb_cycles_t at, const uint16_t counts[VB_ENCODERS]);
-int angles_queue_space(void);
 /* The counts in force at `now` (applies every update due). */
 void angles_at(vb_cycles_t now, uint16_t out[VB_ENCODERS]);
 
@@ -81,7 +80,6 @@ void link_close(void);
 /* --- live.c: the live channel -------------------------------------------------------------- */
 void live_init(const char *socket_path);
 void live_service(void);
-int live_fd_count(void);
 int live_fill_fds(void *pollfds, int max);   /* struct pollfd entries */
 void live_close(void);
 
