@@ -108,14 +108,16 @@ def test_injected_faults_flag_exactly_the_affected_samples(image, motion, tmp_pa
               Fault(1, "biterror", 1.00, 1.02), Fault(3, "strong", 1.20, 1.25),
               Fault(4, "weak", 1.40, 1.45), Fault(6, "biterror", 1.42, 1.50)]
     reads_path = tmp_path / "reads.txt"
-    with VirtualBoard(image=image, replay=replay, zero=ZERO, speed=0, live=True, faults=faults,
+    # Paced at twice real time: the windows are in board time and the stream must start before
+    # the first one (unpaced, a slow host could start it late).
+    with VirtualBoard(image=image, replay=replay, zero=ZERO, speed=2, live=True, faults=faults,
                       read_log=reads_path) as board:
         with Device(board.port) as dev:
             dev.set_zero(ZERO)
             dev.set_mode("raw")
             dev.start(250)
-            assert board.live.time() < 0.5, "the stream must start before the first fault"
             samples = drain(dev, 1.7)
+            assert samples[0].t < 0.55, "the stream started after the first fault window"
             telemetry = dev.telemetry()
         board.stop()
     reads = read_reads(reads_path)
@@ -178,21 +180,26 @@ def test_commands_while_streaming(image, design, tmp_path):
                                atol=np.asarray(dev.info().lsb))
             offsets = dev.tare(25)
             assert np.allclose(offsets, w0, atol=np.asarray(dev.info().lsb))
+            # The board runs ahead of the host: drop what was queued before each answer.
+            dev.flush()
             tared = drain(dev, dev.get(timeout=10).t + 0.2)
             assert all(np.all(s.wrench == 0) for s in tared[-20:])
             assert all(s.status & P.Status.TARE_ACTIVE for s in tared[-20:])
 
             assert dev.start(125) == 125                      # a new rate while streaming
+            dev.flush()
             slow = drain(dev, dev.get(timeout=10).t + 0.5)
             dt = np.diff([round(s.t * 1e6) for s in slow[-40:]])
             assert np.all(np.abs(dt - 8000) <= 8)
 
             dev.set_mode("wrench")                            # and a new mode
+            dev.flush()
             plain = drain(dev, dev.get(timeout=10).t + 0.2)
             assert plain[-1].counts is None
             info = dev.info(refresh=True)
             assert info.streaming and info.rate_hz == 125 and info.mode == P.Mode.WRENCH
             dev.clear_tare()
+            dev.flush()
             back = drain(dev, dev.get(timeout=10).t + 0.2)
             assert np.array_equal(back[-1].wrench, w0)
             health = dev.health
@@ -258,8 +265,8 @@ def test_watchdog_resets_a_hung_loop(tmp_path):
             wait_board_time(board.live, hung_at + 0.4)
             board.live.hang(False)
             wait_board_time(board.live, hung_at + 0.7)
+            info = dev.info(refresh=True)      # answered after everything before it arrived
             boots = [e.arg for e in dev.events if e.code == P.EventCode.BOOT]
-            info = dev.info(refresh=True)
             resets = dev.health.device_resets
         board.stop()
         stats = board.stats()
@@ -298,13 +305,14 @@ def test_the_twin_drives_the_board_through_the_live_channel(image, design, tmp_p
     from delta6 import twin
     run = twin.simulate(design, twin.scenario_effects("paper", 3), 3.0, 1000.0, 3)
     reads_path = tmp_path / "reads.txt"
-    with VirtualBoard(image=image, zero=ZERO, speed=0, live=True, read_log=reads_path) as board:
+    # Paced (twice real time) so that the updates, sent ahead of time, always lead the board.
+    with VirtualBoard(image=image, zero=ZERO, speed=2, live=True, read_log=reads_path) as board:
         with Device(board.port) as dev:
             dev.set_zero(ZERO)
             dev.set_mode("raw")
             dev.start(250)
-            t0 = board.live.time() + 0.05
-            sent = board.live.drive(twin.iter_realtime(run, speed=1000.0), t0=t0, lead=0.1)
+            t0 = board.live.time() + 0.3
+            sent = board.live.drive(twin.iter_realtime(run, speed=1000.0), t0=t0, lead=0.3)
             assert sent == len(run)
             samples = drain(dev, t0 + 2.5)
             lsb = np.asarray(dev.info().lsb)

@@ -23,7 +23,7 @@
  *                           (1000,2000,600)
  *
  * stdout carries exactly one line, "pty PATH", once the port exists. The simulation starts when
- * a client opens it (and either sends a byte or has had 0.2 s to flush its input), so nothing
+ * a client opens it (and either sends a byte or has had 0.5 s to flush its input), so nothing
  * the board says at boot is flushed away. SIGINT/SIGTERM end the run: the client gets what is
  * queued, the EEPROM and the statistics are saved, exit status 0. Bad options or files exit 2
  * with one line on stderr; a firmware crash exits 4.
@@ -324,13 +324,13 @@ static void write_stats(const char *path)
 		vb_warn("cannot write %s: %s", path, strerror(errno));
 }
 
-/* Wait for a client on the pty, then for it to settle: a byte from it, or 0.2 s. (Polling
+/* Wait for a client on the pty, then for it to settle: a byte from it, or 0.5 s. (Polling
  * the master while no client is there returns at once with a hang-up: sleep instead.) */
 static void wait_for_client(void)
 {
 	while (!stop_requested && !link_client_present())
 		usleep(20000);
-	double settle_until = now_wall() + 0.2;
+	double settle_until = now_wall() + 0.5;
 	while (!stop_requested && now_wall() < settle_until) {
 		struct pollfd p = {link_fd(), POLLIN, 0};
 		if (poll(&p, 1, 10) > 0 && (p.revents & POLLIN))
