@@ -73,7 +73,10 @@ def test_replayed_trajectory_streams_the_reference_wrench(image, design, motion,
     # Every record, in order, at the configured period.
     assert health.samples_lost == 0 and health.sequence_gaps == 0
     assert np.all(np.diff(seq) == 1)
-    assert np.all(np.abs(np.diff(t_us) - 4000) <= 8)
+    # The timer keeps the period exactly; a sample's time stamp (micros(), 4 us steps, read in
+    # the timer interrupt) may come a few us late when another interrupt was running.
+    assert abs(t_us[-1] - t_us[0] - 4000 * (len(t_us) - 1)) <= 24
+    assert np.all(np.abs(np.diff(t_us) - 4000) <= 24)
     assert np.all(status & ~STATUS_QUIET == 0), [hex(s) for s in set(status)]
 
     # Each sample carries exactly the counts the emulated encoders served at its latch ...
@@ -190,7 +193,7 @@ def test_commands_while_streaming(image, design, tmp_path):
             dev.flush()
             slow = drain(dev, dev.get(timeout=10).t + 0.5)
             dt = np.diff([round(s.t * 1e6) for s in slow[-40:]])
-            assert np.all(np.abs(dt - 8000) <= 8)
+            assert np.all(np.abs(dt - 8000) <= 24)
 
             dev.set_mode("wrench")                            # and a new mode
             dev.flush()

@@ -84,3 +84,42 @@ def test_missing_simavr_says_what_to_install(monkeypatch, tmp_path, capsys):
     monkeypatch.setattr(avrsim, "SIMAVR_HEADER", tmp_path / "nothing.h")
     assert main(["virtual", "--static"]) == 2
     assert "apt-get install" in capsys.readouterr().err
+
+
+def test_an_outside_process_drives_the_board_through_live(tmp_path):
+    import numpy as np
+
+    from delta6 import protocol as P
+    from delta6.design import load
+    from delta6.device import Device
+    from delta6.model import wrench as model_wrench
+    from delta6.virtualboard import LiveChannel, theta_to_counts
+
+    from conftest import DESIGNS
+
+    sock = tmp_path / "live.sock"
+    board = subprocess.Popen([sys.executable, "-m", "delta6", "virtual", "--static", "--speed",
+                              "0", "--live", str(sock)], cwd=ROOT, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    try:
+        port = board.stdout.readline().strip()
+        live = LiveChannel(sock)
+        with Device(port) as dev:
+            dev.set_mode("raw")
+            dev.start(100)
+            assert np.all(dev.get(timeout=10).wrench == 0)          # at rest
+            pose = np.array([0.1, 0.05, -0.08, 0.12, -0.06, 0.03])
+            live.set_theta(None, pose)
+            for _ in range(500):            # samples still on their way show the rest pose
+                sample = dev.get(timeout=10)
+                if np.array_equal(sample.counts, theta_to_counts(pose)):
+                    break
+            lsb = np.asarray(dev.info().lsb)
+        live.close()
+    finally:
+        board.send_signal(signal.SIGTERM)
+        _, err = board.communicate(timeout=30)
+    assert board.returncode == 0, err
+    assert np.array_equal(sample.counts, theta_to_counts(pose))
+    ref = model_wrench(load(DESIGNS / "delta6.toml"), P.counts_to_theta(sample.counts, 0))
+    assert np.all(np.abs(sample.wrench - ref) <= lsb / 2 + 1e-5) and np.abs(ref).max() > 1
