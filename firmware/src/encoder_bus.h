@@ -84,7 +84,17 @@ void scan(uint16_t word[6], uint16_t inverse[6]) {
     delayNs<kHalfPeriodNs>();      // data setup before the rising edge
     Pins::clockHigh();
     delayNs<kHalfPeriodNs>();
-    if (i == delta6::encoder::kCommandBits - 1) Pins::releaseData();   // turnaround
+    if (i == delta6::encoder::kCommandBits - 1) {
+#if defined(DELTA6_TEST_LATE_RELEASE)
+      // Test builds only: release the line too late, so that the virtual board's contention
+      // detector has something to find (tests/test_virtual_board.py).
+      Pins::clockLow();
+      delayNs<kDataValidNs + 500>();
+      Pins::releaseData();
+      continue;
+#endif
+      Pins::releaseData();   // turnaround: before the falling edge that lets the sensor drive
+    }
     Pins::clockLow();
   }
   clockIn16<Pins>(word);
