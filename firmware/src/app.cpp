@@ -22,7 +22,7 @@ namespace {
 
 namespace d = delta6::design;
 
-const uint8_t kQueueLength = 4;   // a power of two
+const uint8_t kQueueLength = 4;   // a power of two; a ring of 4 holds 3 latched samples
 const uint16_t kEepromAddress = 0;
 // Received bytes fed to the device per loop turn. Most bytes cost ~100 cycles; the one that
 // completes a command runs it (GET_INFO: ~19,000 cycles).
