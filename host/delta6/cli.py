@@ -12,7 +12,7 @@ from .design import DesignError
 from .errors import UserError
 
 #: Subcommand modules, in the order ``delta6 --help`` lists them.
-COMMAND_MODULES = ("design",)
+COMMAND_MODULES = ("design", "diagnose")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,55 @@
+"""History features of the encoder signals: play operators and smoothed velocities."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def play(x: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Play (backlash) operator, column-wise: the output stays put until the input pulls it
+    along from ``radius`` away. ``x`` (n, m), ``radius`` (m,). Starts centred on x[0].
+
+    A sum of play operators of different radii is the Prandtl-Ishlinskii model of
+    rate-independent hysteresis: the output depends on the turning points of the history,
+    never on how fast the input moved between them.
+    """
+    x = np.asarray(x, dtype=float)
+    radius = np.broadcast_to(np.asarray(radius, dtype=float), x.shape[1:])
+    out = np.empty_like(x)
+    y = x[0].copy()
+    lo, hi = x - radius, x + radius
+    for i in range(len(x)):
+        np.clip(y, lo[i], hi[i], out=y)
+        out[i] = y
+    return out
+
+
+def play_state(x: np.ndarray, radii) -> np.ndarray:
+    """Normalised play state (x - play_r(x)) / r in [-1, 1] for every column of ``x`` (n, j)
+    and every radius: shape (n, j, len(radii)). +1 after rising by at least 2r, -1 after
+    falling by at least 2r, in between along the way."""
+    x = np.asarray(x, dtype=float)
+    radii = np.asarray(radii, dtype=float)
+    n, j = x.shape
+    wide = np.repeat(x[:, :, None], len(radii), axis=2).reshape(n, -1)
+    r = np.tile(radii, j)
+    return ((wide - play(wide, r)) / r).reshape(n, j, len(radii))
+
+
+def smooth_velocity(x: np.ndarray, t: np.ndarray, half_width: int = 2) -> np.ndarray:
+    """d x / dt by a local linear fit over 2*half_width+1 samples (suppresses the
+    quantization noise of central differences of 14-bit angles)."""
+    x = np.asarray(x, dtype=float)
+    n = len(x)
+    if n < 2 * half_width + 1:
+        return np.gradient(x, t, axis=0)
+    k = np.arange(-half_width, half_width + 1, dtype=float)
+    weights = k / (k @ k)
+    dt = np.median(np.diff(t))
+    vel = np.zeros_like(x)
+    for w, shift in zip(weights, k.astype(int)):
+        vel += w * np.roll(x, -shift, axis=0)
+    vel /= dt
+    edge = np.gradient(x, t, axis=0)
+    vel[:half_width] = edge[:half_width]
+    vel[-half_width:] = edge[-half_width:]
+    return vel
