@@ -14,6 +14,8 @@ from ..model import Params, forward_kinematics, wrench
 from ..spec import full_scale
 from . import sensitivity
 
+#: Temperature at which the design's spring rates and the encoder zeros are taken to hold.
+DEFAULT_REF_TEMP_C = 23.0
 #: Below this many samples the held-out scoring has too few independent blocks to mean much.
 MIN_SAMPLES = 2000
 
@@ -31,9 +33,11 @@ class GapData:
     reference: np.ndarray    # (n, 6) reference wrench in {E}
     temp_c: np.ndarray | None
     fs: np.ndarray           # (6,) full scale, N and N*m
+    ref_temp_c: float = DEFAULT_REF_TEMP_C  # temperature at which k and zeros were set
 
     @classmethod
-    def from_log(cls, log: LogData, design: Design) -> "GapData":
+    def from_log(cls, log: LogData, design: Design,
+                 ref_temp_c: float = DEFAULT_REF_TEMP_C) -> "GapData":
         n = len(log.t)
         if n < MIN_SAMPLES:
             raise DiagnosisInputError(f"too few samples: {n} (the diagnosis needs at least "
@@ -56,7 +60,7 @@ class GapData:
         data = cls(design=design, params=Params.from_design(design), t=np.asarray(log.t, float),
                    theta=np.asarray(log.theta, float), reference=np.asarray(log.wrench, float),
                    temp_c=None if temp is None else np.asarray(temp, float),
-                   fs=full_scale(design))
+                   fs=full_scale(design), ref_temp_c=ref_temp_c)
         if not np.all(np.isfinite(data.model)):
             raise DiagnosisInputError("the analytical model has no solution for some logged "
                                       "angles: wrong design for this log?")

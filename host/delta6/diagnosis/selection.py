@@ -7,11 +7,18 @@ cannot leak across the boundary) and scored on the fold. Every term is linear in
 parameters, so each block is summarised once by its Gram matrix X^T X, X^T y and y^T y over the
 columns of *all* candidate terms: any fit and any held-out error is then a small dense solve.
 
-An effect is called present when adding it lowers the held-out squared error by more than
-``min_gain`` of what is left, and that holds at the ``1 - confidence`` lower quantile of a
-bootstrap over held-out blocks (blocks, not samples, are resampled because neighbouring
-samples are correlated). Fitting noise alone gives gains near zero or negative: a term fitted
-to data it cannot explain only adds variance on held-out blocks.
+An effect is called present when two things hold:
+
+1. forward: adding it lowers the held-out squared error by more than ``min_gain`` of what is
+   left, at the ``1 - confidence`` lower quantile of a bootstrap over held-out blocks (blocks,
+   not samples, are resampled because neighbouring samples are correlated). Fitting noise
+   alone gives gains near zero or negative: a term fitted to data it cannot explain only adds
+   variance on held-out blocks;
+2. backward: taking it out of the final model raises the held-out squared error by at least
+   ``min_share`` of the analytical model's. A family never matches a real effect exactly, and
+   a neighbouring family can soak up a little of what the true one misses; this test keeps
+   such passengers out of the verdict while keeping a genuine second effect, which carries
+   its own share of the error.
 """
 from __future__ import annotations
 
@@ -26,6 +33,7 @@ N_BLOCKS = 40
 N_FOLDS = 5
 BUFFER_BLOCKS = 1
 MIN_GAIN = 0.02
+MIN_SHARE = 0.02
 CONFIDENCE = 0.99
 N_BOOT = 2000
 RIDGE = 1e-9
@@ -158,7 +166,7 @@ class Step:
 
 def greedy(problem: Problem, candidates, rng: np.random.Generator,
            min_gain: float = MIN_GAIN, confidence: float = CONFIDENCE,
-           progress=None) -> tuple[list[Step], dict]:
+           min_share: float = MIN_SHARE, progress=None) -> tuple[list[Step], dict]:
     """Forward selection: add the candidate with the largest held-out gain while it is
     significant. Returns the ladder (significant steps only) and, for information, the
     held-out SSE of each candidate alone."""
@@ -187,4 +195,39 @@ def greedy(problem: Problem, candidates, rng: np.random.Generator,
         current = trials[best]
         if progress:
             progress(f"added {best}: held-out error -{100 * g:.1f} %")
+    kept = prune(problem, [s.added for s in ladder], base, min_share, progress)
+    if kept != [s.added for s in ladder]:
+        ladder = _rebuild(problem, kept, base, rng, confidence)
     return ladder, {"base": base, "alone": alone}
+
+
+def prune(problem: Problem, chosen: list[str], base: np.ndarray, min_share: float,
+          progress=None) -> list[str]:
+    """Drop, weakest first, every chosen term whose removal costs less than ``min_share`` of
+    the baseline held-out squared error."""
+    chosen = list(chosen)
+    total = base.sum()
+    while len(chosen) > 1:
+        full = heldout_block_sse(problem, chosen).sum()
+        costs = {name: (heldout_block_sse(problem, [c for c in chosen if c != name]).sum()
+                        - full) / total for name in chosen}
+        weakest = min(costs, key=costs.get)
+        if costs[weakest] >= min_share:
+            break
+        chosen.remove(weakest)
+        if progress:
+            progress(f"dropped {weakest}: only {100 * costs[weakest]:.1f} % of the error is "
+                     "its own")
+    return chosen
+
+
+def _rebuild(problem: Problem, names: list[str], base: np.ndarray,
+             rng: np.random.Generator, confidence: float) -> list[Step]:
+    steps, current, chosen = [], base, []
+    for name in names:
+        chosen.append(name)
+        sse = heldout_block_sse(problem, chosen)
+        low = float(np.quantile(bootstrap_gain(current, sse, rng), 1 - confidence))
+        steps.append(Step(name, gain(current, sse), low, sse, True))
+        current = sse
+    return steps

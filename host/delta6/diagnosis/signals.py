@@ -53,3 +53,37 @@ def smooth_velocity(x: np.ndarray, t: np.ndarray, half_width: int = 2) -> np.nda
     vel[:half_width] = edge[:half_width]
     vel[-half_width:] = edge[-half_width:]
     return vel
+
+
+def dwell_ramps(x: np.ndarray, state: np.ndarray, t: np.ndarray, max_dwell_s: float,
+                still: float) -> np.ndarray:
+    """``state`` (a direction of motion in [-1, 1], per column of ``x``) with each reversal
+    placed where lost motion puts it: spread over the dwell before the encoder moved again.
+
+    With play between a link and its encoder, a reversal first shows as the encoder standing
+    still while the link turns through the play, and only then as motion the other way. Offline
+    we can look ahead: before each sign change of ``state``, find the stretch where ``x`` stood
+    at its turning value (within ``still``), ramp the state linearly across it from the old
+    direction to the new one (over at most ``max_dwell_s``: a long hold is not all dwell), and
+    take the new direction as reached from the first move onward.
+    """
+    x = np.asarray(x, dtype=float)
+    out = np.array(state, dtype=float, copy=True)
+    for j in range(x.shape[1]):
+        xs, d = x[:, j], out[:, j]
+        sign = np.sign(state[:, j])
+        for s in np.nonzero(sign[1:] * sign[:-1] < 0)[0] + 1:
+            new = sign[s]
+            # Back from the switch over the first moves the new way and the dwell, up to the
+            # last step that still went the old way.
+            i = s
+            while i > 0 and new * (xs[i] - xs[i - 1]) >= -still:
+                i -= 1
+            turn = xs[i]
+            end = i
+            while end + 1 < s and abs(xs[end + 1] - turn) <= still:
+                end += 1
+            start = max(i, int(np.searchsorted(t, t[end] - max_dwell_s)))
+            d[start:end + 1] = np.linspace(-new, new, end - start + 2)[:-1]
+            d[end + 1:s] = new
+    return out

@@ -35,17 +35,24 @@ import numpy as np
 from ..model import ENCODER_COUNT_RAD, branch_forces
 from .data import GapData
 from .sensitivity import GEOMETRY_NAMES
-from .signals import play_state, smooth_velocity
+from .signals import dwell_ramps, play_state, smooth_velocity
 
 #: Widths (radius, rad) of the hysteresis play operators: from a few encoder counts... to
 #: a third of the joint range. The smallest stays well above the backlash switch so the two
 #: families differ in what they can express (a gradual loop vs an instant switch).
 HYSTERESIS_RADII = (0.008, 0.02, 0.05, 0.12)
+#: Plays (radius, rad) of the gradual pick-up features of the backlash family: below the
+#: smallest hysteresis width, so the two families stay apart.
+BACKLASH_PICKUP_RAD = (0.0015, 0.004)
+#: Longest stretch of a still encoder taken as the dwell of a reversal, s.
+BACKLASH_MAX_DWELL_S = 0.6
+#: Time constant of the lagged temperature in the thermal family, s.
+THERMAL_LAG_S = 120.0
 #: Dead band of the backlash direction detector: ignores encoder flicker of +-1 count.
 BACKLASH_SWITCH_RAD = 1.5 * ENCODER_COUNT_RAD
-#: Velocity scale of the smooth Coulomb sign, rad/s (above the velocity noise of 14-bit
-#: encoders differenced at 50 Hz, about 0.02 rad/s).
-FRICTION_VELOCITY_RAD_S = 0.03
+#: Velocity scales of the smooth Coulomb signs, rad/s: a sharp one near the velocity
+#: resolution of smoothed 14-bit encoders, and a broad one for Stribeck-like curves.
+FRICTION_VELOCITIES_RAD_S = (0.008, 0.04)
 
 JOINTS = tuple(f"j{i}" for i in range(1, 7))
 
@@ -95,8 +102,34 @@ def _stiffness(data: GapData) -> np.ndarray:
     return _torque_columns(data, tau[:, :, None])
 
 
+def _kinematic_part(data: GapData) -> np.ndarray:
+    """dW/dtheta_j minus its torque part G_j k_j: what an angle change does through the
+    geometry alone (the spring torque unchanged), (n, 6, 6)."""
+    return data.angle_jacobian - data.torque_map * data.params.k
+
+
+def _force_rotation(data: GapData, vectors: np.ndarray) -> np.ndarray:
+    """Wrench change when {E0} turns by a small rotation about each {B} axis e_k, scaled by
+    ``vectors`` (n, 3) per sample (or ones): Delta F_E = -R^T (e_k x F0), moments unchanged.
+    Returns (n, 6, 3)."""
+    from ..model import base_force, rotation
+    f0 = base_force(data.params, data.theta[:, :3])
+    rt = np.swapaxes(rotation(data.theta[:, 3:]), -1, -2)
+    cols = np.zeros((len(data), 6, 3))
+    for k in range(3):
+        axis = np.zeros(3)
+        axis[k] = 1.0
+        turned = np.cross(axis, f0) * vectors[:, k:k + 1]
+        cols[:, :3, k] = -np.einsum("nij,nj->ni", rt, turned)
+    return cols
+
+
 def _geometry(data: GapData) -> np.ndarray:
-    return data.geometry_jacobian
+    # Lengths and azimuths per branch, the rest angle of each proximal link (a kinematic
+    # angle shift that leaves the spring torque alone), and a misaligned gimbal unit.
+    rest = _kinematic_part(data)[:, :, :3]
+    tilt = _force_rotation(data, np.ones((len(data), 3)))
+    return np.concatenate([data.geometry_jacobian, rest, tilt], axis=-1)
 
 
 def _hysteresis(data: GapData) -> np.ndarray:
@@ -105,15 +138,25 @@ def _hysteresis(data: GapData) -> np.ndarray:
 
 
 def _friction(data: GapData) -> np.ndarray:
+    # Any odd function of the joint speed that saturates (Coulomb, Stribeck) or grows
+    # (viscous), plus the pre-sliding memory that holds the last direction's friction at rest.
     vel = smooth_velocity(data.theta, data.t)
-    feats = np.stack([np.tanh(vel / FRICTION_VELOCITY_RAD_S), vel], axis=-1)
+    memory = play_state(data.theta, [BACKLASH_SWITCH_RAD])[:, :, 0]
+    feats = np.stack([np.tanh(vel / v) for v in FRICTION_VELOCITIES_RAD_S]
+                     + [vel, memory], axis=-1)
     return _torque_columns(data, feats)
 
 
 def _backlash(data: GapData) -> np.ndarray:
     # Moving up, the encoder trails the link by play/2: true angle = encoder + play/2 * dir.
-    direction = play_state(data.theta, [BACKLASH_SWITCH_RAD])[:, :, 0]
-    return data.angle_jacobian * (0.5 * direction)[:, None, :]
+    # The direction switches across the dwell (encoder still, link turning through the play);
+    # two small plays on the encoder angle let the pick-up be gradual (compliant contacts).
+    state = play_state(data.theta, (BACKLASH_SWITCH_RAD,) + BACKLASH_PICKUP_RAD)
+    ramped = dwell_ramps(data.theta, state[:, :, 0], data.t, BACKLASH_MAX_DWELL_S,
+                         0.5 * ENCODER_COUNT_RAD)
+    feats = np.concatenate([ramped[:, :, None], state[:, :, 1:]], axis=-1)   # (n, 6, 3)
+    cols = data.angle_jacobian[:, :, :, None] * (0.5 * feats)[:, None, :, :]
+    return cols.reshape(len(data), 6, -1)
 
 
 def _compliance(data: GapData) -> np.ndarray:
@@ -123,9 +166,15 @@ def _compliance(data: GapData) -> np.ndarray:
     tension = -data.params.k[:3] * data.theta[:, :3] / lever       # signed link force, N
     dlb = data.geometry_jacobian[:, :, 9:12] * 1e3                 # per m of lb_i
     axial = dlb * tension[:, None, :]                               # per (m/N)
-    kinematic = data.angle_jacobian[:, :, :3] - data.torque_map[:, :, :3] * data.params.k[:3]
-    bending = kinematic * (data.params.k[:3] * data.theta[:, :3])[:, None, :]   # per rad/(N*m)
-    return np.concatenate([axial * 1e-6, bending], axis=-1)        # axial in um/N
+    bending = _kinematic_part(data)[:, :, :3] * (data.params.k[:3]
+                                                  * data.theta[:, :3])[:, None, :]
+    # The platform tilts with the moment about its centre P: the gimbal's moment plus the
+    # force at {E}, c below P. The tilt turns the force like a misaligned gimbal would.
+    from ..model import base_force
+    f0 = base_force(data.params, data.theta[:, :3])
+    m_p = data.params.k[3:] * data.theta[:, 3:] + np.cross([0.0, 0.0, data.params.c], f0)
+    tilt = _force_rotation(data, m_p).sum(axis=-1, keepdims=True)  # isotropic, rad/(N*m)
+    return np.concatenate([axial * 1e-6, bending, tilt], axis=-1)  # axial in um/N
 
 
 def _latency(data: GapData) -> np.ndarray:
@@ -135,6 +184,11 @@ def _latency(data: GapData) -> np.ndarray:
     return np.stack([-d1, 0.5 * d2], axis=-1)
 
 
+def _backlash_summary(coef: np.ndarray) -> dict:
+    # Total lost motion per joint: the sum of the switching parts, whatever their widths.
+    return {"play_rad": coef.reshape(6, -1).sum(axis=1).tolist()}
+
+
 def _hysteresis_summary(coef: np.ndarray) -> dict:
     # After a reversal larger than every play width the loop's branches are sum(w) apart on
     # either side: the half-width of the torque loop at the joint.
@@ -142,14 +196,56 @@ def _hysteresis_summary(coef: np.ndarray) -> dict:
     return {"loop_half_width_nm": w.sum(axis=1).tolist()}
 
 
+def friction_curve(coef: np.ndarray, speed: np.ndarray) -> np.ndarray:
+    """Steady-state friction torque (N*m) of each joint at the given positive speeds,
+    (6, len(speed)), from fitted coefficients (the memory term is +1 while sliding)."""
+    c = np.asarray(coef, dtype=float).reshape(6, -1)
+    speed = np.asarray(speed, dtype=float)
+    feats = np.stack([np.tanh(speed / v) for v in FRICTION_VELOCITIES_RAD_S]
+                     + [speed, np.ones_like(speed)], axis=0)
+    return c @ feats
+
+
 def _friction_summary(coef: np.ndarray) -> dict:
-    c = coef.reshape(6, 2)
-    return {"coulomb_nm": c[:, 0].tolist(), "viscous_nms_per_rad": c[:, 1].tolist()}
+    # Formulation-free figures, like the twin's truth: a line over 0.05..0.5 rad/s and the
+    # torque at 0.1 rad/s.
+    speeds = np.linspace(0.05, 0.5, 10)
+    curve = friction_curve(coef, speeds)
+    slope, intercept = np.polyfit(speeds, curve.T, 1)
+    return {"coulomb_equiv_nm": intercept.tolist(), "viscous_equiv_nm_s_per_rad": slope.tolist(),
+            "torque_at_ref_speed_nm": friction_curve(coef, [0.1])[:, 0].tolist()}
+
+
+def _thermal_summary(coef: np.ndarray) -> dict:
+    c = coef.reshape(2, 2, 6)            # lag, kind, joint
+    total = c.sum(axis=0)                # the settled response per degC
+    return {"stiffness_coeff_per_c": total[0].tolist(), "offset_coeff_rad_per_c": total[1].tolist()}
 
 
 def _thermal(data: GapData) -> np.ndarray:
-    dt = (data.temp_c - data.temp_c.mean())[:, None, None]
-    return np.concatenate([_stiffness(data) * dt, _encoder_offset(data) * dt], axis=-1)
+    # Relative to the temperature at which k and the encoder zeros were set (the design's
+    # calibration temperature): a warm log is a soft spring even if its temperature is
+    # constant. A lagged copy of the temperature covers parts that warm up slowly.
+    now = data.temp_c - data.ref_temp_c
+    lagged = _first_order(data.temp_c, data.t, THERMAL_LAG_S) - data.ref_temp_c
+    parts = []
+    for temp in (now, lagged):
+        dt = temp[:, None, None]
+        parts += [_stiffness(data) * dt, _encoder_offset(data) * dt]
+    return np.concatenate(parts, axis=-1)
+
+
+def _first_order(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
+    """First-order lag of ``x`` with time constant ``tau``, started settled."""
+    out = np.empty_like(x)
+    y = x[0]
+    prev = t[0]
+    for i, (ti, xi) in enumerate(zip(t, x)):
+        a = np.exp(-(ti - prev) / tau)
+        y = a * y + (1 - a) * xi
+        out[i] = y
+        prev = ti
+    return out
 
 
 TERMS: tuple[Term, ...] = (
@@ -157,22 +253,30 @@ TERMS: tuple[Term, ...] = (
          _encoder_offset),
     Term("stiffness_mismatch", "torque", tuple(f"k_ratio_error_{j}" for j in JOINTS), "1",
          _stiffness),
-    Term("geometry_error", "geometry", GEOMETRY_NAMES, "mm or rad", _geometry),
+    Term("geometry_error", "geometry",
+         GEOMETRY_NAMES + tuple(f"rest_angle_b{i}_rad" for i in (1, 2, 3))
+         + tuple(f"gimbal_misalignment_{a}_rad" for a in "xyz"), "mm or rad", _geometry),
     Term("spring_hysteresis", "torque",
          tuple(f"play_{j}_r{r:g}_nm" for j in JOINTS for r in HYSTERESIS_RADII), "N*m",
          _hysteresis, summary=_hysteresis_summary),
     Term("joint_friction", "torque",
-         tuple(f"{kind}_{j}" for j in JOINTS for kind in ("coulomb_nm", "viscous_nms_per_rad")),
+         tuple(f"{kind}_{j}" for j in JOINTS for kind in
+               tuple(f"coulomb_v{v:g}_nm" for v in FRICTION_VELOCITIES_RAD_S)
+               + ("viscous_nms_per_rad", "presliding_nm")),
          "N*m, N*m*s/rad", _friction, summary=_friction_summary),
-    Term("backlash", "angle", tuple(f"play_{j}_rad" for j in JOINTS), "rad", _backlash),
+    Term("backlash", "angle",
+         tuple(f"{kind}_{j}_rad" for j in JOINTS
+               for kind in ("play", *(f"pickup_r{r:g}_play" for r in BACKLASH_PICKUP_RAD))),
+         "rad", _backlash, summary=_backlash_summary),
     Term("link_compliance", "geometry",
          tuple(f"axial_b{i}_um_per_n" for i in (1, 2, 3))
-         + tuple(f"bending_j{i}_rad_per_nm" for i in (1, 2, 3)), "um/N, rad/(N*m)", _compliance),
+         + tuple(f"bending_j{i}_rad_per_nm" for i in (1, 2, 3)) + ("tilt_rad_per_nm",),
+         "um/N, rad/(N*m)", _compliance),
     Term("sensor_latency", "time", ("latency_s", "latency_sq_s2"), "s, s^2", _latency),
     Term("thermal_drift", "angle, k",
-         tuple(f"k_ratio_per_degc_{j}" for j in JOINTS)
-         + tuple(f"offset_per_degc_{j}_rad" for j in JOINTS), "1/degC, rad/degC", _thermal,
-         needs_temperature=True),
+         tuple(f"{kind}_{lag}_{j}" for lag in ("now", "lagged")
+               for kind in ("k_ratio_per_degc", "offset_rad_per_degc") for j in JOINTS),
+         "1/degC, rad/degC", _thermal, needs_temperature=True, summary=_thermal_summary),
 )
 TERM_BY_NAME = {t.name: t for t in TERMS}
 EFFECT_NAMES = tuple(t.name for t in TERMS)
