@@ -39,9 +39,11 @@ if [ ! -x "$VENV/bin/python" ]; then
   say "creating virtual environment in $VENV"
   "$PYTHON" -m venv "$VENV"
 fi
-# Reinstall only when the dependency list changed.
+# Reinstall only when the dependency list or the set of top-level packages changed (an
+# editable install maps each top-level package when it is installed).
 stamp="$VENV/.delta6-installed"
-want=$(sha256sum "$ROOT/pyproject.toml" | cut -d' ' -f1)
+want=$( { cat "$ROOT/pyproject.toml"; cd "$ROOT" && ls host/*/__init__.py codegen/*/__init__.py 2>/dev/null; } \
+  | sha256sum | cut -d' ' -f1)
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
   say "installing the delta6 package and its test dependencies into $VENV"
   "$VENV/bin/python" -m pip install -q --upgrade pip >/dev/null

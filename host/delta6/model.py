@@ -113,11 +113,14 @@ def rotation(theta_e456: np.ndarray) -> np.ndarray:
     return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
 
 
-def branch_forces(p: Params | Design, theta_e123: np.ndarray, position: np.ndarray | None = None):
+def branch_forces(p: Params | Design, theta_e123: np.ndarray, position: np.ndarray | None = None,
+                  torque123: np.ndarray | None = None):
     """Eqs. (2)-(9): the force each parallelogram link carries, in {B}, shape (..., 3, 3).
 
     Also returns the eq. (7) lever ``la (v_x sin theta - v_z cos theta)`` per branch, (..., 3):
     where it approaches zero the mechanism is singular and the force is unbounded.
+    ``torque123`` (N*m) replaces the spring torques k*theta_e of eq. (8): the digital twin's
+    joints carry more than an ideal spring (hysteresis, friction).
     """
     p = as_params(p)
     theta_e123 = np.asarray(theta_e123, dtype=float)
@@ -129,14 +132,17 @@ def branch_forces(p: Params | Design, theta_e123: np.ndarray, position: np.ndarr
     cphi, sphi = np.cos(p.phi), np.sin(p.phi)
     vx_branch = cphi * vhat[..., 0] + sphi * vhat[..., 1]                 # eqs. (4)-(5)
     lever = p.la * (vx_branch * np.sin(theta) - vhat[..., 2] * np.cos(theta))
-    k123 = np.asarray(p.k)[..., :3]
-    magnitude = k123 * theta_e123 / lever                                  # eqs. (7)-(8)
+    if torque123 is None:
+        torque123 = np.asarray(p.k)[..., :3] * theta_e123                  # eq. (8)
+    magnitude = torque123 / lever                                          # eq. (7)
     return magnitude[..., None] * vhat, lever                             # eq. (9)
 
 
-def base_force(p: Params | Design, theta_e123: np.ndarray) -> np.ndarray:
-    """Eq. (10): the force at {E0}, in {B} = {E0} axes, N, shape (..., 3)."""
-    forces, _ = branch_forces(p, theta_e123)
+def base_force(p: Params | Design, theta_e123: np.ndarray,
+               torque123: np.ndarray | None = None) -> np.ndarray:
+    """Eq. (10): the force at {E0}, in {B} = {E0} axes, N, shape (..., 3). ``torque123``
+    replaces the spring torques k*theta_e1..3 (see :func:`branch_forces`)."""
+    forces, _ = branch_forces(p, theta_e123, torque123=torque123)
     return -forces.sum(axis=-2)
 
 
@@ -146,16 +152,23 @@ def base_moment(p: Params | Design, theta_e456: np.ndarray) -> np.ndarray:
     return np.asarray(p.k)[..., 3:] * np.asarray(theta_e456, dtype=float)
 
 
-def wrench(p: Params | Design, theta_e: np.ndarray) -> np.ndarray:
+def wrench(p: Params | Design, theta_e: np.ndarray, torque: np.ndarray | None = None) -> np.ndarray:
     """Eqs. (1)-(13): W = [Fx, Fy, Fz, Mx, My, Mz] in frame {E} from six encoder angles (rad).
 
     ``theta_e`` has shape (..., 6); the result has the same shape. NaN where the forward
     kinematics has no solution (the design check guarantees a solution inside the joint box).
+    ``torque`` (..., 6), N*m, replaces the spring torques k*theta_e of eqs. (8) and (11): the
+    wrench that balances given joint torques in the pose ``theta_e``.
     """
     p = as_params(p)
     theta_e = np.asarray(theta_e, dtype=float)
-    f0 = base_force(p, theta_e[..., :3])
-    m0 = base_moment(p, theta_e[..., 3:])
+    if torque is None:
+        f0 = base_force(p, theta_e[..., :3])
+        m0 = base_moment(p, theta_e[..., 3:])
+    else:
+        torque = np.asarray(torque, dtype=float)
+        f0 = base_force(p, theta_e[..., :3], torque[..., :3])
+        m0 = np.broadcast_to(torque[..., 3:], f0.shape)
     rt = np.swapaxes(rotation(theta_e[..., 3:]), -1, -2)                 # eq. (12): R^T
     force = np.einsum("...ij,...j->...i", rt, f0)
     moment = np.einsum("...ij,...j->...i", rt, m0)

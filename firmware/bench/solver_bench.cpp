@@ -1,0 +1,162 @@
+// Solver benchmark and self-check sketch: runs delta6::solve_counts over a fixed, spread-out
+// set of encoder deltas in the design's joint box (rest, the 64 corners, then pseudo-random
+// points) and reports every input, status and wrench over the serial port, so a host can
+// check what the AVR computed against the Python reference (tools/bench_solver_avr.py runs
+// it in simavr; delta6.solverbench decodes it).
+//
+// Timing: each solve is bracketed by writes of 1 and 2 to GPIOR0 with interrupts off; the
+// simulator timestamps those writes (tools/simavr/delta6_sim.c). A 3/4 pair measures the
+// cost of the markers themselves. After the last frame the sketch writes 0xFF (end of run).
+//
+// Frames, little-endian, each starting with 0xD6 and a type byte:
+//   'I'  uint32 design hash, uint16 number of solves, char name[24]      (first)
+//   'S'  int16 delta[6], uint8 status, float wrench[6]                  (one per solve)
+//   'E'  uint16 peak stack bytes (high-water mark), uint16 static RAM   (last)
+#include <Arduino.h>
+#include <string.h>
+
+#include "delta6_solver.h"
+#include "generated/delta6_design.h"
+
+#ifndef DELTA6_BENCH_SOLVES
+#define DELTA6_BENCH_SOLVES 512
+#endif
+#ifndef DELTA6_BENCH_BAUD
+#define DELTA6_BENCH_BAUD 115200
+#endif
+
+extern char __bss_end;  // end of static RAM (avr-libc linker scripts)
+
+#if defined(RAMSTART)
+#define DELTA6_RAM_START RAMSTART
+#else
+#define DELTA6_RAM_START INTERNAL_SRAM_START  // megaAVR 0-series headers
+#endif
+
+namespace {
+
+constexpr uint8_t kMarkStart = 1;
+constexpr uint8_t kMarkStop = 2;
+constexpr uint8_t kMarkCalibrateStart = 3;
+constexpr uint8_t kMarkCalibrateStop = 4;
+constexpr uint8_t kMarkEnd = 0xFF;
+constexpr uint8_t kStackPaint = 0xA5;
+
+// The memory clobbers keep the compiler from moving the solver's loads and stores (and so
+// its work, which sits between them) across a marker.
+inline void mark(uint8_t value) {
+    asm volatile("" ::: "memory");
+#ifdef GPIOR0
+    GPIOR0 = value;
+#else
+    (void)value;
+#endif
+    asm volatile("" ::: "memory");
+}
+
+// Fill the free RAM between static data and the current stack with a pattern; the lowest
+// overwritten byte afterwards gives the deepest stack use.
+void paint_stack() {
+    char* p = &__bss_end;
+    char* limit = reinterpret_cast<char*>(SP) - 16;  // stay clear of this function's frame
+    while (p < limit) *p++ = static_cast<char>(kStackPaint);
+}
+
+uint16_t peak_stack_bytes() {
+    const char* p = &__bss_end;
+    while (p < reinterpret_cast<const char*>(RAMEND) && *p == static_cast<char>(kStackPaint)) ++p;
+    return static_cast<uint16_t>(RAMEND - reinterpret_cast<uint16_t>(p) + 1);
+}
+
+uint16_t xorshift_state = 0xACE1u;
+
+// Uniform-ish in [-limit, limit] from a 16-bit xorshift (the same points on every run).
+int16_t random_delta(int16_t limit) {
+    xorshift_state ^= static_cast<uint16_t>(xorshift_state << 7);
+    xorshift_state ^= static_cast<uint16_t>(xorshift_state >> 9);
+    xorshift_state ^= static_cast<uint16_t>(xorshift_state << 8);
+    const uint32_t span = 2u * static_cast<uint32_t>(limit) + 1u;
+    return static_cast<int16_t>(static_cast<int32_t>((xorshift_state * span) >> 16) - limit);
+}
+
+// Case i: 0 = rest, 1..64 = the 64 corners of the box, then random points.
+void make_case(uint16_t i, int16_t delta[6]) {
+    const int16_t limit = delta6::design::kJointLimitCounts;
+    for (uint8_t j = 0; j < 6; ++j) {
+        if (i == 0) {
+            delta[j] = 0;
+        } else if (i <= 64) {
+            delta[j] = ((i - 1) >> j) & 1 ? limit : static_cast<int16_t>(-limit);
+        } else {
+            delta[j] = random_delta(limit);
+        }
+    }
+}
+
+void send_header(char type) {
+    const uint8_t head[2] = {0xD6, static_cast<uint8_t>(type)};
+    Serial.write(head, sizeof head);
+}
+
+void send_bytes(const void* data, size_t size) {
+    Serial.write(static_cast<const uint8_t*>(data), size);
+}
+
+void send_info() {
+    char name[24];
+    memset(name, 0, sizeof name);
+    strncpy(name, delta6::design::kName, sizeof name - 1);
+    const uint32_t hash = delta6::design::kHash;
+    const uint16_t solves = DELTA6_BENCH_SOLVES;
+    send_header('I');
+    send_bytes(&hash, sizeof hash);
+    send_bytes(&solves, sizeof solves);
+    send_bytes(name, sizeof name);
+}
+
+void send_solve(const int16_t delta[6], uint8_t status, const float wrench[6]) {
+    send_header('S');
+    send_bytes(delta, 6 * sizeof(int16_t));
+    send_bytes(&status, 1);
+    send_bytes(wrench, 6 * sizeof(float));
+    Serial.flush();  // nothing may interrupt the next timed solve
+}
+
+void send_end(uint16_t peak_stack) {
+    const uint16_t static_ram = static_cast<uint16_t>(reinterpret_cast<uint16_t>(&__bss_end) -
+                                                      DELTA6_RAM_START);
+    send_header('E');
+    send_bytes(&peak_stack, sizeof peak_stack);
+    send_bytes(&static_ram, sizeof static_ram);
+    Serial.flush();
+}
+
+}  // namespace
+
+void setup() {
+    paint_stack();
+    Serial.begin(DELTA6_BENCH_BAUD);
+    send_info();
+    uint8_t sreg = SREG;
+    cli();
+    mark(kMarkCalibrateStart);
+    mark(kMarkCalibrateStop);
+    SREG = sreg;
+    for (uint16_t i = 0; i < DELTA6_BENCH_SOLVES; ++i) {
+        int16_t delta[6];
+        float wrench[6];
+        make_case(i, delta);
+        sreg = SREG;
+        cli();
+        mark(kMarkStart);
+        const uint8_t status =
+            delta6::solve_counts(delta6::design::kSolverConstants, delta, wrench);
+        mark(kMarkStop);
+        SREG = sreg;
+        send_solve(delta, status, wrench);
+    }
+    send_end(peak_stack_bytes());
+    mark(kMarkEnd);
+}
+
+void loop() {}

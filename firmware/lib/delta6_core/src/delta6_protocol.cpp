@@ -1,0 +1,174 @@
+#include "delta6_protocol.h"
+
+#include <string.h>
+
+#include "delta6_cobs.h"
+#include "delta6_crc16.h"
+
+namespace delta6 {
+namespace proto {
+
+uint8_t commandSize(uint8_t type) {
+  switch (type) {
+    case kCmdGetInfo:
+    case kCmdPing:
+    case kCmdStop:
+    case kCmdClearTare:
+    case kCmdSaveConfig:
+    case kCmdLoadDefaults:
+    case kCmdGetTelemetry:
+      return 2;
+    case kCmdSetMode:
+      return 3;
+    case kCmdStart:
+    case kCmdTare:
+    case kCmdZeroHere:
+      return 4;
+    case kCmdSetZero:
+      return 14;
+    default:
+      return 0;
+  }
+}
+
+// Decades as float literals: the host mirrors this table and the products below in float32,
+// so both ends pick the same step even at exact boundaries.
+static const float kDecades[kMaxExponent - kMinExponent + 1] = {
+    1e-6f, 1e-5f, 1e-4f, 1e-3f, 1e-2f, 1e-1f, 1e0f, 1e1f, 1e2f, 1e3f};
+static const uint8_t kMantissas[3] = {1, 2, 5};
+// Headroom: the range +-32767 LSB covers at least 1.25 x full scale.
+static const float kHeadroomPerCount = 1.25f / 32767.0f;
+
+Scale scaleForFullScale(float full_scale) {
+  const float needed = full_scale * kHeadroomPerCount;
+  for (int8_t e = kMinExponent; e <= kMaxExponent; ++e) {
+    for (uint8_t m = 0; m < 3; ++m) {
+      const float step = static_cast<float>(kMantissas[m]) * kDecades[e - kMinExponent];
+      if (step >= needed) {
+        Scale s = {kMantissas[m], e};
+        return s;
+      }
+    }
+  }
+  // Not finite, or beyond 5e3 x 32767 / 1.25: the coarsest step (never reached by a design).
+  Scale s = {5, kMaxExponent};
+  return s;
+}
+
+float scaleValue(Scale s) {
+  return static_cast<float>(s.mantissa) * kDecades[s.exponent - kMinExponent];
+}
+
+int16_t quantize(float value, float inverse_lsb, bool* clipped) {
+  const float x = value * inverse_lsb;
+  // Range and sign from the bits: integer tests cost a few AVR cycles, float comparisons ~60.
+  uint32_t bits;
+  memcpy(&bits, &x, 4);
+  const uint32_t magnitude = bits & 0x7FFFFFFFUL;
+  const bool negative = (bits >> 31) != 0;
+  if (magnitude < 0x46FFFE00UL) {  // |x| < 32767.0f
+    // Round half away from zero in integers, from the mantissa and exponent: exact, and a
+    // fifth of the cycles of a float addition and conversion on the AVR.
+    const int16_t exponent = static_cast<int16_t>(magnitude >> 23) - 127;
+    if (exponent < -1) return 0;  // |x| < 0.5, zero and subnormals included
+    uint32_t v = (magnitude & 0x7FFFFFUL) | 0x800000UL;  // |x| = v x 2^(exponent - 23)
+    uint8_t shift = static_cast<uint8_t>(22 - exponent);   // keep one bit below the point
+    if (shift >= 16) {  // whole-byte shifts first: an 8-bit CPU shifts one bit at a time
+      v >>= 16;
+      shift = static_cast<uint8_t>(shift - 16);
+    }
+    if (shift >= 8) {
+      v >>= 8;
+      shift = static_cast<uint8_t>(shift - 8);
+    }
+    v >>= shift;
+    const int16_t rounded = static_cast<int16_t>((v + 1) >> 1);
+    return negative ? static_cast<int16_t>(-rounded) : rounded;
+  }
+  if (magnitude > 0x7F800000UL) return kInvalidValue;  // NaN
+  if (magnitude > 0x46FFFE00UL) *clipped = true;       // beyond 32767 (infinities too)
+  return static_cast<int16_t>(negative ? -kMaxValue : kMaxValue);
+}
+
+void putU16(uint8_t* p, uint16_t v) {
+  p[0] = static_cast<uint8_t>(v);
+  p[1] = static_cast<uint8_t>(v >> 8);
+}
+
+void putU32(uint8_t* p, uint32_t v) {
+  for (uint8_t i = 0; i < 4; ++i) p[i] = static_cast<uint8_t>(v >> (8 * i));
+}
+
+void putF32(uint8_t* p, float v) {
+  uint32_t bits;
+  memcpy(&bits, &v, 4);  // IEEE-754 single on both AVR and the host
+  putU32(p, bits);
+}
+
+uint16_t getU16(const uint8_t* p) {
+  return static_cast<uint16_t>(p[0] | (static_cast<uint16_t>(p[1]) << 8));
+}
+
+uint32_t getU32(const uint8_t* p) {
+  return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8) |
+         (static_cast<uint32_t>(p[2]) << 16) | (static_cast<uint32_t>(p[3]) << 24);
+}
+
+uint16_t finishFrame(uint8_t* buf, uint16_t n) {
+  if (n + 2 > kCobsMaxInPlace) return 0;
+  const uint16_t crc = crc16(buf + 1, n);
+  buf[n + 1] = static_cast<uint8_t>(crc >> 8);
+  buf[n + 2] = static_cast<uint8_t>(crc);
+  const uint16_t len = cobsEncodeInPlace(buf, static_cast<uint16_t>(n + 2));
+  buf[len] = 0;
+  return static_cast<uint16_t>(len + 1);
+}
+
+uint16_t encodeDataRecord(uint8_t* buf, uint16_t seq, uint32_t time_us, uint16_t status,
+                          const int16_t wrench[6], const uint16_t* counts) {
+  uint8_t* p = buf + 1;
+  p[0] = counts ? kWrenchRaw : kWrench;
+  putU16(p + kOffSeq, seq);
+  putU32(p + kOffTime, time_us);
+  putU16(p + kOffStatus, status);
+  for (uint8_t i = 0; i < 6; ++i) {
+    putU16(p + kOffWrench + 2 * i, static_cast<uint16_t>(wrench[i]));
+  }
+  if (!counts) return finishFrame(buf, kWrenchSize);
+  for (uint8_t i = 0; i < 6; ++i) putU16(p + kOffCounts + 2 * i, counts[i]);
+  return finishFrame(buf, kWrenchRawSize);
+}
+
+CommandParser::CommandParser() : len_(0), overflow_(false) {}
+
+void CommandParser::reset() {
+  len_ = 0;
+  overflow_ = false;
+}
+
+ParseResult CommandParser::feed(uint8_t byte, Command* command) {
+  if (byte != 0) {
+    if (len_ < kCommandBuffer) {
+      buf_[len_++] = byte;
+    } else {
+      overflow_ = true;
+    }
+    return kParseNone;
+  }
+  const uint8_t n = len_;
+  const bool overflow = overflow_;
+  reset();
+  if (overflow) return kParseTooLong;
+  if (n == 0) return kParseEmpty;
+  const int16_t decoded = cobsDecodeInPlace(buf_, n);
+  if (decoded < 4) return kParseBadFrame;  // type, request id, two CRC bytes at least
+  if (crc16(buf_, static_cast<uint16_t>(decoded)) != 0) return kParseBadCrc;
+  command->type = buf_[0];
+  command->request_id = buf_[1];
+  command->size = static_cast<uint8_t>(decoded - 2);
+  command->args = buf_ + 2;
+  return kParseCommand;
+}
+
+}  // namespace proto
+}  // namespace delta6

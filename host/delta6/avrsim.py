@@ -1,0 +1,92 @@
+"""Run AVR firmware in simavr and read back what it reported.
+
+The runner is a small C program on libsimavr (``tools/simavr/delta6_sim.c``), built here with
+the host compiler and cached under ``build/simavr/``. It records two channels, both stamped
+by the simulator: GPIOR0 writes (cycle markers that bracket timed code) and the bytes the
+firmware sends on UART0. See the C file for the command line.
+"""
+from __future__ import annotations
+
+import hashlib
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from .avrbuild import REPO_ROOT
+from .errors import UserError
+
+HARNESS_SOURCE = REPO_ROOT / "tools" / "simavr" / "delta6_sim.c"
+BUILD_DIR = REPO_ROOT / "build" / "simavr"
+SIMAVR_LIBS = ("-lsimavr", "-lsimavrparts", "-lutil", "-lpthread")
+APT_HINT = ("install it with: sudo apt-get install --no-install-recommends simavr "
+            "libsimavr-dev (or run bash tools/bootstrap.sh)")
+
+
+class SimulatorError(UserError):
+    """simavr is missing, or the firmware did not finish as expected."""
+
+
+@dataclass
+class SimResult:
+    markers: list[tuple[int, int]]   # (cycle, value) of every GPIOR0 write, in order
+    uart: bytes                      # everything UART0 transmitted
+    stderr: str
+
+    def spans(self, start: int, stop: int) -> list[int]:
+        """Cycles between each ``start`` marker and the ``stop`` marker that follows it."""
+        out, opened = [], None
+        for cycle, value in self.markers:
+            if value == start:
+                opened = cycle
+            elif value == stop and opened is not None:
+                out.append(cycle - opened)
+                opened = None
+        return out
+
+
+def harness() -> Path:
+    """Path of the compiled runner (built on first use, rebuilt when its source changes)."""
+    cc = shutil.which("gcc") or shutil.which("cc")
+    if not cc:
+        raise SimulatorError("no host C compiler (gcc) found")
+    if not Path("/usr/include/simavr/sim_avr.h").exists():
+        raise SimulatorError(f"simavr headers not found; {APT_HINT}")
+    key = hashlib.sha256(HARNESS_SOURCE.read_bytes()).hexdigest()[:12]
+    exe = BUILD_DIR / f"delta6_sim-{key}"
+    if not exe.exists():
+        BUILD_DIR.mkdir(parents=True, exist_ok=True)
+        tmp = exe.with_suffix(".tmp")
+        cmd = [cc, "-O2", "-Wall", "-Wextra", "-std=gnu11", str(HARNESS_SOURCE), "-o", str(tmp),
+               *SIMAVR_LIBS]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise SimulatorError(f"building the simavr runner failed ({APT_HINT}):\n"
+                                 f"{' '.join(cmd)}\n{proc.stderr.strip()}")
+        tmp.replace(exe)
+    return exe
+
+
+def run(elf: Path, *, mcu: str = "atmega328p", freq: int = 16_000_000,
+        max_cycles: int = 200_000_000, stop_marker: int = 0xFF,
+        timeout_s: float | None = 300.0) -> SimResult:
+    """Run ``elf`` until it writes ``stop_marker`` to GPIOR0; raise if it never does."""
+    exe = harness()
+    with tempfile.TemporaryDirectory(prefix="delta6-sim-") as tmp:
+        uart, markers = Path(tmp) / "uart.bin", Path(tmp) / "markers.txt"
+        cmd = [str(exe), str(elf), "--mcu", mcu, "--freq", str(freq), "--max-cycles",
+               str(max_cycles), "--stop-marker", str(stop_marker), "--uart", str(uart),
+               "--markers", str(markers)]
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            raise SimulatorError(f"simulation of {elf.name} exceeded {timeout_s:g} s") from None
+        if proc.returncode != 0:
+            raise SimulatorError(f"simulation of {elf.name} failed (status {proc.returncode}): "
+                                 f"{proc.stderr.strip()}")
+        pairs = []
+        for line in markers.read_text().splitlines():
+            cycle, value = line.split()
+            pairs.append((int(cycle), int(value)))
+        return SimResult(markers=pairs, uart=uart.read_bytes(), stderr=proc.stderr)

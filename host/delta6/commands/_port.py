@@ -1,0 +1,102 @@
+"""What the device subcommands share: the --port options, opening the device, display helpers."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..device import DEFAULT_BAUD, Device
+from ..protocol import Info, Mode, Status
+
+AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+
+
+def number(option: str, kind: type = float, low: float | None = None,
+           high: float | None = None, low_open: bool = False):
+    """An argparse type: a number of ``kind`` within [low, high] (``low_open``: above low),
+    rejected with one line naming the option."""
+    def convert(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            noun = "a whole number" if kind is int else "a number"
+            raise argparse.ArgumentTypeError(f"{option} takes {noun}, got {text!r}") from None
+        if low is not None and (value <= low if low_open else value < low):
+            raise argparse.ArgumentTypeError(
+                f"{option} must be {'positive' if low == 0 and low_open else f'at least {low}'}, "
+                f"got {text}")
+        if high is not None and value > high:
+            raise argparse.ArgumentTypeError(f"{option} must be at most {high}, got {text}")
+        return value
+    return convert
+
+
+def add_port_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--port", required=True, metavar="P",
+                        help="serial port (/dev/ttyACM0, COM3) or pyserial URL "
+                             "(delta6sim:// for the simulated device, socket://host:port)")
+    parser.add_argument("--baud", type=number("--baud", int, 1), default=DEFAULT_BAUD,
+                        help=f"baud rate of the board's firmware (default {DEFAULT_BAUD})")
+    parser.add_argument("--timeout", type=number("--timeout", low=0, low_open=True), default=0.5,
+                        metavar="S",
+                        help="seconds to wait for each answer (default 0.5; retried twice)")
+
+
+def add_stream_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--rate", type=number("--rate", int, 1, 65535), metavar="HZ",
+                        help="sample rate (default: the device's configured rate)")
+    parser.add_argument("--raw", action="store_true",
+                        help="also stream the six raw encoder counts (the theta_e columns)")
+
+
+def open_device(args: argparse.Namespace, **kwargs) -> Device:
+    return Device(args.port, baud=args.baud, timeout=args.timeout, **kwargs).open()
+
+
+def start_stream(dev: Device, args: argparse.Namespace) -> int:
+    dev.set_mode(Mode.WRENCH_RAW if args.raw else Mode.WRENCH)
+    return dev.start(args.rate)
+
+
+def flag_names(status: int) -> str:
+    """Status bits as short names ('ok' when none but the informational ones are set)."""
+    quiet = Status.TARE_ACTIVE | Status.CONFIG_DEFAULTS
+    names = [f.name.lower() for f in Status if f & status and not f & quiet]
+    return ",".join(names) if names else "ok"
+
+
+def log_meta(info: Info, port: str, command: str) -> dict:
+    """The header lines of a device log (docs/protocol.md, "Logs")."""
+    return {
+        "design": info.design_name, "design_hash": f"0x{info.design_hash:08x}",
+        "source": f"{command} {port}", "firmware": info.firmware_version,
+        "protocol": info.protocol_version, "serial_number": f"0x{info.serial_number:08x}",
+        "baud": info.baud, "mode": Mode(info.mode).name.lower(),
+        "lsb": " ".join(f"{v:g}" for v in info.lsb),
+        "zero_counts": " ".join(map(str, info.zero_counts)),
+        "tare": " ".join(f"{v:.9g}" for v in info.tare),
+    }
+
+
+class Progress:
+    """One status line on a terminal (rewritten in place), plain lines otherwise."""
+
+    def __init__(self, stream=None):
+        self.stream = stream or sys.stderr
+        self.tty = self.stream.isatty()
+        self.shown = False
+        self._width = 0
+
+    def show(self, text: str) -> None:
+        if self.tty:   # pad to the previous line's width so nothing of it remains
+            self.stream.write("\r" + text.ljust(self._width))
+            self._width = len(text)
+        else:
+            self.stream.write(text + "\n")
+        self.stream.flush()
+        self.shown = True
+
+    def end(self) -> None:
+        if self.tty and self.shown:
+            self.stream.write("\n")
+            self.stream.flush()
+        self.shown = False

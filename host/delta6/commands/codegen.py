@@ -1,0 +1,115 @@
+"""``delta6 codegen``: write the firmware's design header, optionally build the AVR image."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .. import avrbuild
+from .. import design as design_mod
+from ..errors import UserError
+
+NAME = "codegen"
+HELP = ("write the firmware header generated/delta6_design.h for a design "
+        "(--build: into build/designs/NAME/ and build the ATmega328P image there)")
+HEADER_RELPATH = Path("generated") / "delta6_design.h"
+COMMITTED_HEADER = avrbuild.COMMITTED_DESIGN_INCLUDE / HEADER_RELPATH
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("design", metavar="DESIGN.toml", type=Path, help="design file")
+    parser.add_argument("-o", "--output", metavar="PATH", type=Path,
+                        help=f"header to write (default: {_rel(COMMITTED_HEADER)}, the one the "
+                             "PlatformIO build uses; with --build: "
+                             "build/designs/NAME/include/generated/delta6_design.h)")
+    parser.add_argument("--build", action="store_true",
+                        help="also build the ATmega328P firmware image for this design with "
+                             "the local avr-gcc (the committed header is left alone)")
+    parser.add_argument("--check", action="store_true",
+                        help="write nothing; exit 1 if the header differs from what the design "
+                             "generates")
+
+
+def source_label(path: Path) -> str:
+    """How the banner names the design file: relative to the repository when inside it, so
+    the bytes do not depend on the working directory."""
+    resolved = path.resolve()
+    try:
+        return resolved.relative_to(avrbuild.REPO_ROOT).as_posix()
+    except ValueError:
+        return resolved.name
+
+
+def header_text(path: Path) -> tuple[design_mod.Design, str]:
+    from delta6_codegen import render
+    design = design_mod.load(path)
+    return design, render(design, source_label(path))
+
+
+def output_path(args: argparse.Namespace, design: design_mod.Design) -> Path:
+    if args.output is not None:
+        return args.output
+    if args.build:
+        return avrbuild.design_include_dir(design.name) / HEADER_RELPATH
+    return COMMITTED_HEADER
+
+
+def include_dir_of(header: Path) -> Path:
+    """The directory to put on the include path so that "generated/delta6_design.h" is
+    ``header``."""
+    header = header.resolve()
+    if header.name != HEADER_RELPATH.name or header.parent.name != HEADER_RELPATH.parent.name:
+        raise UserError(f"--build needs the header at .../{HEADER_RELPATH.as_posix()} "
+                        f"(got {header})")
+    return header.parent.parent
+
+
+def run(args: argparse.Namespace) -> int:
+    design, text = header_text(args.design)
+    out = output_path(args, design)
+    if args.check:
+        try:
+            current = out.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError):
+            current = None
+        if current != text:
+            print(f"{_rel(out)} is out of date with {source_label(args.design)}; "
+                  f"run: delta6 codegen {source_label(args.design)}", file=sys.stderr)
+            return 1
+        print(f"{_rel(out)} is up to date")
+        return 0
+    verb = "wrote" if _write_if_changed(out, text) else "unchanged:"
+    print(f"{verb} {_rel(out)} for design '{design.name}' (hash 0x{design.hash32():08x})")
+    if args.build:
+        from ..solverbench import build_bench_image
+        image = build_bench_image(include_dir_of(out), name=f"delta6-{design.name}",
+                                  out_dir=avrbuild.design_build_dir(design.name) / "atmega328p")
+        sizes = image.sizes
+        print(f"built {_rel(image.elf)} and .hex ({image.mcu}): flash {sizes.flash} B of "
+              f"{avrbuild.NANO.flash_bytes}, static RAM {sizes.ram} B of {avrbuild.NANO.ram_bytes}")
+    return 0
+
+
+def _write_if_changed(path: Path, text: str) -> bool:
+    """Write ``text`` unless the file already holds it (its timestamp then stays, so builds
+    do not redo work). Returns whether it wrote."""
+    try:
+        if path.read_text(encoding="utf-8") == text:
+            return False
+    except (OSError, UnicodeDecodeError):
+        pass  # missing or unreadable: writing it says what is wrong, if anything
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.name + ".partial")
+        tmp.write_text(text, encoding="utf-8")
+        tmp.replace(path)
+    except OSError as exc:
+        raise UserError(f"cannot write {path}: {exc.strerror}") from None
+    return True
+
+
+def _rel(path: Path) -> str:
+    try:
+        return path.resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return str(path)

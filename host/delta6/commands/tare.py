@@ -1,0 +1,33 @@
+"""``delta6 tare``: zero the wrench on the device (averaged there), optionally persistently."""
+from __future__ import annotations
+
+import argparse
+
+from ._port import AXES, add_port_arguments, number, open_device
+
+NAME = "tare"
+HELP = "tare the wrench on the device (average N samples); --clear undoes it, --save keeps it"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_port_arguments(parser)
+    parser.add_argument("--samples", type=number("--samples", int, 1, 65535), default=100, metavar="N",
+                        help="samples to average (default 100)")
+    parser.add_argument("--clear", action="store_true", help="remove the tare instead")
+    parser.add_argument("--save", action="store_true",
+                        help="store the result in the device's EEPROM (survives power-off)")
+
+
+def run(args: argparse.Namespace) -> int:
+    with open_device(args) as dev:
+        if args.clear:
+            dev.clear_tare()
+            print("tare cleared")
+        else:
+            offsets = dev.tare(args.samples)
+            print(f"tare over {args.samples} samples: " + ", ".join(
+                f"{axis} {value:+.5g}" for axis, value in zip(AXES, offsets)) + " (N, N*m)")
+        if args.save:
+            dev.save_config()
+            print("configuration saved to EEPROM")
+    return 0

@@ -1,0 +1,78 @@
+"""The true plant: from the joint motion the robot imposes to the true wrench and to the angles
+the encoders see, with the active effects applied at their stages, in this fixed order:
+
+1. TORQUE   joint torque = spring rate (x every ``spring_scale``) * q + every ``extra_torque``
+2. GEOMETRY the built mechanism (static deltas, then load-dependent deformation)
+3. statics  the wrench at {E} that balances those torques in that mechanism (``statics``)
+4. TIME     what the reference sensor sees of that wrench, and when
+5. ANGLE    what the encoders read of the joint angles (mechanical play, then readout errors)
+
+Everything runs on the fine time grid of the simulation; the history-dependent effects use
+blocked scans (``twin.scan``), the history-free statics runs in chunks so that long runs can
+report progress.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .effects import Effect, Signals, Stage
+from .statics import PlantGeometry, plant_wrench
+
+#: Fine samples per statics chunk (bounds memory, paces the progress display).
+CHUNK = 50_000
+
+
+@dataclass
+class PlantOutput:
+    torque: np.ndarray      # (M, 6) true joint torques, N*m
+    wrench: np.ndarray      # (M, 6) true wrench at {E}
+    reference: np.ndarray   # (M, 6) the wrench as the reference sensor reports it (no noise)
+    encoder: np.ndarray     # (M, 6) encoder angles before quantization, rad
+
+
+def at_stage(effects: Sequence[Effect], stage: Stage) -> list[Effect]:
+    return sorted((e for e in effects if stage in e.ACTS_ON), key=lambda e: e.ORDER)
+
+
+def joint_torque(effects: Sequence[Effect], sig: Signals) -> np.ndarray:
+    """Stage 1: spring torques with the spring-side effects."""
+    rate = np.broadcast_to(np.asarray(sig.nominal.k, dtype=float), sig.q.shape)
+    extra = np.zeros_like(sig.q)
+    for e in at_stage(effects, Stage.TORQUE):
+        rate = rate * e.spring_scale(sig)
+        extra = extra + e.extra_torque(sig)
+    return rate * sig.q + extra
+
+
+def true_wrench(effects: Sequence[Effect], sig: Signals, torque: np.ndarray,
+                progress: Callable[[float], None] | None = None) -> np.ndarray:
+    """Stages 2-3, chunk by chunk (both are history-free)."""
+    geometric = at_stage(effects, Stage.GEOMETRY)
+    out = np.empty_like(torque)
+    n = len(torque)
+    for start in range(0, n, CHUNK):
+        part = slice(start, min(n, start + CHUNK))
+        piece = Signals(sig.t[part], sig.q[part], sig.qd[part], sig.temp_c[part], sig.nominal)
+        geo = PlantGeometry(sig.nominal)
+        for e in geometric:
+            geo = e.geometry(geo, piece, torque[part])
+        out[part] = plant_wrench(geo, piece.q, torque[part])
+        if progress:
+            progress(part.stop / n)
+    return out
+
+
+def run(effects: Sequence[Effect], sig: Signals,
+        progress: Callable[[float], None] | None = None) -> PlantOutput:
+    torque = joint_torque(effects, sig)
+    wrench = true_wrench(effects, sig, torque, progress)
+    reference = wrench
+    for e in at_stage(effects, Stage.TIME):
+        reference = e.reference(reference, sig)
+    encoder = sig.q
+    for e in at_stage(effects, Stage.ANGLE):
+        encoder = e.encoder(encoder, sig)
+    return PlantOutput(torque=torque, wrench=wrench, reference=reference, encoder=encoder)

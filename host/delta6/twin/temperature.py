@@ -1,0 +1,42 @@
+"""The air temperature around the rig: heater set-points changed in steps, which the air
+follows with a first-order lag (the paper's thermal test stepped from 15 to 40 degC with two
+space heaters). Recorded in the log's ``temp_c`` by a thermometer next to the device."""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .scan import affine_scan
+
+
+@dataclass(frozen=True)
+class TemperatureSettings:
+    low_c: float = 15.0
+    high_c: float = 40.0
+    start_c: float = 23.0
+    steps: int = 5                 # set-point changes over the run
+    sensor_noise_c: float = 0.05   # thermometer noise (standard deviation)
+
+    def check(self) -> None:
+        if not self.low_c <= self.high_c or self.steps < 1 or self.sensor_noise_c < 0:
+            raise ValueError("bad temperature settings")
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def ambient(t: np.ndarray, duration_s: float, rng: np.random.Generator,
+            settings: TemperatureSettings = TemperatureSettings()) -> np.ndarray:
+    """Air temperature (degC) at the fine times ``t``; steady at ``start_c`` before t = 0."""
+    settings.check()
+    step = max(duration_s, 1e-9) / settings.steps
+    setpoints = np.concatenate([[settings.start_c],
+                                rng.uniform(settings.low_c, settings.high_c, settings.steps)])
+    index = np.where(t < 0, 0, np.minimum(np.floor(np.maximum(t, 0) / step).astype(int) + 1,
+                                          settings.steps))
+    target = setpoints[index]
+    dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
+    a = math.exp(-dt / (step / 4))   # the air settles within a step
+    return affine_scan(np.full(t.shape, a), (1 - a) * target, settings.start_c)

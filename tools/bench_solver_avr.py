@@ -1,0 +1,157 @@
+#!/usr/bin/env python3
+"""AVR cycle budget of the wrench solver: build the ATmega328P benchmark image, run it in
+simavr, and report cycles per solve, time at 16 MHz, flash and RAM, the avrxmega3 size check
+and the worst error of what the AVR computed against the Python reference (% full scale).
+
+    .venv/bin/python tools/bench_solver_avr.py                      # designs/delta6.toml
+    .venv/bin/python tools/bench_solver_avr.py designs/*.toml       # every variant
+    .venv/bin/python tools/bench_solver_avr.py --solves 2000 --csv build/bench.csv
+    .venv/bin/python tools/bench_solver_avr.py --stages             # + cycles per stage
+
+Exit status 1 if a requirement fails (more than 40,000 cycles per solve, an AVR result off by
+more than 0.05 % FS, or a solve that did not succeed inside the box); 2 on bad input.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+from delta6 import avrbuild, solverbench  # noqa: E402
+from delta6.design import load  # noqa: E402
+from delta6.errors import UserError  # noqa: E402
+from delta6.model import AXES, ENCODER_COUNT_RAD, wrench  # noqa: E402
+from delta6.spec import full_scale  # noqa: E402
+from delta6_codegen import render  # noqa: E402
+
+F_CPU = 16_000_000
+REQUIRED_CYCLES = 40_000
+GOAL_CYCLES = 16_000
+REQUIRED_ACCURACY_PCT_FS = 0.05
+
+
+def say(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def label_of(path: Path) -> str:
+    resolved = path.resolve()
+    return resolved.relative_to(ROOT).as_posix() if resolved.is_relative_to(ROOT) else path.name
+
+
+def include_dir_for(path: Path, design) -> Path:
+    """The committed header for the baseline, a generated one under build/ for the others."""
+    committed = avrbuild.COMMITTED_DESIGN_INCLUDE
+    text = render(design, label_of(path))
+    if (committed / "generated" / "delta6_design.h").read_text() == text:
+        return committed
+    include = avrbuild.design_include_dir(design.name)
+    header = include / "generated" / "delta6_design.h"
+    header.parent.mkdir(parents=True, exist_ok=True)
+    if not header.exists() or header.read_text() != text:
+        header.write_text(text)
+    return include
+
+
+def bench_one(path: Path, solves: int, csv_rows: list | None, stages: bool = False) -> bool:
+    design = load(path)
+    include = include_dir_for(path, design)
+    say(f"[{design.name}] building the ATmega328P image and running {solves} solves in simavr ...")
+    run = solverbench.run_bench(include, solves=solves, name=f"bench-{design.name}")
+    rep = run.report
+    ok = rep.status == 0
+    ref = wrench(design, rep.delta * ENCODER_COUNT_RAD)
+    fs = full_scale(design)
+    err_pct = (np.abs(rep.wrench.astype(float) - ref) / fs).max(axis=0) * 100 if ok.any() else \
+        np.full(6, np.nan)
+    cyc = run.cycles
+    say(f"[{design.name}] size checks (bare solver for atmega328p and avrxmega3) ...")
+    probe_328 = solverbench.build_probe(include, "atmega328p")
+    probe_x3 = solverbench.build_probe(include, "avrxmega3")
+    img = run.image.sizes
+    lim = int(np.abs(rep.delta).max())
+    n_random = max(0, solves - 65)
+
+    cycles_ok = cyc.max() <= REQUIRED_CYCLES
+    accuracy_ok = bool(np.all(err_pct <= REQUIRED_ACCURACY_PCT_FS))
+    status_ok = bool(ok.all())
+    verdict = lambda good: "PASS" if good else "FAIL"  # noqa: E731
+    us = cyc / (F_CPU / 1e6)
+    lines = [
+        f"Delta6 wrench solver on the ATmega328P at 16 MHz (simavr), design '{rep.design_name}' "
+        f"({label_of(path)}, hash 0x{rep.design_hash:08x})",
+        f"  inputs        {solves} solves: rest, the 64 corners of the joint box, {n_random} "
+        f"random points (|delta| <= {lim} counts)",
+        f"  status        {int(ok.sum())} OK, {int((~ok).sum())} failed   [{verdict(status_ok)}]",
+        f"  cycles/solve  mean {cyc.mean():,.0f}  min {cyc.min():,}  max {cyc.max():,}"
+        "   (the GPIOR0 marker overhead removed)",
+        f"  time/solve    mean {us.mean():,.0f} us  max {us.max():,.0f} us at 16 MHz"
+        f"  ->  {F_CPU / cyc.max():,.0f} solves/s worst case",
+        f"  budget        required <= {REQUIRED_CYCLES:,} cycles: {verdict(cycles_ok)} "
+        f"(max is {100 * cyc.max() / REQUIRED_CYCLES:.0f} % of it); goal {GOAL_CYCLES:,}: "
+        + ("reached" if cyc.max() <= GOAL_CYCLES else
+           f"not reached (mean x{cyc.mean() / GOAL_CYCLES:.2f})"),
+        "  accuracy      worst |AVR - reference| per axis, % of full scale "
+        f"(required <= {REQUIRED_ACCURACY_PCT_FS}): {verdict(accuracy_ok)}",
+        "                " + "  ".join(f"{a} {e:.2e}" for a, e in zip(AXES, err_pct)),
+        f"  image         bench sketch + Arduino core: flash {img.flash:,} B of "
+        f"{avrbuild.NANO.flash_bytes:,}, static RAM {img.ram:,} B of {avrbuild.NANO.ram_bytes:,}"
+        f", peak stack {rep.peak_stack} B",
+        f"  solver alone  bare main, no Arduino core: ATmega328P flash {probe_328.sizes.flash:,} B,"
+        f" static RAM {probe_328.sizes.ram} B; avrxmega3 (ATmega4809 instruction set) flash "
+        f"{probe_x3.sizes.flash:,} B, static RAM {probe_x3.sizes.ram} B",
+    ]
+    if stages:
+        say(f"[{design.name}] profile build with stage markers ...")
+        prof = solverbench.run_bench(include, solves=solves, name=f"bench-profile-{design.name}",
+                                     profile=True)
+        lines.append("  stages        mean cycles per stage (profile build: stage markers add "
+                     "a few cycles each)")
+        for label, spans in prof.stages.items():
+            lines.append(f"                {spans.mean():8,.0f}  {label}")
+    print("\n".join(lines), flush=True)
+    if csv_rows is not None:
+        for i in range(len(cyc)):
+            csv_rows.append([design.name, *rep.delta[i], int(rep.status[i]), int(cyc[i]),
+                             *rep.wrench[i], *ref[i]])
+    return cycles_ok and accuracy_ok and status_ok
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("designs", nargs="*", type=Path, metavar="DESIGN.toml",
+                        default=[ROOT / "designs" / "delta6.toml"])
+    parser.add_argument("--solves", type=int, default=512,
+                        help="number of solves (>= 65: rest + 64 corners + random); default 512")
+    parser.add_argument("--stages", action="store_true",
+                        help="also build a profile image and print the cycles of each stage")
+    parser.add_argument("--csv", type=Path, metavar="PATH",
+                        help="also write every solve (inputs, status, cycles, AVR and reference "
+                             "wrench) to a CSV file")
+    args = parser.parse_args(argv)
+    if not 65 <= args.solves <= 20000:
+        parser.error("--solves must be between 65 and 20000")
+    rows = [] if args.csv else None
+    try:
+        results = [bench_one(path, args.solves, rows, args.stages) for path in args.designs]
+    except UserError as exc:
+        print(f"bench_solver_avr: error: {exc}", file=sys.stderr)
+        return 2
+    if rows is not None:
+        args.csv.parent.mkdir(parents=True, exist_ok=True)
+        with args.csv.open("w", newline="") as f:
+            out = csv.writer(f)
+            out.writerow(["design", *(f"delta{j + 1}" for j in range(6)), "status", "cycles",
+                          *(f"avr_{a}" for a in AXES), *(f"ref_{a}" for a in AXES)])
+            out.writerows(rows)
+        say(f"wrote {args.csv}")
+    return 0 if all(results) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
