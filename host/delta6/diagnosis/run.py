@@ -20,7 +20,8 @@ def _p99(values_pct: np.ndarray) -> list[float]:
 
 def diagnose(log: LogData, design: Design, *, seed: int = 0, progress=None,
              min_gain: float = selection.MIN_GAIN,
-             confidence: float = selection.CONFIDENCE) -> dict:
+             confidence: float = selection.CONFIDENCE,
+             min_share: float = selection.MIN_SHARE) -> dict:
     started = time.perf_counter()
     data = GapData.from_log(log, design)
     if progress:
@@ -32,7 +33,8 @@ def diagnose(log: LogData, design: Design, *, seed: int = 0, progress=None,
     problem = selection.build_problem(data, terms, progress=progress)
     rng = np.random.default_rng(seed)
     ladder, info = selection.greedy(problem, [t.name for t in terms], rng, min_gain=min_gain,
-                                    confidence=confidence, progress=progress)
+                                    confidence=confidence, min_share=min_share,
+                                    progress=progress)
     base_sse = info["base"]
 
     def heldout_pct(names):
@@ -88,7 +90,8 @@ def diagnose(log: LogData, design: Design, *, seed: int = 0, progress=None,
         "samples": len(data),
         "settings": {"blocks": problem.n_blocks, "folds": len(problem.folds),
                      "buffer_blocks": selection.BUFFER_BLOCKS, "min_gain": min_gain,
-                     "confidence": confidence, "bootstrap": selection.N_BOOT, "seed": seed},
+                     "confidence": confidence, "min_share": min_share,
+                     "bootstrap": selection.N_BOOT, "seed": seed},
         "design": {"name": design.name, "hash": f"0x{design.hash32():08x}"},
         "seconds": time.perf_counter() - started,
     }

@@ -56,7 +56,7 @@ def smooth_velocity(x: np.ndarray, t: np.ndarray, half_width: int = 2) -> np.nda
 
 
 def dwell_ramps(x: np.ndarray, state: np.ndarray, t: np.ndarray, max_dwell_s: float,
-                still: float) -> np.ndarray:
+                still: float, power: float = 1.0) -> np.ndarray:
     """``state`` (a direction of motion in [-1, 1], per column of ``x``) with each reversal
     placed where lost motion puts it: spread over the dwell before the encoder moved again.
 
@@ -65,7 +65,9 @@ def dwell_ramps(x: np.ndarray, state: np.ndarray, t: np.ndarray, max_dwell_s: fl
     we can look ahead: before each sign change of ``state``, find the stretch where ``x`` stood
     at its turning value (within ``still``), ramp the state linearly across it from the old
     direction to the new one (over at most ``max_dwell_s``: a long hold is not all dwell), and
-    take the new direction as reached from the first move onward.
+    take the new direction as reached from the first move onward. ``power`` shapes the ramp:
+    1 is linear in time; 2 is a link that starts the dwell at rest at its turning point and
+    accelerates away (the travel grows with the square of the time).
     """
     x = np.asarray(x, dtype=float)
     out = np.array(state, dtype=float, copy=True)
@@ -84,6 +86,7 @@ def dwell_ramps(x: np.ndarray, state: np.ndarray, t: np.ndarray, max_dwell_s: fl
             while end + 1 < s and abs(xs[end + 1] - turn) <= still:
                 end += 1
             start = max(i, int(np.searchsorted(t, t[end] - max_dwell_s)))
-            d[start:end + 1] = np.linspace(-new, new, end - start + 2)[:-1]
+            frac = np.linspace(0.0, 1.0, end - start + 2)[:-1] ** power
+            d[start:end + 1] = -new + 2.0 * new * frac
             d[end + 1:s] = new
     return out

@@ -37,22 +37,25 @@ from .data import GapData
 from .sensitivity import GEOMETRY_NAMES
 from .signals import dwell_ramps, play_state, smooth_velocity
 
-#: Widths (radius, rad) of the hysteresis play operators: from a few encoder counts... to
-#: a third of the joint range. The smallest stays well above the backlash switch so the two
-#: families differ in what they can express (a gradual loop vs an instant switch).
-HYSTERESIS_RADII = (0.008, 0.02, 0.05, 0.12)
-#: Plays (radius, rad) of the gradual pick-up features of the backlash family: below the
-#: smallest hysteresis width, so the two families stay apart.
-BACKLASH_PICKUP_RAD = (0.0015, 0.004)
+#: Widths (radius, rad) of the hysteresis play operators, doubling from 16 encoder counts
+#: to a fifth of the joint range: enough to follow an exponential (Dahl, Bouc-Wen) approach
+#: as well as a piecewise-linear (Preisach) loop. The smallest stays above the backlash
+#: family's widths, so the two differ in what they express (a gradual loop vs a switch).
+HYSTERESIS_RADII = (0.006, 0.012, 0.024, 0.048, 0.096)
+#: Play (radius, rad) of the gradual pick-up feature of the backlash family (contacts that
+#: take the load one after another): below the smallest hysteresis width, so the two
+#: families stay apart.
+BACKLASH_PICKUP_RAD = (0.004,)
 #: Longest stretch of a still encoder taken as the dwell of a reversal, s.
 BACKLASH_MAX_DWELL_S = 0.6
-#: Time constant of the lagged temperature in the thermal family, s.
-THERMAL_LAG_S = 120.0
+#: Time constants of the lagged temperatures in the thermal family, s: together with the
+#: temperature itself they span thermal lags from none to several minutes.
+THERMAL_LAGS_S = (40.0, 200.0)
 #: Dead band of the backlash direction detector: ignores encoder flicker of +-1 count.
 BACKLASH_SWITCH_RAD = 1.5 * ENCODER_COUNT_RAD
 #: Velocity scales of the smooth Coulomb signs, rad/s: a sharp one near the velocity
 #: resolution of smoothed 14-bit encoders, and a broad one for Stribeck-like curves.
-FRICTION_VELOCITIES_RAD_S = (0.008, 0.04)
+FRICTION_VELOCITIES_RAD_S = (0.003, 0.01, 0.04)
 
 JOINTS = tuple(f"j{i}" for i in range(1, 7))
 
@@ -151,10 +154,12 @@ def _backlash(data: GapData) -> np.ndarray:
     # Moving up, the encoder trails the link by play/2: true angle = encoder + play/2 * dir.
     # The direction switches across the dwell (encoder still, link turning through the play);
     # two small plays on the encoder angle let the pick-up be gradual (compliant contacts).
+    # During the dwell the link leaves its turning point from rest, so the travel through the
+    # play grows about with the square of the time (a quadratic ramp).
     state = play_state(data.theta, (BACKLASH_SWITCH_RAD,) + BACKLASH_PICKUP_RAD)
-    ramped = dwell_ramps(data.theta, state[:, :, 0], data.t, BACKLASH_MAX_DWELL_S,
-                         0.5 * ENCODER_COUNT_RAD)
-    feats = np.concatenate([ramped[:, :, None], state[:, :, 1:]], axis=-1)   # (n, 6, 3)
+    ramp = dwell_ramps(data.theta, state[:, :, 0], data.t, BACKLASH_MAX_DWELL_S,
+                       0.5 * ENCODER_COUNT_RAD, power=2.0)
+    feats = np.concatenate([ramp[:, :, None], state[:, :, 1:]], axis=-1)     # (n, 6, 2)
     cols = data.angle_jacobian[:, :, :, None] * (0.5 * feats)[:, None, :, :]
     return cols.reshape(len(data), 6, -1)
 
@@ -217,7 +222,7 @@ def _friction_summary(coef: np.ndarray) -> dict:
 
 
 def _thermal_summary(coef: np.ndarray) -> dict:
-    c = coef.reshape(2, 2, 6)            # lag, kind, joint
+    c = coef.reshape(1 + len(THERMAL_LAGS_S), 2, 6)     # lag, kind, joint
     total = c.sum(axis=0)                # the settled response per degC
     return {"stiffness_coeff_per_c": total[0].tolist(), "offset_coeff_rad_per_c": total[1].tolist()}
 
@@ -225,11 +230,11 @@ def _thermal_summary(coef: np.ndarray) -> dict:
 def _thermal(data: GapData) -> np.ndarray:
     # Relative to the temperature at which k and the encoder zeros were set (the design's
     # calibration temperature): a warm log is a soft spring even if its temperature is
-    # constant. A lagged copy of the temperature covers parts that warm up slowly.
-    now = data.temp_c - data.ref_temp_c
-    lagged = _first_order(data.temp_c, data.t, THERMAL_LAG_S) - data.ref_temp_c
+    # constant. Lagged copies of the temperature cover parts that warm up slowly.
+    temps = [data.temp_c - data.ref_temp_c]
+    temps += [_first_order(data.temp_c, data.t, lag) - data.ref_temp_c for lag in THERMAL_LAGS_S]
     parts = []
-    for temp in (now, lagged):
+    for temp in temps:
         dt = temp[:, None, None]
         parts += [_stiffness(data) * dt, _encoder_offset(data) * dt]
     return np.concatenate(parts, axis=-1)
@@ -266,7 +271,7 @@ TERMS: tuple[Term, ...] = (
          "N*m, N*m*s/rad", _friction, summary=_friction_summary),
     Term("backlash", "angle",
          tuple(f"{kind}_{j}_rad" for j in JOINTS
-               for kind in ("play", *(f"pickup_r{r:g}_play" for r in BACKLASH_PICKUP_RAD))),
+               for kind in ("play_dwell", *(f"pickup_r{r:g}_play" for r in BACKLASH_PICKUP_RAD))),
          "rad", _backlash, summary=_backlash_summary),
     Term("link_compliance", "geometry",
          tuple(f"axial_b{i}_um_per_n" for i in (1, 2, 3))
@@ -274,7 +279,7 @@ TERMS: tuple[Term, ...] = (
          "um/N, rad/(N*m)", _compliance),
     Term("sensor_latency", "time", ("latency_s", "latency_sq_s2"), "s, s^2", _latency),
     Term("thermal_drift", "angle, k",
-         tuple(f"{kind}_{lag}_{j}" for lag in ("now", "lagged")
+         tuple(f"{kind}_{lag}_{j}" for lag in ("now", *(f"lag{s:g}s" for s in THERMAL_LAGS_S))
                for kind in ("k_ratio_per_degc", "offset_rad_per_degc") for j in JOINTS),
          "1/degC, rad/degC", _thermal, needs_temperature=True, summary=_thermal_summary),
 )
