@@ -6,25 +6,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import Params, branch_centres, branch_forces, forward_kinematics, rotation, wrench
+from ..model import Params, branch_forces, rotation, wrench
 
 
 def torque_map(p: Params, theta: np.ndarray) -> np.ndarray:
     """G with W = G(theta) tau for joint torques tau (N*m), shape (n, 6, 6).
 
-    Eqs. (7)-(12) are linear in the joint torques at fixed pose: a torque on joint i = 1..3
-    pushes along its link, -v_i / lever_i (in {E0}, then R^T), and joints 4..6 add moment
-    components directly. The model's wrench is G @ (k * theta_e).
+    Eqs. (7)-(12) are linear in the joint torques at fixed pose: a unit torque on joint
+    i = 1..3 loads its link with v_i / lever_i (eq. 9 with unit torque; the force at {E0} is
+    minus that, eq. 10, then R^T), and joints 4..6 add moment components directly. The
+    model's wrench is G @ (k * theta_e).
     """
     theta = np.asarray(theta, dtype=float)
-    t123 = theta[..., :3]
-    pos = forward_kinematics(p, t123)
-    vhat = (pos[..., None, :] - branch_centres(p, t123)) / np.asarray(p.lb)[..., None]
-    _, lever = branch_forces(p, t123, position=pos)
-    per_torque = -vhat / lever[..., None]                      # (n, 3 joints, 3 xyz)
+    per_torque, _ = branch_forces(p, theta[..., :3], torque123=np.ones(theta.shape[:-1] + (3,)))
     rt = np.swapaxes(rotation(theta[..., 3:]), -1, -2)
     g = np.zeros(theta.shape[:-1] + (6, 6))
-    g[..., :3, :3] = np.einsum("...ij,...kj->...ik", rt, per_torque)
+    g[..., :3, :3] = -np.einsum("...ij,...kj->...ik", rt, per_torque)
     g[..., 3:, 3:] = rt
     return g
 
