@@ -13,7 +13,7 @@ from .errors import UserError
 
 #: Subcommand modules, in the order ``delta6 --help`` lists them.
 COMMAND_MODULES = ("design", "codegen", "virtual", "info", "stream", "log", "tare", "decode",
-                   "simulate")
+                   "simulate", "diagnose")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,229 @@
+"""The human-readable diagnosis report: Markdown with plots (matplotlib, headless)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..model import AXES
+from .data import GapData
+
+
+def _plt():
+    try:
+        import matplotlib
+    except ImportError:  # pragma: no cover - depends on the install
+        from ..errors import UserError
+        raise UserError("--report needs matplotlib: pip install 'delta6[plots]'") from None
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _row(label: str, values, fmt: str = "{:.2f}") -> str:
+    return f"| {label} | " + " | ".join(fmt.format(v) for v in values) + " |"
+
+
+def _table(header: list[str], rows: list[str]) -> list[str]:
+    return ["| " + " | ".join(header) + " |", "|" + "---|" * len(header), *rows]
+
+
+def write_report(result: dict, data: GapData, out_dir: str | Path, source: str = "") -> Path:
+    """Write ``report.md`` and its PNG plots into ``out_dir``; returns the report's path."""
+    plt = _plt()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    figures = {
+        "ladder": _plot_ladder(plt, result),
+        "cross_axis": _plot_cross_axis(plt, result),
+        "direction_loops": _plot_loops(plt, data),
+        "breakdown": _plot_breakdown(plt, result),
+        "candidates": _plot_candidates(plt, result),
+    }
+    for name, fig in figures.items():
+        fig.savefig(out / f"{name}.png", dpi=110, bbox_inches="tight")
+        plt.close(fig)
+
+    tv = result["where"]["table_v"]
+    after = result["unexplained"]["table_v"]
+    lines = [f"# Delta6 gap diagnosis{': ' + source if source else ''}", "",
+             f"Design `{result['design']['name']}` ({result['design']['hash']}), "
+             f"{result['samples']} samples; errors in % of each axis's full scale "
+             f"({', '.join(f'{a} {v:.4g}' for a, v in zip(AXES, result['full_scale']))}).", "",
+             "## Verdict", ""]
+    if result["present"]:
+        lines.append("Present, strongest first: " + ", ".join(f"**{p}**" for p in
+                                                              result["present"]) + ".")
+    else:
+        lines.append("**No significant unmodelled effect**: no candidate lowers the held-out "
+                     "error beyond what fitting noise gives.")
+    lines += ["", "## Where the gap lies (Table V form, % FS)", ""]
+    rows = [_row(f"analytical p{q}", tv[f"p{q}"]) for q in (50, 95, 99)]
+    rows.append(_row("analytical max", tv["max"]))
+    rows += [_row(f"compensated p{q} (held-out)", after[f"p{q}"]) for q in (50, 95, 99)]
+    rows.append(_row("compensated max (held-out)", after["max"]))
+    lines += _table(["", *AXES], rows)
+    ca = result["where"]["cross_axis"]
+    lines += ["", f"Cross-axis residual sensitivity (Fig. 9 metric): mean |off-diagonal| "
+              f"{ca['mean_abs_offdiagonal']:.4f} FS/FS before, "
+              f"{result['unexplained']['cross_axis']['mean_abs_offdiagonal']:.4f} after; "
+              f"mean |diagonal| {ca['mean_abs_diagonal']:.4f} before, "
+              f"{result['unexplained']['cross_axis']['mean_abs_diagonal']:.4f} after.", "",
+              "![cross-axis](cross_axis.png)", "",
+              "![breakdown](breakdown.png)", ""]
+    for key, title in (("direction", "By direction of motion"), ("speed", "By joint speed"),
+                       ("region", "By workspace region")):
+        lines += [f"### {title} (p99, % FS)", ""]
+        lines += _table(["bin", "n", *AXES], [
+            f"| {r['bin']} | {r['n']} | " + " | ".join("-" if v is None else f"{v:.2f}"
+                                                       for v in r["p99"]) + " |"
+            for r in result["where"][key]])
+        lines.append("")
+    band = result["where"]["band"]
+    lines += ["### By frequency band (share of residual variance)", ""]
+    lines += _table(["band", *AXES], [_row(b["band"], b["share"], "{:.0%}")
+                                      for b in band["bands"]])
+    drift = result["where"]["time"]["drift_pct_per_hour"]
+    lines += ["", "Drift of the mean residual: " + ", ".join(
+        f"{a} {v:+.3f}" for a, v in zip(AXES, drift)) + " % FS per hour."]
+    temp = result["where"]["temperature"]
+    if temp:
+        lines += ["Against temperature: " + ", ".join(
+            f"{a} {v:+.3f}" for a, v in zip(AXES, temp["slope_pct_per_degc"])) + " % FS/degC."]
+    lines += ["", "![direction loops](direction_loops.png)", "",
+              "Each panel: the residual expressed as the extra torque on one joint that would "
+              "explain it, against that joint's angle, coloured by the direction the joint was "
+              "last moving. Separate up/down bands mean a history effect (hysteresis, "
+              "friction, backlash); one band means none.", "",
+              "## Which effect causes it", "",
+              "Each candidate alone, fitted on training blocks and scored on held-out blocks "
+              "(score: fraction of the held-out squared error it removes; 99 % bootstrap "
+              "interval over blocks).", ""]
+    lines += _table(["candidate", "score", "99 % interval", *(f"p99 {a}" for a in AXES)], [
+        f"| {c['name']} | {c['score']:.3f} | {c['score_ci'][0]:.3f}..{c['score_ci'][1]:.3f} | "
+        + " | ".join(f"{v:.2f}" for v in c["heldout_p99_pct"]) + " |"
+        for c in result["candidates"]])
+    if result["skipped"]:
+        lines += ["", "Not testable on this log: " + ", ".join(result["skipped"])
+                  + " (needs a temp_c column that varies)."]
+    lines += ["", "![candidates](candidates.png)", "", "## How far it shrinks", ""]
+    lines += _table(["step", "added", "gain", *(f"p99 {a}" for a in AXES)],
+                    [f"| 0 | analytical model | - | " + " | ".join(
+                        f"{v:.2f}" for v in result["baseline_heldout_p99_pct"]) + " |"] + [
+        f"| {i + 1} | {s['added']} | {s['gain']:.3f} | " + " | ".join(
+            f"{v:.2f}" for v in s["heldout_p99_pct"]) + " |"
+        for i, s in enumerate(result["ladder"])])
+    lines += ["", "![ladder](ladder.png)", "", "### Fitted parameters (all data)", ""]
+    for step in result["ladder"]:
+        lines.append(f"- **{step['added']}**: " + _format_params(step["params"]))
+    lines += ["", f"Left unexplained: {result['unexplained']['share_of_squared_error']:.1%} of "
+              "the analytical model's held-out squared error.", "",
+              f"Settings: {result['settings']}. Run time {result['seconds']:.1f} s.", ""]
+    path = out / "report.md"
+    path.write_text("\n".join(lines))
+    return path
+
+
+def _format_params(params: dict) -> str:
+    parts = []
+    for key, value in params.items():
+        if isinstance(value, list):
+            parts.append(f"{key} = [" + ", ".join(f"{v:.4g}" for v in value) + "]")
+        else:
+            parts.append(f"{key} = {value:.4g}")
+    return "; ".join(parts)
+
+
+def _plot_ladder(plt, result):
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    labels = ["analytical"] + [f"+ {s['added']}" for s in result["ladder"]]
+    values = [result["baseline_heldout_p99_pct"]] + [s["heldout_p99_pct"]
+                                                     for s in result["ladder"]]
+    values = np.array(values)
+    for i, axis in enumerate(AXES):
+        ax.plot(range(len(labels)), values[:, i], marker="o", label=axis)
+    ax.set_xticks(range(len(labels)), labels, rotation=20, ha="right")
+    ax.set_ylabel("held-out p99 error, % FS")
+    ax.set_title("How far the gap shrinks")
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.legend(ncol=6, fontsize=8)
+    return fig
+
+
+def _plot_cross_axis(plt, result):
+    before = np.array(result["where"]["cross_axis"]["matrix"])
+    after = np.array(result["unexplained"]["cross_axis"]["matrix"])
+    lim = max(np.abs(before).max(), np.abs(after).max(), 1e-6)
+    fig, axes = plt.subplots(1, 2, figsize=(9, 4))
+    for ax, mat, title in ((axes[0], before, "analytical"), (axes[1], after, "compensated")):
+        im = ax.imshow(mat, cmap="RdBu_r", vmin=-lim, vmax=lim)
+        ax.set_xticks(range(6), AXES)
+        ax.set_yticks(range(6), AXES)
+        ax.set_xlabel("residual axis")
+        ax.set_ylabel("reference axis")
+        ax.set_title(f"{title}: mean |off-diag| "
+                     f"{np.abs(mat[~np.eye(6, dtype=bool)]).mean():.3f}")
+        for i in range(6):
+            for j in range(6):
+                ax.text(j, i, f"{mat[i, j]:.3f}", ha="center", va="center", fontsize=6)
+    fig.colorbar(im, ax=axes, shrink=0.8, label="FS/FS")
+    return fig
+
+
+def _plot_loops(plt, data: GapData):
+    rng = np.random.default_rng(0)
+    idx = np.sort(rng.choice(len(data), size=min(len(data), 6000), replace=False))
+    tau = data.residual_joint_torque[idx]
+    vel = data.velocity[idx]
+    fig, axes = plt.subplots(2, 3, figsize=(11, 6), sharex=True)
+    for j, ax in enumerate(axes.flat):
+        up = vel[:, j] > 0
+        ax.scatter(data.theta[idx, j][up], 1e3 * tau[up, j], s=2, alpha=0.5, label="rising")
+        ax.scatter(data.theta[idx, j][~up], 1e3 * tau[~up, j], s=2, alpha=0.5,
+                   label="falling")
+        ax.set_title(f"joint {j + 1}")
+        ax.grid(alpha=0.3)
+        if j % 3 == 0:
+            ax.set_ylabel("residual as joint torque, mN*m")
+        if j >= 3:
+            ax.set_xlabel("theta_e, rad")
+    axes.flat[0].legend(markerscale=4, fontsize=8)
+    fig.suptitle("Residual vs motion direction (analytical model)")
+    return fig
+
+
+def _plot_breakdown(plt, result):
+    where = result["where"]
+    panels = [("speed", "joint speed"), ("direction", "direction")]
+    panels.append(("time", "time"))
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+    for ax, (key, title) in zip(axes, panels):
+        rows = where[key]["segments"] if key == "time" else where[key]
+        p99 = np.array([[np.nan if v is None else v for v in r["p99"]] for r in rows])
+        for i, axis in enumerate(AXES):
+            ax.plot(range(len(rows)), p99[:, i], marker=".", label=axis)
+        ax.set_xticks(range(len(rows)), [r["bin"] for r in rows], rotation=30, ha="right",
+                      fontsize=7)
+        ax.set_title(f"p99 by {title}")
+        ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("% FS")
+    axes[0].legend(ncol=2, fontsize=7)
+    return fig
+
+
+def _plot_candidates(plt, result):
+    cands = result["candidates"]
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    names = [c["name"] for c in cands]
+    scores = np.array([c["score"] for c in cands])
+    lo = np.array([c["score_ci"][0] for c in cands])
+    hi = np.array([c["score_ci"][1] for c in cands])
+    colors = ["tab:red" if n in result["present"] else "tab:gray" for n in names]
+    ax.barh(names, scores, xerr=[scores - lo, hi - scores], color=colors)
+    ax.invert_yaxis()
+    ax.set_xlabel("share of held-out squared error removed (alone)")
+    ax.set_title("Candidates (red: present)")
+    ax.grid(alpha=0.3, axis="x")
+    return fig

@@ -1,0 +1,92 @@
+"""History features of the encoder signals: play operators and smoothed velocities."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def play(x: np.ndarray, radius: np.ndarray) -> np.ndarray:
+    """Play (backlash) operator, column-wise: the output stays put until the input pulls it
+    along from ``radius`` away. ``x`` (n, m), ``radius`` (m,). Starts centred on x[0].
+
+    A sum of play operators of different radii is the Prandtl-Ishlinskii model of
+    rate-independent hysteresis: the output depends on the turning points of the history,
+    never on how fast the input moved between them.
+    """
+    x = np.asarray(x, dtype=float)
+    radius = np.broadcast_to(np.asarray(radius, dtype=float), x.shape[1:])
+    out = np.empty_like(x)
+    y = x[0].copy()
+    lo, hi = x - radius, x + radius
+    for i in range(len(x)):
+        np.clip(y, lo[i], hi[i], out=y)
+        out[i] = y
+    return out
+
+
+def play_state(x: np.ndarray, radii) -> np.ndarray:
+    """Normalised play state (x - play_r(x)) / r in [-1, 1] for every column of ``x`` (n, j)
+    and every radius: shape (n, j, len(radii)). +1 after rising by at least 2r, -1 after
+    falling by at least 2r, in between along the way."""
+    x = np.asarray(x, dtype=float)
+    radii = np.asarray(radii, dtype=float)
+    n, j = x.shape
+    wide = np.repeat(x[:, :, None], len(radii), axis=2).reshape(n, -1)
+    r = np.tile(radii, j)
+    return ((wide - play(wide, r)) / r).reshape(n, j, len(radii))
+
+
+def smooth_velocity(x: np.ndarray, t: np.ndarray, half_width: int = 2) -> np.ndarray:
+    """d x / dt by a local linear fit over 2*half_width+1 samples (suppresses the
+    quantization noise of central differences of 14-bit angles)."""
+    x = np.asarray(x, dtype=float)
+    n = len(x)
+    if n < 2 * half_width + 1:
+        return np.gradient(x, t, axis=0)
+    k = np.arange(-half_width, half_width + 1, dtype=float)
+    weights = k / (k @ k)
+    dt = np.median(np.diff(t))
+    vel = np.zeros_like(x)
+    for w, shift in zip(weights, k.astype(int)):
+        vel += w * np.roll(x, -shift, axis=0)
+    vel /= dt
+    edge = np.gradient(x, t, axis=0)
+    vel[:half_width] = edge[:half_width]
+    vel[-half_width:] = edge[-half_width:]
+    return vel
+
+
+def dwell_ramps(x: np.ndarray, state: np.ndarray, t: np.ndarray, max_dwell_s: float,
+                still: float, power: float = 1.0) -> np.ndarray:
+    """``state`` (a direction of motion in [-1, 1], per column of ``x``) with each reversal
+    placed where lost motion puts it: spread over the dwell before the encoder moved again.
+
+    With play between a link and its encoder, a reversal first shows as the encoder standing
+    still while the link turns through the play, and only then as motion the other way. Offline
+    we can look ahead: before each sign change of ``state``, find the stretch where ``x`` stood
+    at its turning value (within ``still``), ramp the state linearly across it from the old
+    direction to the new one (over at most ``max_dwell_s``: a long hold is not all dwell), and
+    take the new direction as reached from the first move onward. ``power`` shapes the ramp:
+    1 is linear in time; 2 is a link that starts the dwell at rest at its turning point and
+    accelerates away (the travel grows with the square of the time).
+    """
+    x = np.asarray(x, dtype=float)
+    out = np.array(state, dtype=float, copy=True)
+    for j in range(x.shape[1]):
+        xs, d = x[:, j], out[:, j]
+        sign = np.sign(state[:, j])
+        for s in np.nonzero(sign[1:] * sign[:-1] < 0)[0] + 1:
+            new = sign[s]
+            # Back from the switch over the first moves the new way and the dwell, up to the
+            # last step that still went the old way.
+            i = s
+            while i > 0 and new * (xs[i] - xs[i - 1]) >= -still:
+                i -= 1
+            turn = xs[i]
+            end = i
+            while end + 1 < s and abs(xs[end + 1] - turn) <= still:
+                end += 1
+            start = max(i, int(np.searchsorted(t, t[end] - max_dwell_s)))
+            frac = np.linspace(0.0, 1.0, end - start + 2)[:-1] ** power
+            d[start:end + 1] = -new + 2.0 * new * frac
+            d[end + 1:s] = new
+    return out

@@ -1,0 +1,287 @@
+"""Candidate effects: each unmodelled effect of the twin's vocabulary as a parametric term added
+to the analytical model, linear in its parameters around the nominal model.
+
+A term is identified by its *signature*, not by the twin's equations: each family is built
+from what the physics says the effect can depend on, flexibly enough to cover formulations the
+twin does not use:
+
+==================  ==========  =======================================================
+effect              acts on     what the term can express
+==================  ==========  =======================================================
+encoder_offset      angle       a constant angle error per joint
+stiffness_mismatch  torque      a spring-rate error per joint (torque proportional to angle)
+geometry_error      geometry    errors of a, b, la, lb and azimuth of each branch
+spring_hysteresis   torque      rate-independent history: Prandtl-Ishlinskii play operators
+                                of several widths (the loop shape is free)
+joint_friction      torque      Coulomb (smooth sign of velocity) plus viscous, per joint
+backlash            angle       lost motion: the angle is off by +-play/2 depending on the
+                                direction of the last motion (zero-width switching)
+link_compliance     geometry    link deformation proportional to load: axial stretch of
+                                each distal link, bending of each proximal link
+sensor_latency      time        the reference lags: first and second time derivatives
+thermal_drift       angle, k    offset and spring-rate changes proportional to temperature
+==================  ==========  =======================================================
+
+Every term returns *columns*: the wrench change (N, N*m) per unit of each parameter, per
+sample, shape (n, 6, p), with the parameters in physical units.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..model import ENCODER_COUNT_RAD, branch_forces
+from .data import GapData
+from .sensitivity import GEOMETRY_NAMES
+from .signals import dwell_ramps, play_state, smooth_velocity
+
+#: Widths (radius, rad) of the hysteresis play operators, doubling from 16 encoder counts
+#: to a fifth of the joint range: enough to follow an exponential (Dahl, Bouc-Wen) approach
+#: as well as a piecewise-linear (Preisach) loop. The smallest stays above the backlash
+#: family's widths, so the two differ in what they express (a gradual loop vs a switch).
+HYSTERESIS_RADII = (0.006, 0.012, 0.024, 0.048, 0.096)
+#: Play (radius, rad) of the gradual pick-up feature of the backlash family (contacts that
+#: take the load one after another): below the smallest hysteresis width, so the two
+#: families stay apart.
+BACKLASH_PICKUP_RAD = (0.004,)
+#: Longest stretch of a still encoder taken as the dwell of a reversal, s.
+BACKLASH_MAX_DWELL_S = 0.6
+#: Time constants of the lagged temperatures in the thermal family, s: together with the
+#: temperature itself they span thermal lags from none to several minutes.
+THERMAL_LAGS_S = (40.0, 200.0)
+#: Dead band of the backlash direction detector: ignores encoder flicker of +-1 count.
+BACKLASH_SWITCH_RAD = 1.5 * ENCODER_COUNT_RAD
+#: Velocity scales of the smooth Coulomb signs, rad/s: a sharp one near the velocity
+#: resolution of smoothed 14-bit encoders, and a broad one for Stribeck-like curves.
+FRICTION_VELOCITIES_RAD_S = (0.003, 0.01, 0.04)
+
+JOINTS = tuple(f"j{i}" for i in range(1, 7))
+
+
+@dataclass(frozen=True)
+class Term:
+    name: str
+    acts_on: str
+    param_names: tuple[str, ...]
+    unit: str
+    build: Callable[[GapData], np.ndarray]
+    needs_temperature: bool = False
+    #: Physical summary of fitted coefficients (comparable with the twin's truth summaries).
+    summary: Callable[[np.ndarray], dict] | None = None
+
+    def summarize(self, coef: np.ndarray) -> dict:
+        out = {name: float(v) for name, v in zip(self.param_names, coef)}
+        if self.summary is not None:
+            out.update(self.summary(np.asarray(coef, dtype=float)))
+        return out
+
+    def available(self, data: GapData) -> bool:
+        return not self.needs_temperature or (data.temp_c is not None
+                                              and np.ptp(data.temp_c) >= 0.5)
+
+    def columns(self, data: GapData) -> np.ndarray:
+        cols = self.build(data)
+        assert cols.shape == (len(data), 6, len(self.param_names)), (self.name, cols.shape)
+        return cols
+
+
+def _torque_columns(data: GapData, per_joint: np.ndarray) -> np.ndarray:
+    """Extra joint torques -> wrench: G[:, :, j] * per_joint[:, j, m] for every joint and
+    feature m: (n, 6, 6*m), ordered joint-major."""
+    g = data.torque_map                                          # (n, 6, 6)
+    cols = g[:, :, :, None] * per_joint[:, None, :, :]           # (n, 6, 6, m)
+    return cols.reshape(len(data), 6, -1)
+
+
+def _encoder_offset(data: GapData) -> np.ndarray:
+    # The encoder reads theta + delta: the true angle is theta_enc - delta.
+    return -data.angle_jacobian
+
+
+def _stiffness(data: GapData) -> np.ndarray:
+    tau = data.params.k * data.theta
+    return _torque_columns(data, tau[:, :, None])
+
+
+def _kinematic_part(data: GapData) -> np.ndarray:
+    """dW/dtheta_j minus its torque part G_j k_j: what an angle change does through the
+    geometry alone (the spring torque unchanged), (n, 6, 6)."""
+    return data.angle_jacobian - data.torque_map * data.params.k
+
+
+def _force_rotation(data: GapData, vectors: np.ndarray) -> np.ndarray:
+    """Wrench change when {E0} turns by a small rotation about each {B} axis e_k, scaled by
+    ``vectors`` (n, 3) per sample (or ones): Delta F_E = -R^T (e_k x F0), moments unchanged.
+    Returns (n, 6, 3)."""
+    from ..model import base_force, rotation
+    f0 = base_force(data.params, data.theta[:, :3])
+    rt = np.swapaxes(rotation(data.theta[:, 3:]), -1, -2)
+    cols = np.zeros((len(data), 6, 3))
+    for k in range(3):
+        axis = np.zeros(3)
+        axis[k] = 1.0
+        turned = np.cross(axis, f0) * vectors[:, k:k + 1]
+        cols[:, :3, k] = -np.einsum("nij,nj->ni", rt, turned)
+    return cols
+
+
+def _geometry(data: GapData) -> np.ndarray:
+    # Lengths and azimuths per branch, the rest angle of each proximal link (a kinematic
+    # angle shift that leaves the spring torque alone), and a misaligned gimbal unit.
+    rest = _kinematic_part(data)[:, :, :3]
+    tilt = _force_rotation(data, np.ones((len(data), 3)))
+    return np.concatenate([data.geometry_jacobian, rest, tilt], axis=-1)
+
+
+def _hysteresis(data: GapData) -> np.ndarray:
+    # Torque per N*m of loop half-height, for each play width.
+    return _torque_columns(data, play_state(data.theta, HYSTERESIS_RADII))
+
+
+def _friction(data: GapData) -> np.ndarray:
+    # Any odd function of the joint speed that saturates (Coulomb, Stribeck) or grows
+    # (viscous), plus the pre-sliding memory that holds the last direction's friction at rest.
+    vel = smooth_velocity(data.theta, data.t)
+    memory = play_state(data.theta, [BACKLASH_SWITCH_RAD])[:, :, 0]
+    feats = np.stack([np.tanh(vel / v) for v in FRICTION_VELOCITIES_RAD_S]
+                     + [vel, memory], axis=-1)
+    return _torque_columns(data, feats)
+
+
+def _backlash(data: GapData) -> np.ndarray:
+    # Moving up, the encoder trails the link by play/2: true angle = encoder + play/2 * dir.
+    # The direction switches across the dwell (encoder still, link turning through the play);
+    # two small plays on the encoder angle let the pick-up be gradual (compliant contacts).
+    # During the dwell the link leaves its turning point from rest, so the travel through the
+    # play grows about with the square of the time (a quadratic ramp).
+    state = play_state(data.theta, (BACKLASH_SWITCH_RAD,) + BACKLASH_PICKUP_RAD)
+    ramp = dwell_ramps(data.theta, state[:, :, 0], data.t, BACKLASH_MAX_DWELL_S,
+                       0.5 * ENCODER_COUNT_RAD, power=2.0)
+    feats = np.concatenate([ramp[:, :, None], state[:, :, 1:]], axis=-1)     # (n, 6, 2)
+    cols = data.angle_jacobian[:, :, :, None] * (0.5 * feats)[:, None, :, :]
+    return cols.reshape(len(data), 6, -1)
+
+
+def _compliance(data: GapData) -> np.ndarray:
+    # Axial: each distal link stretches by c * (its force); bending: each proximal link's tip
+    # moves as if the joint turned by c * (its torque), without changing the spring torque.
+    _, lever = branch_forces(data.params, data.theta[:, :3])
+    tension = -data.params.k[:3] * data.theta[:, :3] / lever       # signed link force, N
+    dlb = data.geometry_jacobian[:, :, 9:12] * 1e3                 # per m of lb_i
+    axial = dlb * tension[:, None, :]                               # per (m/N)
+    bending = _kinematic_part(data)[:, :, :3] * (data.params.k[:3]
+                                                  * data.theta[:, :3])[:, None, :]
+    # The platform tilts with the moment about its centre P: the gimbal's moment plus the
+    # force at {E}, c below P. The tilt turns the force like a misaligned gimbal would.
+    from ..model import base_force
+    f0 = base_force(data.params, data.theta[:, :3])
+    m_p = data.params.k[3:] * data.theta[:, 3:] + np.cross([0.0, 0.0, data.params.c], f0)
+    tilt = _force_rotation(data, m_p).sum(axis=-1, keepdims=True)  # isotropic, rad/(N*m)
+    return np.concatenate([axial * 1e-6, bending, tilt], axis=-1)  # axial in um/N
+
+
+def _latency(data: GapData) -> np.ndarray:
+    # Reference(t) = true(t - tau) ~ true - tau dW/dt + tau^2/2 d2W/dt2.
+    d1 = np.gradient(data.model, data.t, axis=0)
+    d2 = np.gradient(d1, data.t, axis=0)
+    return np.stack([-d1, 0.5 * d2], axis=-1)
+
+
+def _backlash_summary(coef: np.ndarray) -> dict:
+    # Total lost motion per joint: the sum of the switching parts, whatever their widths.
+    return {"play_rad": coef.reshape(6, -1).sum(axis=1).tolist()}
+
+
+def _hysteresis_summary(coef: np.ndarray) -> dict:
+    # After a reversal larger than every play width the loop's branches are sum(w) apart on
+    # either side: the half-width of the torque loop at the joint.
+    w = coef.reshape(6, len(HYSTERESIS_RADII))
+    return {"loop_half_width_nm": w.sum(axis=1).tolist()}
+
+
+def friction_curve(coef: np.ndarray, speed: np.ndarray) -> np.ndarray:
+    """Steady-state friction torque (N*m) of each joint at the given positive speeds,
+    (6, len(speed)), from fitted coefficients (the memory term is +1 while sliding)."""
+    c = np.asarray(coef, dtype=float).reshape(6, -1)
+    speed = np.asarray(speed, dtype=float)
+    feats = np.stack([np.tanh(speed / v) for v in FRICTION_VELOCITIES_RAD_S]
+                     + [speed, np.ones_like(speed)], axis=0)
+    return c @ feats
+
+
+def _friction_summary(coef: np.ndarray) -> dict:
+    # Formulation-free figures, like the twin's truth: a line over 0.05..0.5 rad/s and the
+    # torque at 0.1 rad/s.
+    speeds = np.linspace(0.05, 0.5, 10)
+    curve = friction_curve(coef, speeds)
+    slope, intercept = np.polyfit(speeds, curve.T, 1)
+    return {"coulomb_equiv_nm": intercept.tolist(), "viscous_equiv_nm_s_per_rad": slope.tolist(),
+            "torque_at_ref_speed_nm": friction_curve(coef, [0.1])[:, 0].tolist()}
+
+
+def _thermal_summary(coef: np.ndarray) -> dict:
+    c = coef.reshape(1 + len(THERMAL_LAGS_S), 2, 6)     # lag, kind, joint
+    total = c.sum(axis=0)                # the settled response per degC
+    return {"stiffness_coeff_per_c": total[0].tolist(), "offset_coeff_rad_per_c": total[1].tolist()}
+
+
+def _thermal(data: GapData) -> np.ndarray:
+    # Relative to the temperature at which k and the encoder zeros were set (the design's
+    # calibration temperature): a warm log is a soft spring even if its temperature is
+    # constant. Lagged copies of the temperature cover parts that warm up slowly.
+    temps = [data.temp_c - data.ref_temp_c]
+    temps += [_first_order(data.temp_c, data.t, lag) - data.ref_temp_c for lag in THERMAL_LAGS_S]
+    parts = []
+    for temp in temps:
+        dt = temp[:, None, None]
+        parts += [_stiffness(data) * dt, _encoder_offset(data) * dt]
+    return np.concatenate(parts, axis=-1)
+
+
+def _first_order(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
+    """First-order lag of ``x`` with time constant ``tau``, started settled."""
+    out = np.empty_like(x)
+    y = x[0]
+    prev = t[0]
+    for i, (ti, xi) in enumerate(zip(t, x)):
+        a = np.exp(-(ti - prev) / tau)
+        y = a * y + (1 - a) * xi
+        out[i] = y
+        prev = ti
+    return out
+
+
+TERMS: tuple[Term, ...] = (
+    Term("encoder_offset", "angle", tuple(f"offset_{j}_rad" for j in JOINTS), "rad",
+         _encoder_offset),
+    Term("stiffness_mismatch", "torque", tuple(f"k_ratio_error_{j}" for j in JOINTS), "1",
+         _stiffness),
+    Term("geometry_error", "geometry",
+         GEOMETRY_NAMES + tuple(f"rest_angle_b{i}_rad" for i in (1, 2, 3))
+         + tuple(f"gimbal_misalignment_{a}_rad" for a in "xyz"), "mm or rad", _geometry),
+    Term("spring_hysteresis", "torque",
+         tuple(f"play_{j}_r{r:g}_nm" for j in JOINTS for r in HYSTERESIS_RADII), "N*m",
+         _hysteresis, summary=_hysteresis_summary),
+    Term("joint_friction", "torque",
+         tuple(f"{kind}_{j}" for j in JOINTS for kind in
+               tuple(f"coulomb_v{v:g}_nm" for v in FRICTION_VELOCITIES_RAD_S)
+               + ("viscous_nms_per_rad", "presliding_nm")),
+         "N*m, N*m*s/rad", _friction, summary=_friction_summary),
+    Term("backlash", "angle",
+         tuple(f"{kind}_{j}_rad" for j in JOINTS
+               for kind in ("play_dwell", *(f"pickup_r{r:g}_play" for r in BACKLASH_PICKUP_RAD))),
+         "rad", _backlash, summary=_backlash_summary),
+    Term("link_compliance", "geometry",
+         tuple(f"axial_b{i}_um_per_n" for i in (1, 2, 3))
+         + tuple(f"bending_j{i}_rad_per_nm" for i in (1, 2, 3)) + ("tilt_rad_per_nm",),
+         "um/N, rad/(N*m)", _compliance),
+    Term("sensor_latency", "time", ("latency_s", "latency_sq_s2"), "s, s^2", _latency),
+    Term("thermal_drift", "angle, k",
+         tuple(f"{kind}_{lag}_{j}" for lag in ("now", *(f"lag{s:g}s" for s in THERMAL_LAGS_S))
+               for kind in ("k_ratio_per_degc", "offset_rad_per_degc") for j in JOINTS),
+         "1/degC, rad/degC", _thermal, needs_temperature=True, summary=_thermal_summary),
+)
+TERM_BY_NAME = {t.name: t for t in TERMS}
+EFFECT_NAMES = tuple(t.name for t in TERMS)
