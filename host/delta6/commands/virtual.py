@@ -30,7 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     motion = parser.add_mutually_exclusive_group()
     motion.add_argument("--replay", metavar="LOG.csv", type=Path,
                         help="encoder angles over time: a log with t and theta_e1..6 columns "
-                             "(delta6 log or delta6 simulate output)")
+                             "(delta6 log or delta6 simulate output); without --replay, "
+                             "--static, --twin or --live: a 20 s demo motion, looping")
     motion.add_argument("--static", action="store_true",
                         help="encoders at rest (zero deflection) unless the live channel moves "
                              "them")
