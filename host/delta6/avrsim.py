@@ -8,6 +8,7 @@ firmware sends on UART0. See the C file for the command line.
 from __future__ import annotations
 
 import hashlib
+import os
 import shutil
 import subprocess
 import tempfile
@@ -19,7 +20,8 @@ from .errors import UserError
 
 HARNESS_SOURCE = REPO_ROOT / "tools" / "simavr" / "delta6_sim.c"
 BUILD_DIR = REPO_ROOT / "build" / "simavr"
-SIMAVR_LIBS = ("-lsimavr", "-lsimavrparts", "-lutil", "-lpthread")
+SIMAVR_LIBS = ("-lsimavr", "-lsimavrparts", "-lutil", "-lpthread", "-lm")
+SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 APT_HINT = ("install it with: sudo apt-get install --no-install-recommends simavr "
             "libsimavr-dev (or run bash tools/bootstrap.sh)")
 
@@ -46,26 +48,38 @@ class SimResult:
         return out
 
 
-def harness() -> Path:
-    """Path of the compiled runner (built on first use, rebuilt when its source changes)."""
+def build_tool(name: str, sources, depends=(), error=None) -> Path:
+    """Compile a C program on libsimavr with the host compiler into build/simavr/NAME-HASH
+    (rebuilt when a source or a file in ``depends`` changes). Raises ``error`` (default
+    :class:`SimulatorError`) with one line saying what to install."""
+    error = error or SimulatorError
     cc = shutil.which("gcc") or shutil.which("cc")
     if not cc:
-        raise SimulatorError("no host C compiler (gcc) found")
-    if not Path("/usr/include/simavr/sim_avr.h").exists():
-        raise SimulatorError(f"simavr headers not found; {APT_HINT}")
-    key = hashlib.sha256(HARNESS_SOURCE.read_bytes()).hexdigest()[:12]
-    exe = BUILD_DIR / f"delta6_sim-{key}"
-    if not exe.exists():
-        BUILD_DIR.mkdir(parents=True, exist_ok=True)
-        tmp = exe.with_suffix(".tmp")
-        cmd = [cc, "-O2", "-Wall", "-Wextra", "-std=gnu11", str(HARNESS_SOURCE), "-o", str(tmp),
-               *SIMAVR_LIBS]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise SimulatorError(f"building the simavr runner failed ({APT_HINT}):\n"
-                                 f"{' '.join(cmd)}\n{proc.stderr.strip()}")
-        tmp.replace(exe)
+        raise error("no host C compiler (gcc) found; install gcc")
+    if not SIMAVR_HEADER.exists():
+        raise error(f"simavr headers not found; {APT_HINT}")
+    sources = [Path(p) for p in sources]
+    digest = hashlib.sha256()
+    for path in [*sources, *map(Path, depends)]:
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    exe = BUILD_DIR / f"{name}-{digest.hexdigest()[:12]}"
+    if exe.exists():
+        return exe
+    BUILD_DIR.mkdir(parents=True, exist_ok=True)
+    tmp = exe.with_name(f"{exe.name}.{os.getpid()}.tmp")   # concurrent builds do not collide
+    cmd = [cc, "-O2", "-Wall", "-Wextra", "-Werror", "-std=gnu11", *map(str, sources),
+           "-o", str(tmp), *SIMAVR_LIBS]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise error(f"building {name} failed ({APT_HINT}):\n{' '.join(cmd)}\n"
+                    f"{proc.stderr.strip()}")
+    tmp.replace(exe)
     return exe
+
+
+def harness() -> Path:
+    """Path of the compiled runner (built on first use, rebuilt when its source changes)."""
+    return build_tool("delta6_sim", [HARNESS_SOURCE])
 
 
 def run(elf: Path, *, mcu: str = "atmega328p", freq: int = 16_000_000,

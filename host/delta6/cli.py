@@ -12,8 +12,8 @@ from .design import DesignError
 from .errors import UserError
 
 #: Subcommand modules, in the order ``delta6 --help`` lists them.
-COMMAND_MODULES = ("design", "codegen", "info", "stream", "log", "tare", "decode", "simulate",
-                   "diagnose")
+COMMAND_MODULES = ("design", "codegen", "virtual", "info", "stream", "log", "tare", "decode",
+                   "simulate", "diagnose")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -11,7 +11,7 @@ from ..errors import UserError
 
 NAME = "codegen"
 HELP = ("write the firmware header generated/delta6_design.h for a design "
-        "(--build: into build/designs/NAME/ and build the ATmega328P image there)")
+        "(--build: into build/designs/NAME/ and build the ATmega328P firmware image there)")
 HEADER_RELPATH = Path("generated") / "delta6_design.h"
 COMMITTED_HEADER = avrbuild.COMMITTED_DESIGN_INCLUDE / HEADER_RELPATH
 
@@ -23,8 +23,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "PlatformIO build uses; with --build: "
                              "build/designs/NAME/include/generated/delta6_design.h)")
     parser.add_argument("--build", action="store_true",
-                        help="also build the ATmega328P firmware image for this design with "
-                             "the local avr-gcc (the committed header is left alone)")
+                        help="also build the ATmega328P firmware application for this design "
+                             "with the local avr-gcc (the committed header is left alone)")
     parser.add_argument("--check", action="store_true",
                         help="write nothing; exit 1 if the header differs from what the design "
                              "generates")
@@ -81,13 +81,28 @@ def run(args: argparse.Namespace) -> int:
     verb = "wrote" if _write_if_changed(out, text) else "unchanged:"
     print(f"{verb} {_rel(out)} for design '{design.name}' (hash 0x{design.hash32():08x})")
     if args.build:
-        from ..solverbench import build_bench_image
-        image = build_bench_image(include_dir_of(out), name=f"delta6-{design.name}",
-                                  out_dir=avrbuild.design_build_dir(design.name) / "atmega328p")
+        image = build_image(design, include_dir_of(out))
         sizes = image.sizes
         print(f"built {_rel(image.elf)} and .hex ({image.mcu}): flash {sizes.flash} B of "
               f"{avrbuild.NANO.flash_bytes}, static RAM {sizes.ram} B of {avrbuild.NANO.ram_bytes}")
     return 0
+
+
+def build_image(design: design_mod.Design, include_dir: Path) -> avrbuild.Image:
+    """The firmware application for ``design`` (header under ``include_dir``), in
+    build/designs/NAME/atmega328p/."""
+    from ..appbuild import build_app
+    return build_app(include_dir, name=f"delta6-{design.name}",
+                     out_dir=avrbuild.design_build_dir(design.name) / "atmega328p")
+
+
+def design_firmware(path: Path) -> avrbuild.Image:
+    """Generate ``path``'s header into build/designs/NAME/include/ (the committed header is
+    left alone) and build the application for it: what ``delta6 virtual --design`` runs."""
+    design, text = header_text(path)
+    header = avrbuild.design_include_dir(design.name) / HEADER_RELPATH
+    _write_if_changed(header, text)
+    return build_image(design, include_dir_of(header))
 
 
 def _write_if_changed(path: Path, text: str) -> bool:

@@ -1,0 +1,181 @@
+#include "app.h"
+
+#include "board.h"
+#include "board_contract.h"
+#include "delta6_device.h"
+#include "delta6_encoder.h"
+#include "delta6_solver.h"
+#include "generated/delta6_design.h"
+
+// The fastest rate the board sustains without overruns in both stream modes, for the info
+// record and the START check: 350 Hz at 16 MHz (tools/bench_virtual_board.py on the emulated
+// ATmega328P: wrench streams sustain 400 Hz, wrench+raw 350 Hz; the 4809 runs the same code
+// within about 10 %), scaled with the clock.
+#ifndef DELTA6_MAX_RATE_HZ
+#define DELTA6_MAX_RATE_HZ (350UL * (F_CPU / 1000000UL) / 16UL)
+#endif
+#ifndef DELTA6_DEFAULT_RATE_HZ
+#define DELTA6_DEFAULT_RATE_HZ 250
+#endif
+
+namespace {
+
+namespace d = delta6::design;
+
+const uint8_t kQueueLength = 4;   // a power of two; a ring of 4 holds 3 latched samples
+const uint16_t kEepromAddress = 0;
+// Received bytes fed to the device per loop turn. Most bytes cost ~100 cycles; the one that
+// completes a command runs it (GET_INFO: ~19,000 cycles).
+const uint8_t kBytesPerTurn = 32;
+
+// One latched sample: what the timer interrupt leaves for the main loop.
+struct Latched {
+  uint32_t time_us;
+  uint16_t word[6];
+  uint16_t inverse[6];
+  uint8_t missed;   // periods lost (queue full) since the previous latched sample
+};
+
+Latched queue[kQueueLength];
+volatile uint8_t queue_head = 0;   // written by the interrupt
+volatile uint8_t queue_tail = 0;   // written by the main loop
+volatile uint8_t missed = 0;
+volatile bool latching = false;
+
+class BoardHardware : public delta6::Hardware {
+ public:
+  uint16_t txSpace() override { return board::txSpace(); }
+  void txWrite(const uint8_t* data, uint16_t n) override {
+    board::txWrite(data, n);
+    // data[0] is the COBS code byte, data[1] the record type (never 0, so never stuffed).
+    if (n > 1 && (data[1] == delta6::proto::kWrench || data[1] == delta6::proto::kWrenchRaw)) {
+      board::markRecordQueued();
+    }
+  }
+  void eepromRead(uint16_t address, uint8_t* data, uint16_t n) override {
+    board::eepromRead(address, data, n);
+  }
+  void eepromWrite(uint16_t address, const uint8_t* data, uint16_t n) override {
+    board::eepromWrite(address, data, n);
+  }
+  uint32_t micros() override { return board::micros(); }
+  void sampleRateChanged(uint16_t rate_hz) override {
+    board::startSampling(rate_hz);
+    board::watchdogStart(rate_hz);
+  }
+};
+
+BoardHardware hardware;
+delta6::Identity identity = {
+    d::kName,
+    d::kHash,
+    {d::kFullScale[0], d::kFullScale[1], d::kFullScale[2], d::kFullScale[3], d::kFullScale[4],
+     d::kFullScale[5]},
+    d::kJointLimitRad,
+    {1, 0, 0},
+    board::kBaud,
+    DELTA6_MAX_RATE_HZ,
+    0,   // serial number: set in setup()
+    kEepromAddress,
+};
+// Zero counts 0 until the assembly is calibrated (ZERO_HERE, then SAVE_CONFIG).
+const delta6::Config defaults = {
+    DELTA6_DEFAULT_RATE_HZ, delta6::proto::kModeWrench, false, {0, 0, 0, 0, 0, 0},
+    {0, 0, 0, 0, 0, 0}};
+delta6::Device device(hardware, identity, defaults);
+
+bool workPending() { return queue_tail != queue_head || board::rxAvailable(); }
+
+// Check the frames, solve, and hand the sample to the device.
+void process(const Latched& latched) {
+  delta6::Sample s;
+  s.time_us = latched.time_us;
+  s.encoder_errors = 0;
+  for (uint8_t j = 0; j < 6; ++j) {
+    s.counts[j] = 0;   // a failed read sends 0, flagged: never a made-up angle
+    if (delta6::encoder::decodeFrame(latched.word[j], latched.inverse[j], &s.counts[j])) {
+      s.encoder_errors |= static_cast<uint8_t>(1u << j);
+    }
+  }
+  board::mark(D6_MARK_SOLVE_START);
+  if (s.encoder_errors == 0) {
+    const uint16_t* zero = device.zeroCounts();
+    int16_t delta[6];
+    for (uint8_t j = 0; j < 6; ++j) delta[j] = delta6::wrap_count_delta(s.counts[j], zero[j]);
+    s.solver_ok = delta6::solve_counts(d::kSolverConstants, delta, s.wrench) == delta6::kSolveOk;
+  } else {
+    s.solver_ok = false;   // no wrench without all six angles
+    for (uint8_t i = 0; i < 6; ++i) s.wrench[i] = 0.0f;
+  }
+  board::mark(D6_MARK_SOLVE_END);
+  s.overrun = latched.missed != 0;
+  const uint32_t age = board::micros() - latched.time_us;
+  s.loop_time_us = static_cast<uint16_t>(age > 0xFFFF ? 0xFFFF : age);
+  s.temperature_centi = delta6::proto::kTemperatureUnknown;
+  device.onSample(s);
+}
+
+}  // namespace
+
+namespace app {
+
+void onSampleTick() {
+  if (latching) return;   // cannot happen below 10 kHz; a nested tick would corrupt the slot
+  const uint8_t head = queue_head;
+  const uint8_t next = static_cast<uint8_t>((head + 1) & (kQueueLength - 1));
+  if (next == queue_tail) {
+    if (missed != 0xFF) missed = static_cast<uint8_t>(missed + 1);
+    board::mark(D6_MARK_TICK_MISSED);
+    return;
+  }
+  latching = true;
+  Latched& slot = queue[head];
+  board::mark(D6_MARK_SCAN_START);
+  slot.time_us = board::micros();
+  board::scanEncoders(slot.word, slot.inverse);
+  board::mark(D6_MARK_SCAN_END);
+  slot.missed = missed;
+  missed = 0;
+  queue_head = next;
+  latching = false;
+}
+
+void setup() {
+  board::mark(D6_MARK_BOOT);
+  board::init();
+  identity.serial_number = board::serialNumber();
+  device.begin(board::resetCause());   // loads the configuration, starts the sample timer
+  board::mark(D6_MARK_READY);
+}
+
+void loop() {
+#if defined(DELTA6_TEST_HOOKS)
+  while (board::testHangRequested()) {
+  }
+#endif
+  // Samples first, but received bytes get a turn after every sample: an overloaded loop
+  // (a rate beyond what the board sustains) still hears STOP.
+  bool worked = false;
+  const uint8_t tail = queue_tail;
+  if (tail != queue_head) {
+    board::mark(D6_MARK_PROCESS_START);
+    process(queue[tail]);
+    queue_tail = static_cast<uint8_t>((tail + 1) & (kQueueLength - 1));
+    board::mark(D6_MARK_PROCESS_END);
+    board::watchdogKick();
+    worked = true;
+  }
+  for (uint8_t i = 0; i < kBytesPerTurn; ++i) {
+    const int16_t b = board::rxRead();
+    if (b < 0) break;
+    board::mark(D6_MARK_BYTE_START);
+    device.onByte(static_cast<uint8_t>(b));
+    board::mark(D6_MARK_BYTE_END);
+    worked = true;
+  }
+  if (worked) return;
+  device.service();
+  board::idle(workPending);
+}
+
+}  // namespace app

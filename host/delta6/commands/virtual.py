@@ -1,0 +1,192 @@
+"""``delta6 virtual``: the virtual board, the firmware on an emulated ATmega328P with six
+emulated encoders, on a pseudo-terminal that every other command can open (docs/virtual-board.md).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+import tempfile
+import threading
+from pathlib import Path
+
+from .. import virtualboard as vb
+from ..errors import UserError
+from ._port import number
+
+NAME = "virtual"
+DEFAULT_DESIGN = Path(__file__).resolve().parents[3] / "designs" / "delta6.toml"
+#: The twin's sample rate when it drives the board: above any rate the board samples at.
+TWIN_RATE_HZ = 1000.0
+HELP = ("run the virtual board (the firmware on an emulated ATmega328P with six emulated "
+        "encoders); prints its port, then runs until Ctrl-C")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--design", metavar="DESIGN.toml", type=Path,
+                        help="build the firmware for this design (default: the committed "
+                             "header, designs/delta6.toml)")
+    motion = parser.add_mutually_exclusive_group()
+    motion.add_argument("--replay", metavar="LOG.csv", type=Path,
+                        help="encoder angles over time: a log with t and theta_e1..6 columns "
+                             "(delta6 log or delta6 simulate output); without --replay, "
+                             "--static, --twin or --live: a 20 s demo motion, looping")
+    motion.add_argument("--static", action="store_true",
+                        help="encoders at rest (zero deflection) unless the live channel moves "
+                             "them")
+    motion.add_argument("--twin", metavar="SCENARIO",
+                        help="the digital twin drives the encoders live: a simulated run of "
+                             "SCENARIO (ideal, paper, or one effect's name; delta6 simulate "
+                             "--list), fed through the live channel at the board's pace")
+    parser.add_argument("--seed", type=number("--seed", int, 0), default=0, metavar="N",
+                        help="the twin's random seed (default 0)")
+    parser.add_argument("--twin-duration", type=number("--twin-duration", low=1), default=120.0,
+                        metavar="S", help="seconds of twin run, looped (default 120)")
+    parser.add_argument("--loop", action="store_true", help="start the replay over at its end")
+    parser.add_argument("--live", metavar="SOCKET", type=Path,
+                        help="listen for live angle updates, faults and queries on this Unix "
+                             "socket (protocol in docs/virtual-board.md)")
+    parser.add_argument("--fault", action="append", default=[], metavar="E:KIND:T0:T1",
+                        help="encoder E (1..6) fails with KIND (biterror, weak, strong, "
+                             "noanswer) from T0 to T1 s of board time (T1 may be inf); "
+                             "repeatable")
+    parser.add_argument("--zero", metavar="C1,...,C6",
+                        help="counts the emulated encoders report at zero deflection "
+                             "(default 0, the firmware's uncalibrated zero)")
+    parser.add_argument("--eeprom", metavar="FILE", type=Path,
+                        help="the board's EEPROM image: loaded if it exists, saved at the end "
+                             "(so a saved configuration survives restarts)")
+    parser.add_argument("--stats", metavar="FILE", type=Path,
+                        help="write the timing statistics (JSON) there at the end")
+    parser.add_argument("--speed", type=number("--speed", low=0), default=1.0, metavar="X",
+                        help="board time per wall time: 1 real time (default), 0 as fast as "
+                             "the emulator runs")
+    parser.add_argument("--duration", type=number("--duration", low=0, low_open=True),
+                        metavar="S", help="stop after S seconds of board time")
+
+
+def parse_zero(text: str | None):
+    if text is None:
+        return 0
+    try:
+        values = [int(v) for v in text.split(",")]
+    except ValueError:
+        raise UserError(f"--zero takes six counts separated by commas, got {text!r}") from None
+    if len(values) != 6 or not all(0 <= v < vb.COUNTS_PER_TURN for v in values):
+        raise UserError(f"--zero takes six counts 0..16383, got {text!r}")
+    return values
+
+
+def run(args: argparse.Namespace) -> int:
+    faults = [vb.Fault.parse(spec) for spec in args.fault]
+    zero = parse_zero(args.zero)
+    if args.loop and args.replay is None:
+        raise UserError("--loop goes with --replay")
+    run_of_twin = _simulate_twin(args) if args.twin else None
+    if args.design is not None:
+        from .codegen import design_firmware
+        image = design_firmware(args.design)
+    else:
+        image = vb.firmware()
+    with tempfile.TemporaryDirectory(prefix="delta6-virtual-") as tmp:
+        replay, loop, what = args.replay, args.loop, None
+        if replay is not None:
+            what = f"replaying {replay}"
+        elif run_of_twin is not None:
+            what = (f"the digital twin, scenario {args.twin} (seed {args.seed}, "
+                    f"{args.twin_duration:g} s looped), through the live channel")
+        elif not args.static and args.live is None:
+            t, theta = vb.demo_trajectory()
+            replay = vb.write_replay(Path(tmp) / "demo.d6rp", t, vb.theta_to_counts(theta, zero))
+            loop, what = True, "a demo motion (20 s, looping; --static for rest)"
+        live = args.live if args.live is not None else run_of_twin is not None
+        board = vb.VirtualBoard(image=image, replay=replay, loop=loop, zero=zero, live=live,
+                                faults=faults, eeprom=args.eeprom, speed=args.speed,
+                                duration=args.duration)
+        return _serve(board, args, what, run_of_twin)
+
+
+def _simulate_twin(args: argparse.Namespace):
+    from .. import design as design_mod
+    from .. import twin
+    try:
+        effects = twin.scenario_effects(args.twin, args.seed)
+    except twin.EffectError as exc:
+        raise UserError(str(exc)) from None
+    design = design_mod.load(args.design or DEFAULT_DESIGN)
+    print(f"simulating {args.twin_duration:g} s of the twin (scenario {args.twin}) ...",
+          file=sys.stderr, flush=True)
+    return twin.simulate(design, effects, args.twin_duration, TWIN_RATE_HZ, args.seed,
+                         scenario=args.twin)
+
+
+def _drive(board: vb.VirtualBoard, run_of_twin, speed: float, stop: threading.Event) -> None:
+    """Feed the twin's angles through the live channel, paced by the board's clock."""
+    from ..twin import iter_realtime
+    samples = iter_realtime(run_of_twin, speed=speed if speed > 0 else 1e6, loop=True)
+    try:
+        board.live.drive(samples, stop=stop)
+    except UserError:
+        pass   # the board went away: the main thread reports how it ended
+
+
+def _serve(board: vb.VirtualBoard, args: argparse.Namespace, what: str | None,
+           run_of_twin=None) -> int:
+    stop = threading.Event()
+    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        board.start()
+        if run_of_twin is not None:
+            threading.Thread(target=_drive, args=(board, run_of_twin, args.speed, stop),
+                             daemon=True).start()
+        print(board.port, flush=True)
+        notes = [f"virtual board on {board.port}: firmware {board.image.elf.name} on an emulated "
+                 "ATmega328P at 16 MHz, 500000 baud"]
+        if what:
+            notes.append(f"encoders: {what}")
+        if board.live_path is not None:
+            notes.append(f"live channel: {board.live_path}")
+        notes.append("it starts when a client opens the port; Ctrl-C ends it")
+        print("\n".join(notes), file=sys.stderr, flush=True)
+        while not stop.is_set() and board.running:
+            stop.wait(0.2)
+        status = board.stop()
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        if board.running:
+            board.stop()
+    if status not in (0, None):
+        reason = board._error_text() or f"exit status {status}"
+        board.close()
+        raise UserError(f"the virtual board failed: {reason}")
+    try:
+        stats = board.stats()
+    except UserError:
+        stats = None
+    if stats is not None:
+        print(summary(stats), file=sys.stderr)
+        if args.stats is not None:
+            args.stats.write_text(json.dumps(stats, indent=2) + "\n")
+    board.close()
+    return 0
+
+
+def summary(stats: dict) -> str:
+    t = stats["timing"]
+    f = t["frequency"]
+    enc = stats["encoders"]
+    text = (f"ran {stats['board_seconds']:.1f} s of board time in {stats['wall_seconds']:.1f} s: "
+            f"{t['samples']} samples, {t['missed_ticks']} missed periods, "
+            f"CPU {t['cpu_busy']:.0%} busy, UART {t['uart_occupancy']:.0%} busy")
+    if t["scan_cycles"]["n"]:
+        text += (f"; scan {t['scan_cycles']['mean'] / f * 1e6:.0f} us, solve "
+                 f"{t['solve_cycles']['mean'] / f * 1e6:.0f} us")
+    if t["latency_cycles"]["n"]:
+        text += (f", latch to last byte {t['latency_cycles']['mean'] / f * 1e3:.2f} ms mean, "
+                 f"{t['latency_cycles']['max'] / f * 1e3:.2f} ms max")
+    bad = sum(enc["violations"].values()) + enc["contention"]
+    if bad:
+        text += f"; encoder bus: {bad} timing violations or contention events"
+    return text

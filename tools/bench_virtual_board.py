@@ -1,0 +1,169 @@
+"""Virtual-board benchmark: the firmware application on the emulated ATmega328P at 16 MHz.
+
+    .venv/bin/python tools/bench_virtual_board.py            # about a minute
+    .venv/bin/python tools/bench_virtual_board.py --seconds 1 --rates 250,400,500
+
+For each stream mode (wrench, wrench+raw) it steps the sample rate up while the encoders
+follow a moving trajectory (the solver's cost depends on the angles), and measures over a
+window of board time, from the firmware's GPIOR0 markers and the UART (cycle-accurate):
+missed periods (overruns), encoder scan time, solver cycles, per-sample work, CPU load, UART
+occupancy and the sample-to-last-byte latency (encoder latch to the last byte of that sample's
+record out of the UART). The image is built with DELTA6_MAX_RATE_HZ=2000 so that the board
+accepts rates beyond its rated maximum; everything else is the shipped firmware.
+
+It prints a table per mode, the highest rate with no overrun, and the requirement check
+(>= 250 Hz with no overrun, latency < 5 ms at 500000 baud).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "host"))
+
+from delta6 import protocol as P  # noqa: E402
+from delta6.device import Device  # noqa: E402
+from delta6.virtualboard import (VirtualBoard, demo_trajectory, firmware,  # noqa: E402
+                                 stack_depth, theta_to_counts, write_replay)
+
+F_CPU = 16_000_000
+DEFAULT_RATES = (250, 300, 350, 400, 425, 450, 475, 500, 550)
+
+
+def cycles_to_us(c: float) -> float:
+    return c / F_CPU * 1e6
+
+
+def measure(board: VirtualBoard, dev: Device, rate: int, seconds: float) -> dict:
+    dev.start(rate)
+    live = board.live
+    settle_until = live.time() + 0.3
+    while live.time() < settle_until:
+        dev.flush()
+        time.sleep(0.02)
+    gaps0 = dev.health.samples_lost
+    live.reset_stats()
+    end = live.time() + seconds
+    while live.time() < end:
+        dev.flush()
+        time.sleep(0.02)
+    stats = live.stats()
+    telemetry = dev.telemetry()
+    dev.stop()
+    t = stats["timing"]
+    return {
+        "rate": rate,
+        "samples": t["samples"],
+        "missed": t["missed_ticks"],
+        "lost": dev.health.samples_lost - gaps0,
+        "scan_us": cycles_to_us(t["scan_cycles"]["mean"]),
+        "scan_max_us": cycles_to_us(t["scan_cycles"]["max"]),
+        "solve": t["solve_cycles"],
+        "process_us": cycles_to_us(t["process_cycles"]["mean"]),
+        "on_sample": t["on_sample_cycles"]["mean"],
+        "busy": t["cpu_busy"],
+        "uart": t["uart_occupancy"],
+        "latency": t["latency_cycles"],
+        "latency_p99_us": t["latency_us_p99"],
+        "period_max_us": cycles_to_us(t["period_cycles"]["max"]),
+        "loop_time_max_us": telemetry.loop_time_max_us,
+        "violations": sum(stats["encoders"]["violations"].values()),
+        "contention": stats["encoders"]["contention"],
+        "speed": t["speed"],
+    }
+
+
+def print_table(mode: str, rows: list[dict]) -> None:
+    print(f"\n{mode}: {P.wire_bytes(P.data_record_type(P.Mode.WRENCH if mode == 'wrench' else P.Mode.WRENCH_RAW))} "
+          "bytes per record at 500000 baud")
+    print(f"  {'Hz':>5} {'missed':>6} {'busy':>6} {'scan us':>8} {'work us':>8} {'solve cyc':>10} "
+          f"{'onSample cyc':>12} {'latency us mean/p99/max':>24} {'UART':>6} {'emu x':>6}")
+    for r in rows:
+        lat = r["latency"]
+        print(f"  {r['rate']:>5} {r['missed']:>6} {r['busy']:>6.1%} {r['scan_us']:>8.0f} "
+              f"{r['scan_us'] + r['process_us']:>8.0f} {r['solve']['mean']:>10.0f} {r['on_sample']:>12.0f} "
+              f"{cycles_to_us(lat['mean']):>8.0f}/{r['latency_p99_us']:>5.0f}/"
+              f"{cycles_to_us(lat['max']):>6.0f}   {r['uart']:>6.1%} {r['speed']:>6.2f}")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--seconds", type=float, default=2.0,
+                        help="board seconds measured per rate (default 2)")
+    parser.add_argument("--rates", default=",".join(map(str, DEFAULT_RATES)),
+                        help="comma-separated rates to try, ascending")
+    args = parser.parse_args()
+    rates = [int(r) for r in args.rates.split(",")]
+
+    image = firmware(defines=["DELTA6_MAX_RATE_HZ=2000"])
+    print(f"firmware image: {image.elf.name}, flash {image.sizes.flash} B, "
+          f"static RAM {image.sizes.ram} B (ATmega328P, 16 MHz, 500000 baud)")
+    t, theta = demo_trajectory(duration_s=30.0, rate_hz=1000.0, amplitude=0.9)
+    results = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        replay = write_replay(Path(tmp) / "motion.d6rp", t, theta_to_counts(theta))
+        ram_dump = Path(tmp) / "ram.bin"
+        with VirtualBoard(image=image, replay=replay, loop=True, live=True, speed=0,
+                          ram_dump=ram_dump) as board:
+            with Device(board.port, timeout=2.0) as dev:
+                for mode in ("wrench", "raw"):
+                    dev.set_mode(mode)
+                    rows = []
+                    for rate in rates:
+                        rows.append(measure(board, dev, rate, args.seconds))
+                        print(".", end="", flush=True, file=sys.stderr)
+                    results[mode] = rows
+                    # A command answered under load: the 128-byte INFO record (the costliest).
+                    dev.info(refresh=True)
+            print(file=sys.stderr)
+            board.stop()
+            byte_cycles = board.stats()["timing"]["byte_cycles"]
+        stack = stack_depth(ram_dump, image.sizes.ram)
+
+    for mode, rows in results.items():
+        print_table("wrench" if mode == "wrench" else "wrench+raw", rows)
+    print()
+    ok = True
+    for mode, rows in results.items():
+        clean = [r for r in rows if r["missed"] == 0 and r["lost"] == 0]
+        best = max((r["rate"] for r in clean), default=0)
+        first_bad = next((r["rate"] for r in rows if r["missed"] or r["lost"]), None)
+        name = "wrench" if mode == "wrench" else "wrench+raw"
+        print(f"{name}: highest rate with no overrun {best} Hz"
+              + (f"; overruns from {first_bad} Hz" if first_bad else "; no overrun up to "
+                 f"{rows[-1]['rate']} Hz"))
+        at250 = next((r for r in rows if r["rate"] == 250), None)
+        if at250 is not None:
+            lat_max = cycles_to_us(at250["latency"]["max"])
+            passed = at250["missed"] == 0 and at250["lost"] == 0 and lat_max < 5000
+            ok &= passed
+            print(f"  requirement at 250 Hz: no overrun and latency < 5 ms: "
+                  f"{'met' if passed else 'NOT met'} (max {lat_max:.0f} us)")
+        bad = [r for r in rows if r["violations"] or r["contention"]]
+        if bad:
+            ok = False
+            print(f"  encoder bus timing violations or contention at {[r['rate'] for r in bad]}")
+    first = results["wrench"][0]
+    print(f"\nencoder scan (six in parallel): {first['scan_us']:.0f} us mean, "
+          f"{first['scan_max_us']:.0f} us max (paper: 6.6 ms for six in series)")
+    print(f"solver: {first['solve']['mean']:.0f} cycles mean, {first['solve']['max']:.0f} max "
+          f"({cycles_to_us(first['solve']['mean']):.0f} us)")
+    print("latency = encoder latch to the last byte of the record out of the UART (paper: "
+          "10.6-25.8 ms end to end, host included)")
+    print(f"received byte fed to the device: {byte_cycles['mean']:.0f} cycles mean, "
+          f"{byte_cycles['max']:.0f} max ({cycles_to_us(byte_cycles['max']):.0f} us: a command "
+          "completed and answered)")
+    print(f"RAM: {image.sizes.ram} B static + {stack} B peak stack = "
+          f"{image.sizes.ram + stack} B of 2048 (ATmega328P; the 4809 has 6144)")
+    print("work = scan + the main loop's work on one sample (frame checks, solve, onSample),\n"
+          "  interrupts included; emu x = board seconds per wall second, unpaced "
+          "(delta6 virtual paces to 1.0)")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
