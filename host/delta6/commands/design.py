@@ -94,8 +94,8 @@ def format_table(results) -> str:
     for _path, d, s in results:
         k = d.k_nm_per_rad[0] if len(set(d.k_nm_per_rad)) == 1 else float("nan")
         lines.append(f"{d.name:<20} {d.a_mm:>6.4g} {d.b_mm:>6.4g} {d.la_mm:>6.4g} {d.lb_mm:>6.4g} "
-                     f"{d.theta_offset_rad:>6.3f} {k:>9.6g} {s.force_norm_max_n:>9.4g} "
-                     f"{s.torque_norm_max_nm:>9.4g} {s.force_resolution_n:>8.4g} "
-                     f"{s.torque_resolution_nm:>8.3g}")
+                     f"{d.theta_offset_rad:>6.3f} {k:>9.6g} {_g(s.force_norm_max_n):>9} "
+                     f"{_g(s.torque_norm_max_nm):>9} {_g(s.force_resolution_n):>8} "
+                     f"{_g(s.torque_resolution_nm, 3):>8}")
     lines.append(f"({results[0][2].method}; Fres, Mres: worst case for one encoder count)")
     return "\n".join(lines)
