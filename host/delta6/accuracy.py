@@ -17,12 +17,17 @@ def error_pct_fs(estimate: np.ndarray, reference: np.ndarray, full_scale) -> np.
     return 100.0 * np.abs(np.asarray(estimate) - np.asarray(reference)) / np.asarray(full_scale)
 
 
+def table(err_pct: np.ndarray, which=PERCENTILES) -> dict[str, list[float]]:
+    """Per-axis percentiles of |error| already in % FS: {"p50": [Fx..Mz], ...}
+    ("p100" is the maximum)."""
+    values = np.percentile(np.abs(np.asarray(err_pct)), which, axis=0)
+    return {f"p{q:g}": [float(v) for v in row] for q, row in zip(which, values)}
+
+
 def percentiles(estimate: np.ndarray, reference: np.ndarray, full_scale,
                 which=PERCENTILES) -> dict[str, list[float]]:
     """{"p50": [Fx..Mz], "p95": [...], ...} in % FS ("p100" is the maximum)."""
-    err = error_pct_fs(estimate, reference, full_scale)
-    values = np.percentile(err, which, axis=0)
-    return {f"p{q:g}": [float(v) for v in row] for q, row in zip(which, values)}
+    return table(error_pct_fs(estimate, reference, full_scale), which)
 
 
 def format_table(table: dict[str, list[float]], title: str = "") -> str:

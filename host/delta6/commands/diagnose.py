@@ -9,7 +9,8 @@ from pathlib import Path
 
 from .. import design as design_mod
 from ..diagnosis.report import write_report
-from ..diagnosis.run import diagnose
+from ..diagnosis.data import GapData
+from ..diagnosis.run import diagnose_data
 from ..errors import UserError
 from ..logfile import read_log
 from ..model import AXES
@@ -38,16 +39,15 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"  {message}", file=sys.stderr, flush=True)
 
-    result = diagnose(log, design, seed=args.seed, progress=progress)
+    data = GapData.from_log(log, design)
+    result = diagnose_data(data, seed=args.seed, progress=progress)
     if args.json:
         try:
             Path(args.json).write_text(json.dumps(result, indent=1))
         except OSError as exc:
             raise UserError(f"cannot write {args.json}: {exc.strerror}") from None
     if args.report:
-        from ..diagnosis.data import GapData
-        path = write_report(result, GapData.from_log(log, design), args.report,
-                            source=str(args.log))
+        path = write_report(result, data, args.report, source=str(args.log))
         progress(f"report: {path}")
     print(summary(result))
     return 0

@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import accuracy
 from ..design import Design, load
 from ..logfile import read_log
-from ..model import wrench
 from ..spec import full_scale
 from .run import diagnose
 
@@ -89,8 +89,8 @@ def _effects(case: Case):
 def _gap(design: Design, result, fs) -> tuple[np.ndarray, float]:
     """The analytical model's error on a twin run: p99 per axis (% FS) and the squared error
     (FS-normalised) summed over the run."""
-    err = (result.wrench - wrench(design, result.theta)) / fs
-    return np.percentile(np.abs(err) * 100, 99, axis=0), float((err ** 2).sum())
+    err = accuracy.error_pct_fs(result.model_wrench(), result.wrench, fs)
+    return np.percentile(err, 99, axis=0), float(((err / 100.0) ** 2).sum())
 
 
 def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> dict:

@@ -8,17 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import accuracy
 from ..model import AXES
 from .data import GapData
 
-PERCENTILES = (50, 95, 99, 100)
-
-
 def percent_table(err_pct: np.ndarray) -> dict:
     """Per-axis percentiles of |error| (already in % FS): {"p50": [6], ..., "max": [6]}."""
-    a = np.abs(err_pct)
-    out = {f"p{q}": np.percentile(a, q, axis=0).tolist() for q in PERCENTILES[:-1]}
-    out["max"] = a.max(axis=0).tolist()
+    out = accuracy.table(err_pct)
+    out["max"] = out.pop("p100")
     return out
 
 

@@ -18,12 +18,18 @@ def _p99(values_pct: np.ndarray) -> list[float]:
     return np.percentile(np.abs(values_pct), 99, axis=0).tolist()
 
 
-def diagnose(log: LogData, design: Design, *, seed: int = 0, progress=None,
-             min_gain: float = selection.MIN_GAIN,
-             confidence: float = selection.CONFIDENCE,
-             min_share: float = selection.MIN_SHARE) -> dict:
+def diagnose(log: LogData, design: Design, **kwargs) -> dict:
+    """Diagnose a log read with ``delta6.logfile.read_log`` (see :func:`diagnose_data`)."""
+    return diagnose_data(GapData.from_log(log, design), **kwargs)
+
+
+def diagnose_data(data: GapData, *, seed: int = 0, progress=None,
+                  min_gain: float = selection.MIN_GAIN,
+                  confidence: float = selection.CONFIDENCE,
+                  min_share: float = selection.MIN_SHARE) -> dict:
+    """The diagnosis of prepared data (the caller may reuse ``data``, e.g. for the report)."""
     started = time.perf_counter()
-    data = GapData.from_log(log, design)
+    design = data.design
     if progress:
         progress("model and breakdowns")
     where = gap.where(data)
@@ -54,8 +60,10 @@ def diagnose(log: LogData, design: Design, *, seed: int = 0, progress=None,
 
     steps = []
     chosen: list[str] = []
+    final_pct = data.residual_pct
     for step in ladder:
         chosen.append(step.added)
+        final_pct = heldout_pct(chosen)
         coef = selection.fit(problem, chosen)
         params = {}
         cols = 0
@@ -64,12 +72,11 @@ def diagnose(log: LogData, design: Design, *, seed: int = 0, progress=None,
             width = len(term.param_names)
             params[name] = term.summarize(coef[cols:cols + width])
             cols += width
-        steps.append({"added": step.added, "heldout_p99_pct": _p99(heldout_pct(chosen)),
+        steps.append({"added": step.added, "heldout_p99_pct": _p99(final_pct),
                       "gain": step.gain, "gain_lower": step.gain_low,
                       "params": params[step.added], "all_params": params})
 
     baseline_pct = data.residual_pct
-    final_pct = heldout_pct(chosen)
     base_total = float(base_sse.sum())
     left = float(((final_pct / 100.0) ** 2).sum())
     result = {
