@@ -36,7 +36,7 @@ def cycles(result: avrsim.SimResult) -> dict[str, float]:
 
 def run_natively() -> bytes:
     core = NativeCore(design_name="delta6", design_hash=0x535534AF, full_scale=FULL_SCALE,
-                      joint_limit_rad=0.5236, baud=500_000, max_rate_hz=2000,
+                      joint_limit_rad=0.5236, joint_limit_counts=1365, baud=500_000, max_rate_hz=2000,
                       default_rate_hz=500, zero_counts=ZERO, serial_number=0,
                       tx_capacity=65535)
     core.set_time(0)

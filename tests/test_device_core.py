@@ -394,3 +394,21 @@ def test_a_tare_that_overflows_float_is_refused(bench):
     nack = bench.answer(bench.collect())
     assert (nack.reason, nack.detail) == (P.NackReason.FAULT_DURING_AVERAGING, P.Status.OVERRANGE)
     assert not core.status & P.Status.TARE_ACTIVE
+
+
+def test_joint_limit_flag_agrees_with_the_solver_at_a_whole_count_limit(baseline):
+    """A joint box of exactly 1010 counts: the solver still solves at 1010 counts, so the
+    device must not flag it; one count more is beyond the box. (The device once derived its
+    own limit by float truncation and got 1009, as it did for about half of all whole-count
+    limits.)"""
+    limit = 1010
+    b = Bench(design=baseline.replace(joint_limit_rad=limit * P.COUNT_RAD), rate_hz=500)
+    try:
+        b.send(C.START, 500)
+        for counts, flagged in ((limit, False), (limit + 1, True)):
+            b.sim.motion = Motion.static([counts * P.COUNT_RAD, 0, 0, 0, 0, 0])
+            records = data(b.run(0.05))[2:]
+            assert records and all(bool(r.status & P.Status.JOINT_LIMIT) == flagged
+                                   for r in records), counts
+    finally:
+        b.sim.close()

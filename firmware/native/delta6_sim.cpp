@@ -25,7 +25,7 @@ struct Setup {
   Config defaults;
 
   Setup(const char* design_name, uint32_t hash, const float* full_scale, float joint_limit,
-        uint32_t baud, uint16_t max_rate, uint16_t default_rate, const uint16_t* zero,
+        int16_t joint_limit_counts, uint32_t baud, uint16_t max_rate, uint16_t default_rate, const uint16_t* zero,
         uint32_t serial) {
     memset(name, 0, sizeof(name));
     strncpy(name, design_name, sizeof(name) - 1);
@@ -33,6 +33,7 @@ struct Setup {
     identity.design_hash = hash;
     for (int i = 0; i < 6; ++i) identity.full_scale[i] = full_scale[i];
     identity.joint_limit_rad = joint_limit;
+    identity.joint_limit_counts = joint_limit_counts;
     identity.firmware_version[0] = 0;
     identity.firmware_version[1] = 1;
     identity.firmware_version[2] = 0;
@@ -52,10 +53,10 @@ struct Sim : Setup {
   Device device;
 
   Sim(const char* design_name, uint32_t hash, const float* full_scale, float joint_limit,
-      uint32_t baud, uint16_t max_rate, uint16_t default_rate, const uint16_t* zero,
-      uint32_t serial, uint16_t tx_capacity)
-      : Setup(design_name, hash, full_scale, joint_limit, baud, max_rate, default_rate, zero,
-              serial),
+      int16_t joint_limit_counts, uint32_t baud, uint16_t max_rate, uint16_t default_rate,
+      const uint16_t* zero, uint32_t serial, uint16_t tx_capacity)
+      : Setup(design_name, hash, full_scale, joint_limit, joint_limit_counts, baud, max_rate,
+              default_rate, zero, serial),
         hardware(baud, tx_capacity),
         device(hardware, identity, defaults) {}
 };
@@ -65,10 +66,11 @@ struct Sim : Setup {
 extern "C" {
 
 void* d6sim_create(const char* name, uint32_t hash, const float* full_scale, float joint_limit,
-                   uint32_t baud, uint16_t max_rate, uint16_t default_rate,
-                   const uint16_t* zero, uint32_t serial, uint16_t tx_capacity) {
-  return new Sim(name, hash, full_scale, joint_limit, baud, max_rate, default_rate, zero,
-                 serial, tx_capacity);
+                   int16_t joint_limit_counts, uint32_t baud, uint16_t max_rate,
+                   uint16_t default_rate, const uint16_t* zero, uint32_t serial,
+                   uint16_t tx_capacity) {
+  return new Sim(name, hash, full_scale, joint_limit, joint_limit_counts, baud, max_rate,
+                 default_rate, zero, serial, tx_capacity);
 }
 
 void d6sim_destroy(void* sim) { delete static_cast<Sim*>(sim); }

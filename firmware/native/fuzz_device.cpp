@@ -155,6 +155,7 @@ int main(int argc, char** argv) {
   const float fs[6] = {15.0f, 15.0f, 25.0f, 0.38f, 0.33f, 0.43f};
   memcpy(id.full_scale, fs, sizeof(fs));
   id.joint_limit_rad = 0.5236f;
+  id.joint_limit_counts = 1365;
   id.baud = 500000;
   id.max_rate_hz = 2000;
   Config defaults;

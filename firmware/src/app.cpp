@@ -72,6 +72,7 @@ delta6::Identity identity = {
     {d::kFullScale[0], d::kFullScale[1], d::kFullScale[2], d::kFullScale[3], d::kFullScale[4],
      d::kFullScale[5]},
     d::kJointLimitRad,
+    d::kJointLimitCounts,
     {1, 0, 0},
     board::kBaud,
     DELTA6_MAX_RATE_HZ,

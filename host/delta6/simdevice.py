@@ -25,6 +25,7 @@ from .design import Design, load
 from .model import wrench as model_wrench
 from .protocol import COUNT_RAD, COUNTS_PER_TURN, TEMPERATURE_UNKNOWN, Mode, count_delta
 from .spec import full_scale
+from delta6_codegen.solver_constants import limit_counts
 
 DEFAULT_DESIGN = nativebuild.ROOT / "designs" / "delta6.toml"
 #: Encoder counts at zero deflection of the simulated mechanism (any values do).
@@ -43,9 +44,9 @@ def native_library() -> ctypes.CDLL:
         [nativebuild.FIRMWARE_CORE, nativebuild.FIRMWARE_NATIVE])
     c = ctypes
     sig = {
-        "d6sim_create": (c.c_void_p, [c.c_char_p, c.c_uint32, c.c_void_p, c.c_float, c.c_uint32,
-                                      c.c_uint16, c.c_uint16, c.c_void_p, c.c_uint32,
-                                      c.c_uint16]),
+        "d6sim_create": (c.c_void_p, [c.c_char_p, c.c_uint32, c.c_void_p, c.c_float, c.c_int16,
+                                      c.c_uint32, c.c_uint16, c.c_uint16, c.c_void_p,
+                                      c.c_uint32, c.c_uint16]),
         "d6sim_destroy": (None, [c.c_void_p]),
         "d6sim_begin": (None, [c.c_void_p, c.c_uint8]),
         "d6sim_set_time": (None, [c.c_void_p, c.c_uint32]),
@@ -91,13 +92,14 @@ class NativeCore:
     """One instance of the firmware's ``delta6::Device`` behind the simulated board layer."""
 
     def __init__(self, *, design_name: str, design_hash: int, full_scale, joint_limit_rad: float,
-                 baud: int, max_rate_hz: int, default_rate_hz: int, zero_counts,
+                 joint_limit_counts: int, baud: int, max_rate_hz: int, default_rate_hz: int, zero_counts,
                  serial_number: int = 0, tx_capacity: int = 256):
         self._lib = native_library()
         fs = np.ascontiguousarray(full_scale, dtype=np.float32)
         zero = np.ascontiguousarray(zero_counts, dtype=np.uint16)
         self._h = self._lib.d6sim_create(design_name.encode("ascii"), design_hash, _ptr(fs),
-                                         joint_limit_rad, baud, max_rate_hz, default_rate_hz,
+                                         joint_limit_rad, joint_limit_counts, baud,
+                                         max_rate_hz, default_rate_hz,
                                          _ptr(zero), serial_number, tx_capacity)
 
     def close(self) -> None:
@@ -250,7 +252,8 @@ class SimulatedDevice:
         self._rng = np.random.default_rng(seed + 1)
         self.core = NativeCore(design_name=design.name, design_hash=design.hash32(),
                                full_scale=self.full_scale,
-                               joint_limit_rad=design.joint_limit_rad, baud=baud,
+                               joint_limit_rad=design.joint_limit_rad,
+                               joint_limit_counts=limit_counts(design), baud=baud,
                                max_rate_hz=max_rate_hz, default_rate_hz=rate_hz,
                                zero_counts=zero_counts, serial_number=serial_number,
                                tx_capacity=tx_capacity)

@@ -3,6 +3,8 @@
 #include <string.h>
 
 #include "delta6_crc16.h"
+#include "delta6_fastmath.h"
+#include "delta6_solver.h"
 
 namespace delta6 {
 
@@ -12,30 +14,14 @@ namespace {
 
 const uint16_t kConfigMagic = 0x3644;   // "D6" little-endian
 const uint8_t kConfigLayout = 1;
-const uint16_t kCountsPerTurn = 16384;
-const float kCountsPerRad = 16384.0f / 6.28318530718f;
-
-// False for NaN and +-inf: an all-ones exponent. A bit test costs a few AVR cycles where a
-// float subtraction and comparison cost about 140.
-bool isFinite(float x) {
-  uint32_t bits;
-  memcpy(&bits, &x, 4);
-  return (bits & 0x7F800000UL) != 0x7F800000UL;
-}
+using fastmath::is_finite;
 
 }  // namespace
-
-int16_t countDelta(uint16_t count, uint16_t zero) {
-  int16_t d = static_cast<int16_t>((count - zero) & (kCountsPerTurn - 1));
-  if (d >= static_cast<int16_t>(kCountsPerTurn / 2)) d = static_cast<int16_t>(d - kCountsPerTurn);
-  return d;
-}
 
 Device::Device(Hardware& hardware, const Identity& identity, const Config& defaults)
     : hw_(hardware),
       id_(identity),
       defaults_(defaults),
-      joint_limit_counts_(0),
       queue_head_(0),
       queue_count_(0),
       streaming_(false),
@@ -56,9 +42,6 @@ Device::Device(Hardware& hardware, const Identity& identity, const Config& defau
   for (uint8_t i = 0; i < 6; ++i) {
     scale_[i] = scaleForFullScale(id_.full_scale[i]);
     inverse_lsb_[i] = 1.0f / scaleValue(scale_[i]);
-  }
-  if (id_.joint_limit_rad > 0.0f && id_.joint_limit_rad < 3.2f) {
-    joint_limit_counts_ = static_cast<uint16_t>(id_.joint_limit_rad * kCountsPerRad);
   }
 }
 
@@ -97,7 +80,7 @@ uint8_t Device::decodeConfig(const uint8_t* blob, Config* out) const {
     const uint32_t bits = getU32(blob + 12 + 4 * i);
     memcpy(&c.tare[i], &bits, 4);
     // Any finite offset: the loader accepts every configuration the device can hold.
-    if (!isFinite(c.tare[i])) return kConfigOutOfRange;
+    if (!is_finite(c.tare[i])) return kConfigOutOfRange;
     c.zero_counts[i] = getU16(blob + 36 + 2 * i);
     if (c.zero_counts[i] >= kCountsPerTurn) return kConfigOutOfRange;
   }
@@ -369,7 +352,7 @@ void Device::accumulate(const Sample& s, uint16_t status) {
     if (averaging_ == kCmdTare) {
       sums_.wrench[i] += s.wrench[i];
     } else {
-      sums_.counts[i] += countDelta(s.counts[i], config_.zero_counts[i]);
+      sums_.counts[i] += wrap_count_delta(s.counts[i], config_.zero_counts[i]);
     }
   }
   if (++averaging_count_ >= averaging_target_) finishAveraging();
@@ -381,7 +364,7 @@ void Device::finishAveraging() {
   averaging_ = 0;
   if (command == kCmdTare) {
     for (uint8_t i = 0; i < 6; ++i) {
-      if (!isFinite(sums_.wrench[i] / n)) {  // the sum overflowed: no such offset
+      if (!is_finite(sums_.wrench[i] / n)) {  // the sum overflowed: no such offset
         answer(kNack, averaging_request_, command, kNackFaultDuringAveraging, kStatusOverrange);
         return;
       }
@@ -546,9 +529,9 @@ void Device::onSample(const Sample& s) {
   for (uint8_t j = 0; j < 6; ++j) {
     if (status & (1u << j)) {
       ++k.encoder_errors[j];
-    } else if (joint_limit_counts_) {
-      const int16_t d = countDelta(s.counts[j], config_.zero_counts[j]);
-      if (static_cast<uint16_t>(d < 0 ? -d : d) > joint_limit_counts_) status |= kStatusJointLimit;
+    } else if (id_.joint_limit_counts > 0) {
+      const int16_t d = wrap_count_delta(s.counts[j], config_.zero_counts[j]);
+      if (d > id_.joint_limit_counts || d < -id_.joint_limit_counts) status |= kStatusJointLimit;
     }
   }
   if (s.overrun) {
@@ -558,7 +541,7 @@ void Device::onSample(const Sample& s) {
   bool valid = (status & kStatusEncoderMask) == 0;
   if (valid) {
     bool finite = s.solver_ok;
-    for (uint8_t i = 0; i < 6 && finite; ++i) finite = isFinite(s.wrench[i]);
+    for (uint8_t i = 0; i < 6 && finite; ++i) finite = is_finite(s.wrench[i]);
     if (!finite) {
       status |= kStatusSolverError;
       ++k.solver_errors;

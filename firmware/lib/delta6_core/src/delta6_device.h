@@ -45,7 +45,9 @@ struct Identity {
   const char* design_name;   // ASCII, at most 23 characters (longer is cut)
   uint32_t design_hash;      // Design.hash32() of the design the solver was generated for
   float full_scale[6];       // Fx Fy Fz (N), Mx My Mz (N*m): sets the wire scaling
-  float joint_limit_rad;     // |theta_e| beyond this sets kStatusJointLimit; 0: no check
+  float joint_limit_rad;     // the joint box, reported in the info record
+  int16_t joint_limit_counts;  // |count delta| beyond this sets kStatusJointLimit; 0: no
+                               // check. The solver's own limit: design::kJointLimitCounts
   uint8_t firmware_version[3];  // major, minor, patch
   uint32_t baud;             // the UART's rate, for the link-capacity check; 0: no check
   uint16_t max_rate_hz;      // the fastest loop the board sustains
@@ -161,7 +163,6 @@ class Device {
   Config config_;
   proto::Scale scale_[6];
   float inverse_lsb_[6];
-  uint16_t joint_limit_counts_;
 
   proto::CommandParser parser_;
   Response queue_[kQueueLength];
@@ -190,9 +191,6 @@ class Device {
 
   uint8_t tx_[proto::kMaxFrameBytes];
 };
-
-// Signed distance of count from zero on the 14-bit circle, in -8192..8191.
-int16_t countDelta(uint16_t count, uint16_t zero);
 
 }  // namespace delta6
 
