@@ -20,7 +20,7 @@
  *     --duration S          stop after S seconds of board time
  *     --no-wait             start at once instead of waiting for a client on the pty
  *     --bus-timing H,S,V    sensor timing in ns: clock half period, select setup, data valid
- *                           (1000,2000,600)
+ *                           (board_contract.h's D6_BUS_*_NS: the firmware's own)
  *
  * stdout carries exactly one line, "pty PATH", once the port exists. The simulation starts when
  * a client opens it (and either sends a byte or has had 0.5 s to flush its input), so nothing
@@ -43,6 +43,7 @@
 #include <simavr/sim_elf.h>
 #include <simavr/sim_io.h>
 
+#include "../../../firmware/src/board_contract.h"
 #include "vb.h"
 
 #define EEPROM_SIZE 1024   /* ATmega328P */
@@ -193,7 +194,8 @@ static void parse_options(options_t *o, int argc, char **argv)
 	o->freq = 16000000;
 	o->baud = 500000;
 	o->speed = 1.0;
-	o->timing = (vb_bus_timing_t){1000, 2000, 600};
+	o->timing = (vb_bus_timing_t){D6_BUS_HALF_PERIOD_NS, D6_BUS_SELECT_SETUP_NS,
+	                              D6_BUS_DATA_VALID_NS};
 	for (int i = 1; i < argc; i++) {
 		const char *a = argv[i];
 		if (a[0] != '-') {
