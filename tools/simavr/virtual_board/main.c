@@ -86,7 +86,7 @@ vb_cycles_t vb_cycles_of_seconds(double seconds)
 	return (vb_cycles_t)llround(seconds * vb_avr->frequency);
 }
 
-static double now_wall(void)
+double vb_now_wall(void)
 {
 	struct timespec ts;
 	clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -109,7 +109,7 @@ static void on_signal(int sig)
 void vb_report_json(FILE *f)
 {
 	fprintf(f, "{\"board_seconds\": %.6f, \"wall_seconds\": %.3f, \"timing\": ",
-	        vb_seconds(vb_avr->cycle), now_wall() - wall_start);
+	        vb_seconds(vb_avr->cycle), vb_now_wall() - wall_start);
 	stats_json(f);
 	fputs(", \"encoders\": ", f);
 	encoders_json(f);
@@ -332,8 +332,8 @@ static void wait_for_client(void)
 {
 	while (!stop_requested && !link_client_present())
 		usleep(20000);
-	double settle_until = now_wall() + 0.5;
-	while (!stop_requested && now_wall() < settle_until) {
+	double settle_until = vb_now_wall() + 0.5;
+	while (!stop_requested && vb_now_wall() < settle_until) {
 		struct pollfd p = {link_fd(), POLLIN, 0};
 		if (poll(&p, 1, 10) > 0 && (p.revents & POLLIN))
 			break;
@@ -345,7 +345,7 @@ static void pace(double speed, vb_cycles_t start_cycle, double start_wall)
 {
 	double due = start_wall + vb_seconds(vb_avr->cycle - start_cycle) / speed;
 	for (;;) {
-		double wait = due - now_wall();
+		double wait = due - vb_now_wall();
 		if (wait <= 0 || stop_requested)
 			return;
 		struct pollfd fds[16];
@@ -411,14 +411,14 @@ int main(int argc, char **argv)
 
 	fprintf(protocol_out, "pty %s\n", link_pty_name());
 	fflush(protocol_out);
-	wall_start = now_wall();
+	wall_start = vb_now_wall();
 	if (!o.no_wait)
 		wait_for_client();
 
 	int status = 0;
 	const vb_cycles_t slice = o.freq / 1000;   /* service I/O every millisecond of board time */
 	vb_cycles_t start_cycle = vb_avr->cycle;
-	double start_wall = now_wall();
+	double start_wall = vb_now_wall();
 	wall_start = start_wall;
 	stats_reset();
 	while (!stop_requested) {
