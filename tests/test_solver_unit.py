@@ -2,30 +2,20 @@
 UndefinedBehaviorSanitizer, as C++11 (the oldest dialect the firmware must build with)."""
 from __future__ import annotations
 
-import hashlib
 import subprocess
 
-from native import BUILD, CXX, ROOT
+from delta6 import nativebuild
 
-CORE = ROOT / "firmware" / "lib" / "delta6_core" / "src"
-SOURCES = [ROOT / "tests" / "native" / "solver_unit_test.cpp", CORE / "delta6_solver.cpp"]
-INCLUDES = [CORE, ROOT / "firmware" / "include"]
-FLAGS = ["-std=c++11", "-O1", "-g", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion",
-         "-fno-exceptions", "-fno-rtti", "-fsanitize=address,undefined",
-         "-fno-sanitize-recover=all", "-fno-omit-frame-pointer"]
+CORE = nativebuild.FIRMWARE_CORE
+SOURCES = [nativebuild.ROOT / "tests" / "native" / "solver_unit_test.cpp", CORE / "delta6_solver.cpp"]
+INCLUDES = [CORE, nativebuild.ROOT / "firmware" / "include"]
+# Appended to nativebuild's strict warning flags; gcc honours the last -std and -O.
+FLAGS = ("-std=c++11", "-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all",
+         "-fno-omit-frame-pointer")
 
 
 def build() -> str:
-    digest = hashlib.sha256(" ".join(FLAGS).encode())
-    for path in [*SOURCES, *(p for d in INCLUDES for p in sorted(d.rglob("*.h")))]:
-        digest.update(path.read_bytes())
-    exe = BUILD / f"solver-unit-{digest.hexdigest()[:16]}"
-    if not exe.exists():
-        BUILD.mkdir(parents=True, exist_ok=True)
-        cmd = [CXX, *FLAGS, *(f"-I{d}" for d in INCLUDES), *map(str, SOURCES), "-o", str(exe)]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        assert proc.returncode == 0, f"{' '.join(cmd)}\n{proc.stderr}"
-    return str(exe)
+    return str(nativebuild.build_executable("solver-unit", SOURCES, INCLUDES, flags=FLAGS))
 
 
 def test_solver_unit_tests_pass_under_sanitizers():

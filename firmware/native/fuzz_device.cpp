@@ -41,19 +41,6 @@ float randomFloat() {
   }
 }
 
-uint16_t recordSize(uint8_t type) {
-  switch (type) {
-    case proto::kWrench: return proto::kWrenchSize;
-    case proto::kWrenchRaw: return proto::kWrenchRawSize;
-    case proto::kInfo: return proto::kInfoSize;
-    case proto::kAck: return proto::kAckSize;
-    case proto::kNack: return proto::kNackSize;
-    case proto::kTelemetry: return proto::kTelemetrySize;
-    case proto::kEvent: return proto::kEventSize;
-    default: return 0;
-  }
-}
-
 // Checks the device's output frame by frame.
 struct OutputChecker {
   uint8_t frame[300];
@@ -81,7 +68,7 @@ struct OutputChecker {
     const int16_t n = cobsDecodeInPlace(frame, len);
     if (n < 3) return fail("invalid COBS");
     if (crc16(frame, static_cast<uint16_t>(n)) != 0) return fail("bad CRC");
-    const uint16_t size = recordSize(frame[0]);
+    const uint16_t size = proto::recordSize(frame[0]);
     if (size == 0 || n != size + 2) return fail("unknown type or wrong size");
     if (frame[0] == proto::kWrench || frame[0] == proto::kWrenchRaw) {
       const bool invalid = proto::getU16(frame + proto::kOffStatus) & proto::kStatusWrenchInvalid;

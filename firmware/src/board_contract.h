@@ -1,7 +1,8 @@
 /*
  * What the firmware and the virtual board (tools/simavr/virtual_board/) must agree on: the
- * ATmega328P stand-in's pin map and the GPIOR0 timing markers. Plain C, so the emulator
- * includes this very file; docs/firmware.md and docs/virtual-board.md describe both.
+ * ATmega328P stand-in's pin map, the encoder bus's command and timing, and the GPIOR0 timing
+ * markers. Plain C, so the emulator includes this very file; docs/firmware.md and
+ * docs/virtual-board.md describe both.
  */
 #ifndef DELTA6_BOARD_CONTRACT_H
 #define DELTA6_BOARD_CONTRACT_H
@@ -17,6 +18,17 @@
 #define D6_328P_CLK_BIT 0
 #define D6_328P_TEST_PORT 'B'   /* PB1 [D9]: test builds only: held low, the loop hangs */
 #define D6_328P_TEST_BIT 1
+
+/* --- Encoder bus timing, ns (encoder_bus.h explains each one and its margin) --------------
+ * The firmware keeps the clock and select times and assumes the sensor's data-valid delay;
+ * the virtual board's sensors use all three by default (delta6_vboard --bus-timing). */
+#define D6_BUS_HALF_PERIOD_NS 1000    /* clock high and low, each at least (<= 500 kHz) */
+#define D6_BUS_SELECT_SETUP_NS 2000   /* chip select low to the first clock edge */
+#define D6_BUS_DATA_VALID_NS 600      /* falling edge to the sensor's next bit; < half period */
+/* The read command the master clocks out, most significant bit first (delta6_encoder.h's
+ * kCommand and kCommandBits, checked equal in encoder_bus.h). */
+#define D6_ENCODER_COMMAND 0x55FFu
+#define D6_ENCODER_COMMAND_BITS 16
 
 /* --- GPIOR0 markers: one `out` instruction each; the emulator timestamps the writes ---------
  * A marker names the event that just happened. GPIOR1 carries an argument where noted. */

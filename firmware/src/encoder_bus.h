@@ -24,13 +24,20 @@
 
 #include <stdint.h>
 
+#include "board_contract.h"
 #include "delta6_encoder.h"
+
+// The portable core keeps its own copy of the command (it cannot include the board layer).
+static_assert(delta6::encoder::kCommand == D6_ENCODER_COMMAND &&
+                  delta6::encoder::kCommandBits == D6_ENCODER_COMMAND_BITS,
+              "delta6_encoder.h and board_contract.h disagree on the encoder command");
 
 namespace bus {
 
-const uint32_t kHalfPeriodNs = 1000;
-const uint32_t kSelectSetupNs = 2000;
-const uint32_t kDataValidNs = 600;   // what we assume of the sensor: < kHalfPeriodNs
+const uint32_t kHalfPeriodNs = D6_BUS_HALF_PERIOD_NS;
+const uint32_t kSelectSetupNs = D6_BUS_SELECT_SETUP_NS;
+const uint32_t kDataValidNs = D6_BUS_DATA_VALID_NS;   // what we assume of the sensor
+static_assert(kDataValidNs < kHalfPeriodNs, "a response bit must be valid before the sample");
 const uint8_t kAllSix = 0x3F;
 
 template <uint32_t Ns>
@@ -77,14 +84,14 @@ void scan(uint16_t word[6], uint16_t inverse[6]) {
   Pins::selectAll();               // the sensors latch their angles now
   Pins::driveData(kAllSix);        // the first command bit (0x55: msb 0) follows at once
   delayNs<kSelectSetupNs>();
-  uint16_t command = delta6::encoder::kCommand;
-  for (uint8_t i = 0; i < delta6::encoder::kCommandBits; ++i) {
+  uint16_t command = D6_ENCODER_COMMAND;
+  for (uint8_t i = 0; i < D6_ENCODER_COMMAND_BITS; ++i) {
     Pins::writeData((command & 0x8000u) ? kAllSix : 0);
     command = static_cast<uint16_t>(command << 1);
     delayNs<kHalfPeriodNs>();      // data setup before the rising edge
     Pins::clockHigh();
     delayNs<kHalfPeriodNs>();
-    if (i == delta6::encoder::kCommandBits - 1) {
+    if (i == D6_ENCODER_COMMAND_BITS - 1) {
 #if defined(DELTA6_TEST_LATE_RELEASE)
       // Test builds only: release the line too late, so that the virtual board's contention
       // detector has something to find (tests/test_virtual_board.py).

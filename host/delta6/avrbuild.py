@@ -13,6 +13,7 @@ any change rebuilds. Builds of different designs land in different directories.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import re
@@ -105,6 +106,7 @@ def _run(cmd: list[str], what: str) -> None:
         raise BuildError(f"{what} failed:\n  {' '.join(cmd)}\n{proc.stderr.strip()}")
 
 
+@functools.cache   # one `--version` per process, not one per build_image call
 def _compiler_version(cc: str) -> str:
     return subprocess.run([cc, "--version"], capture_output=True, text=True).stdout
 

@@ -59,7 +59,10 @@ def build_tool(name: str, sources, depends=(), error=None) -> Path:
     if not SIMAVR_HEADER.exists():
         raise error(f"simavr headers not found; {APT_HINT}")
     sources = [Path(p) for p in sources]
-    digest = hashlib.sha256()
+    compile_cmd = [cc, "-O2", "-Wall", "-Wextra", "-Werror", "-std=gnu11", *map(str, sources)]
+    # The key covers the command line (all but the output path) as well as the files, so a
+    # changed flag or compiler rebuilds too.
+    digest = hashlib.sha256("\0".join([*compile_cmd, *SIMAVR_LIBS]).encode() + b"\0")
     for path in [*sources, *map(Path, depends)]:
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
     exe = BUILD_DIR / f"{name}-{digest.hexdigest()[:12]}"
@@ -67,8 +70,7 @@ def build_tool(name: str, sources, depends=(), error=None) -> Path:
         return exe
     BUILD_DIR.mkdir(parents=True, exist_ok=True)
     tmp = exe.with_name(f"{exe.name}.{os.getpid()}.tmp")   # concurrent builds do not collide
-    cmd = [cc, "-O2", "-Wall", "-Wextra", "-Werror", "-std=gnu11", *map(str, sources),
-           "-o", str(tmp), *SIMAVR_LIBS]
+    cmd = [*compile_cmd, "-o", str(tmp), *SIMAVR_LIBS]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode != 0:
         raise error(f"building {name} failed ({APT_HINT}):\n{' '.join(cmd)}\n"

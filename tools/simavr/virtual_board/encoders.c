@@ -30,9 +30,9 @@
  * updates it when the pin's IRQ value changes; writing the bit as well keeps the two in step
  * across a chip reset (which clears the register and not the IRQ). */
 #define PINC_ADDR 0x26
-#define COMMAND 0x55FFu
-#define COMMAND_BITS 16
-#define FRAME_BITS 48
+#define COMMAND D6_ENCODER_COMMAND
+#define COMMAND_BITS D6_ENCODER_COMMAND_BITS
+#define FRAME_BITS (COMMAND_BITS + 32)   /* then the word and its inverse */
 #define MAX_WINDOWS 256
 
 const char *const vb_fault_names[VB_FAULT_KINDS] = {"none", "biterror", "weak", "strong",

@@ -20,7 +20,7 @@
  *     --duration S          stop after S seconds of board time
  *     --no-wait             start at once instead of waiting for a client on the pty
  *     --bus-timing H,S,V    sensor timing in ns: clock half period, select setup, data valid
- *                           (1000,2000,600)
+ *                           (board_contract.h's D6_BUS_*_NS: the firmware's own)
  *
  * stdout carries exactly one line, "pty PATH", once the port exists. The simulation starts when
  * a client opens it (and either sends a byte or has had 0.5 s to flush its input), so nothing
@@ -43,6 +43,7 @@
 #include <simavr/sim_elf.h>
 #include <simavr/sim_io.h>
 
+#include "../../../firmware/src/board_contract.h"
 #include "vb.h"
 
 #define EEPROM_SIZE 1024   /* ATmega328P */
@@ -85,7 +86,7 @@ vb_cycles_t vb_cycles_of_seconds(double seconds)
 	return (vb_cycles_t)llround(seconds * vb_avr->frequency);
 }
 
-static double now_wall(void)
+double vb_now_wall(void)
 {
 	struct timespec ts;
 	clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -108,7 +109,7 @@ static void on_signal(int sig)
 void vb_report_json(FILE *f)
 {
 	fprintf(f, "{\"board_seconds\": %.6f, \"wall_seconds\": %.3f, \"timing\": ",
-	        vb_seconds(vb_avr->cycle), now_wall() - wall_start);
+	        vb_seconds(vb_avr->cycle), vb_now_wall() - wall_start);
 	stats_json(f);
 	fputs(", \"encoders\": ", f);
 	encoders_json(f);
@@ -193,7 +194,8 @@ static void parse_options(options_t *o, int argc, char **argv)
 	o->freq = 16000000;
 	o->baud = 500000;
 	o->speed = 1.0;
-	o->timing = (vb_bus_timing_t){1000, 2000, 600};
+	o->timing = (vb_bus_timing_t){D6_BUS_HALF_PERIOD_NS, D6_BUS_SELECT_SETUP_NS,
+	                              D6_BUS_DATA_VALID_NS};
 	for (int i = 1; i < argc; i++) {
 		const char *a = argv[i];
 		if (a[0] != '-') {
@@ -330,8 +332,8 @@ static void wait_for_client(void)
 {
 	while (!stop_requested && !link_client_present())
 		usleep(20000);
-	double settle_until = now_wall() + 0.5;
-	while (!stop_requested && now_wall() < settle_until) {
+	double settle_until = vb_now_wall() + 0.5;
+	while (!stop_requested && vb_now_wall() < settle_until) {
 		struct pollfd p = {link_fd(), POLLIN, 0};
 		if (poll(&p, 1, 10) > 0 && (p.revents & POLLIN))
 			break;
@@ -343,7 +345,7 @@ static void pace(double speed, vb_cycles_t start_cycle, double start_wall)
 {
 	double due = start_wall + vb_seconds(vb_avr->cycle - start_cycle) / speed;
 	for (;;) {
-		double wait = due - now_wall();
+		double wait = due - vb_now_wall();
 		if (wait <= 0 || stop_requested)
 			return;
 		struct pollfd fds[16];
@@ -409,14 +411,14 @@ int main(int argc, char **argv)
 
 	fprintf(protocol_out, "pty %s\n", link_pty_name());
 	fflush(protocol_out);
-	wall_start = now_wall();
+	wall_start = vb_now_wall();
 	if (!o.no_wait)
 		wait_for_client();
 
 	int status = 0;
 	const vb_cycles_t slice = o.freq / 1000;   /* service I/O every millisecond of board time */
 	vb_cycles_t start_cycle = vb_avr->cycle;
-	double start_wall = now_wall();
+	double start_wall = vb_now_wall();
 	wall_start = start_wall;
 	stats_reset();
 	while (!stop_requested) {

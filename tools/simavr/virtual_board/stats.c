@@ -16,7 +16,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include <simavr/sim_io.h>
 
@@ -195,13 +194,6 @@ void stats_uart_byte(vb_cycles_t when)
 	}
 }
 
-static double now_wall(void)
-{
-	struct timespec ts;
-	clock_gettime(CLOCK_MONOTONIC, &ts);
-	return ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
 void stats_init(uint32_t uart_baud)
 {
 	baud = uart_baud;
@@ -228,7 +220,7 @@ void stats_reset(void)
 	if (in_idle)
 		idle_at = vb_avr->cycle;
 	window_start = vb_avr->cycle;
-	wall_window_start = now_wall();
+	wall_window_start = vb_now_wall();
 }
 
 static void span_json(FILE *f, const char *name, const span_t *s)
@@ -259,7 +251,7 @@ void stats_json(FILE *f)
 	vb_cycles_t window = vb_avr->cycle - window_start;
 	vb_cycles_t sleeping = asleep + (in_idle ? vb_avr->cycle - idle_at : 0);
 	double seconds = vb_seconds(window);
-	double wall = now_wall() - wall_window_start;
+	double wall = vb_now_wall() - wall_window_start;
 	fprintf(f, "{\"frequency\": %u, \"baud\": %u, \"window_cycles\": %llu, "
 	        "\"window_seconds\": %.6f, \"wall_seconds\": %.3f, \"speed\": %.3f, "
 	        "\"samples\": %llu, \"missed_ticks\": %llu, \"records\": %llu, \"boots\": %llu, "

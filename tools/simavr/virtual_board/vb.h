@@ -31,6 +31,7 @@ void vb_die(const char *fmt, ...) __attribute__((noreturn, format(printf, 1, 2))
 void vb_warn(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 double vb_seconds(vb_cycles_t cycles);
 vb_cycles_t vb_cycles_of_seconds(double seconds);
+double vb_now_wall(void);   /* wall-clock seconds (monotonic), for pacing and rates */
 extern avr_t *vb_avr;
 
 /* --- angles.c: the raw counts the sensors report ----------------------------------------- */

@@ -169,7 +169,7 @@ void Device::onByte(uint8_t byte) {
 
 uint16_t Device::linkRateLimit(uint8_t mode) const {
   if (id_.baud == 0) return 0xFFFF;
-  const uint32_t frame = (mode == kModeWrenchRaw ? kWrenchRawSize : kWrenchSize) + kFrameOverhead;
+  const uint32_t frame = recordSize(mode == kModeWrenchRaw ? kWrenchRaw : kWrench) + kFrameOverhead;
   // 10 bits per byte (start, 8 data, stop); data records may fill 90 % of the link.
   const uint32_t limit = id_.baud / 100 * 9 / frame;
   return limit > 0xFFFF ? 0xFFFF : static_cast<uint16_t>(limit);
@@ -404,20 +404,11 @@ void Device::answer(uint8_t kind, uint8_t request_id, uint8_t command, uint8_t c
   ++queue_count_;
 }
 
-static uint16_t responseSize(uint8_t kind) {
-  switch (kind) {
-    case kAck: return kAckSize;
-    case kNack: return kNackSize;
-    case kInfo: return kInfoSize;
-    case kTelemetry: return kTelemetrySize;
-    default: return kEventSize;
-  }
-}
-
 void Device::service() {
   while (queue_count_ > 0) {
     const Response& r = queue_[queue_head_];
-    if (hw_.txSpace() < responseSize(r.kind) + kFrameOverhead) return;
+    const uint16_t size = recordSize(r.kind) + kFrameOverhead;
+    if (hw_.txSpace() < size) return;
     const uint16_t n = buildResponse(r);
     hw_.txWrite(tx_, n);
     queue_head_ = static_cast<uint8_t>((queue_head_ + 1) % kQueueLength);
@@ -575,7 +566,7 @@ void Device::onSample(const Sample& s) {
 
 void Device::sendData(const Sample& s, uint16_t status, const int16_t* wrench) {
   const bool raw = config_.mode == kModeWrenchRaw;
-  const uint16_t size = (raw ? kWrenchRawSize : kWrenchSize) + kFrameOverhead;
+  const uint16_t size = recordSize(raw ? kWrenchRaw : kWrench) + kFrameOverhead;
   const uint16_t seq = seq_++;
   // Answers go first: while one waits for space, data records give way (counted, and seen
   // by the host as a sequence gap), so commands are answered even on a saturated link.

@@ -8,6 +8,19 @@
 namespace delta6 {
 namespace proto {
 
+uint8_t recordSize(uint8_t type) {
+  switch (type) {
+    case kWrench: return kWrenchSize;
+    case kWrenchRaw: return kWrenchRawSize;
+    case kInfo: return kInfoSize;
+    case kAck: return kAckSize;
+    case kNack: return kNackSize;
+    case kTelemetry: return kTelemetrySize;
+    case kEvent: return kEventSize;
+    default: return 0;
+  }
+}
+
 uint8_t commandSize(uint8_t type) {
   switch (type) {
     case kCmdGetInfo:

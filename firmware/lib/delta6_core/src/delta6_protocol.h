@@ -34,6 +34,8 @@ const uint8_t kNackSize = 8;
 const uint8_t kTelemetrySize = 48;
 const uint8_t kEventSize = 6;
 const uint8_t kMaxRecordSize = kInfoSize;
+// Payload size of each record type (type byte included, CRC excluded), or 0 for an unknown type.
+uint8_t recordSize(uint8_t type);
 // Bytes on the wire: payload + CRC + one COBS code byte + the delimiter.
 const uint8_t kFrameOverhead = 4;
 const uint8_t kMaxFrameBytes = kMaxRecordSize + kFrameOverhead;
