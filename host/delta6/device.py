@@ -327,7 +327,7 @@ class Device:
 
     def set_zero(self, counts) -> None:
         counts = [int(c) for c in counts]
-        if len(counts) != 6 or not all(0 <= c < P.COUNTS_PER_TURN for c in counts):
+        if not P.valid_counts(counts):
             raise DeviceError("zero counts are six integers 0..16383")
         self._request(P.Command.SET_ZERO, *counts)
         self.info(refresh=True)
@@ -367,11 +367,10 @@ class Device:
         info = self._require_info()
         t_us, host_t, seq, status, w, counts = zip(*items)
         status = np.array(status, dtype=np.int64)
-        wrench = _scale(np.array(w, dtype=np.int64), status, info.lsb)
+        wrench = P.wrench_values(np.array(w, dtype=np.int64), status, info.lsb)
         theta = None
         if any(c is not None for c in counts):
-            raw = np.array([c if c is not None else (-1,) * 6 for c in counts], dtype=np.int64)
-            theta = _theta(raw, status, info.zero_counts)
+            theta = P.theta_values(P.raw_counts(counts), status, info.zero_counts)
         return SampleBlock(t=np.array(t_us) * 1e-6, host_t=np.array(host_t),
                            seq=np.array(seq, dtype=np.int64), status=status, wrench=wrench,
                            theta=theta)
@@ -575,24 +574,14 @@ class Device:
     def _sample(self, item) -> Sample:
         info = self._require_info()
         t_us, host_t, seq, status, w, counts = item
-        wrench = _scale(np.array(w, dtype=np.int64)[None], np.array([status]), info.lsb)[0]
+        wrench = P.wrench_values(np.array(w, dtype=np.int64)[None], np.array([status]),
+                                 info.lsb)[0]
         raw = theta = None
         if counts is not None:
             raw = np.array(counts)
-            theta = _theta(raw[None], np.array([status]), info.zero_counts)[0]
+            theta = P.theta_values(raw[None], np.array([status]), info.zero_counts)[0]
         return Sample(t=t_us * 1e-6, host_t=host_t, seq=seq, status=status, wrench=wrench,
                       counts=raw, theta=theta)
-
-
-def _scale(counts: np.ndarray, status: np.ndarray, lsb: np.ndarray) -> np.ndarray:
-    invalid = ((status & P.Status.WRENCH_INVALID) != 0)[:, None] | (counts == P.INVALID_VALUE)
-    return np.where(invalid, np.nan, counts * lsb)
-
-
-def _theta(counts: np.ndarray, status: np.ndarray, zero) -> np.ndarray:
-    failed = ((status[:, None] >> np.arange(6)) & 1) != 0
-    theta = P.counts_to_theta(counts, zero)
-    return np.where(failed | (counts < 0), np.nan, theta)
 
 
 def _reason(exc: BaseException) -> str:

@@ -7,7 +7,6 @@ single frames; :mod:`delta6.decoder` and :mod:`delta6.bulkdecode` split byte str
 from __future__ import annotations
 
 import enum
-import math
 import struct
 from typing import NamedTuple
 
@@ -15,13 +14,16 @@ import numpy as np
 
 from . import cobs
 from .crc import crc16
+from .model import ENCODER_COUNT_RAD
 
 VERSION = (1, 0)
 
 #: Frame bytes on the wire beyond the payload: CRC (2), COBS code (1), delimiter (1).
 FRAME_OVERHEAD = 4
 COUNTS_PER_TURN = 16384
-COUNT_RAD = 2 * math.pi / COUNTS_PER_TURN
+COUNT_RAD = ENCODER_COUNT_RAD
+#: Raw counts of a sample that carried none (wrench-only mode): never a real 14-bit count.
+NO_COUNTS = -1
 INVALID_VALUE = -32768
 MAX_VALUE = 32767
 TEMPERATURE_UNKNOWN = 0x7FFF
@@ -367,3 +369,42 @@ def count_delta(counts, zero) -> np.ndarray:
 def counts_to_theta(counts, zero) -> np.ndarray:
     """Encoder angles theta_e (rad) from raw counts and the device's zero counts."""
     return count_delta(counts, zero) * COUNT_RAD
+
+
+def theta_to_counts(theta, zero=0) -> np.ndarray:
+    """Encoder angles (rad) -> the raw 14-bit counts an encoder reports (uint16), given the
+    counts at zero deflection: the inverse of :func:`counts_to_theta` to the nearest count."""
+    steps = np.round(np.asarray(theta, dtype=float) / COUNT_RAD).astype(np.int64)
+    return np.mod(steps + np.asarray(zero, dtype=np.int64), COUNTS_PER_TURN).astype(np.uint16)
+
+
+def valid_counts(counts, shape: tuple | None = (6,)) -> bool:
+    """Whether ``counts`` are raw encoder counts, 0..16383, of ``shape`` (None: any)."""
+    counts = np.asarray(counts)
+    if shape is not None and counts.shape != tuple(shape):
+        return False
+    return bool(np.all((counts >= 0) & (counts < COUNTS_PER_TURN)))
+
+
+# --- data records as values ----------------------------------------------------------------
+
+def raw_counts(rows) -> np.ndarray:
+    """(N, 6) int64 raw counts from N records' ``counts`` (None: :data:`NO_COUNTS`)."""
+    return np.array([c if c is not None else (NO_COUNTS,) * 6 for c in rows], dtype=np.int64)
+
+
+def wrench_values(wrench_counts, status, lsb) -> np.ndarray:
+    """(N, 6) wrench in N and N*m: counts x LSB per axis; NaN where a sample had no wrench
+    (WRENCH_INVALID set) or an axis holds INVALID_VALUE."""
+    wrench_counts = np.asarray(wrench_counts)
+    invalid = ((np.asarray(status) & Status.WRENCH_INVALID) != 0)[:, None] | (
+        wrench_counts == INVALID_VALUE)
+    return np.where(invalid, np.nan, wrench_counts * np.asarray(lsb, dtype=float))
+
+
+def theta_values(counts, status, zero) -> np.ndarray:
+    """(N, 6) encoder angles (rad) from raw counts; NaN where a sample sent no counts
+    (:data:`NO_COUNTS`) or its status flags that encoder as failed."""
+    counts = np.asarray(counts)
+    failed = ((np.asarray(status)[:, None] >> np.arange(6)) & 1) != 0
+    return np.where(failed | (counts < 0), np.nan, counts_to_theta(counts, zero))

@@ -23,7 +23,7 @@ import numpy as np
 from . import nativebuild
 from .design import Design, load
 from .model import wrench as model_wrench
-from .protocol import COUNT_RAD, COUNTS_PER_TURN, TEMPERATURE_UNKNOWN, Mode, count_delta
+from .protocol import TEMPERATURE_UNKNOWN, Mode, counts_to_theta, theta_to_counts
 from .spec import full_scale
 from delta6_codegen.solver_constants import limit_counts
 
@@ -306,8 +306,7 @@ class SimulatedDevice:
 
     def counts_at(self, time_us) -> np.ndarray:
         """What the encoders read: the angle in whole counts from the mechanical zero."""
-        steps = np.round(self.true_angles(time_us) / COUNT_RAD).astype(np.int64)
-        return (self.mech_zero + steps) % COUNTS_PER_TURN
+        return theta_to_counts(self.true_angles(time_us), self.mech_zero).astype(np.int64)
 
     def _take(self, times: np.ndarray) -> None:
         n = len(times)
@@ -317,7 +316,7 @@ class SimulatedDevice:
             errors |= ((self._rng.random(n) < probability) << (joint - 1)).astype(np.uint8)
         counts = np.where((errors[:, None] >> np.arange(6)) & 1, 0, counts)
         # The application: angles from the device's current zero counts, then the solver.
-        theta = count_delta(counts, self.core.zero_counts) * COUNT_RAD
+        theta = counts_to_theta(counts, self.core.zero_counts)
         wrench = model_wrench(self.design, theta).astype(np.float32)
         solver_ok = np.isfinite(wrench).all(axis=1) & (errors == 0)
         if self.solver_fail:
