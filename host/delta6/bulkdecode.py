@@ -14,16 +14,8 @@ import numpy as np
 
 from .crc import crc16_rows
 from .decoder import DecoderStats, decode_frame
-from .protocol import (ENCODED_SIZES, NO_COUNTS, Info, RecordType, WrenchRecord, raw_counts,
-                       theta_values, wrench_values)
-
-_DATA_DTYPES = {
-    RecordType.WRENCH: np.dtype([("type", "u1"), ("seq", "<u2"), ("time", "<u4"),
-                                 ("status", "<u2"), ("wrench", "<i2", 6), ("crc", ">u2")]),
-    RecordType.WRENCH_RAW: np.dtype([("type", "u1"), ("seq", "<u2"), ("time", "<u4"),
-                                     ("status", "<u2"), ("wrench", "<i2", 6),
-                                     ("counts", "<u2", 6), ("crc", ">u2")]),
-}
+from .protocol import (DATA_FRAME_DTYPES, ENCODED_SIZES, NO_COUNTS, Info, WrenchRecord,
+                       raw_counts, theta_values, wrench_values)
 
 
 @dataclass
@@ -74,7 +66,7 @@ def decode_capture(data: bytes | np.ndarray) -> Capture:
     parts = []        # (frame indices, structured records) per data type
     handled = np.zeros(len(starts), dtype=bool)
     handled[lengths == 0] = True
-    for kind, dtype in _DATA_DTYPES.items():
+    for kind, dtype in DATA_FRAME_DTYPES.items():
         length = ENCODED_SIZES[kind]
         index = np.flatnonzero(lengths == length)
         if index.size == 0:
@@ -164,6 +156,13 @@ def _assemble(parts, recovered) -> Capture:
     seq = np.concatenate(([seq16[0]], seq16[0] + np.cumsum(seq_step))) if len(seq16) else seq16
     time_us = (np.concatenate(([time32[0]], time32[0] + np.cumsum(time_step)))
                if len(time32) else time32)
+    gaps, lost = sequence_counts(seq)
     return Capture(seq=seq, time_us=time_us, status=status, wrench_counts=wrench, counts=counts,
-                   frame_index=frame_index, gaps=int((seq_step > 1).sum()), lost=int((seq_step - 1).clip(0).sum()),
-                   duplicates=duplicates)
+                   frame_index=frame_index, gaps=gaps, lost=lost, duplicates=duplicates)
+
+
+def sequence_counts(seq: np.ndarray) -> tuple[int, int]:
+    """(gaps, lost) of unwrapped sequence numbers: jumps of more than one, and the records
+    missing in them (as :class:`delta6.decoder.SequenceTracker` counts them)."""
+    steps = np.diff(np.asarray(seq, dtype=np.int64))
+    return int((steps > 1).sum()), int((steps - 1).clip(0).sum())

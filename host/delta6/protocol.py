@@ -20,6 +20,7 @@ VERSION = (1, 0)
 
 #: Frame bytes on the wire beyond the payload: CRC (2), COBS code (1), delimiter (1).
 FRAME_OVERHEAD = 4
+CRC_SIZE = 2
 COUNTS_PER_TURN = 16384
 COUNT_RAD = ENCODER_COUNT_RAD
 #: Raw counts of a sample that carried none (wrench-only mode): never a real 14-bit count.
@@ -130,6 +131,20 @@ RECORD_SIZES = {
     RecordType.INFO: _INFO.size, RecordType.ACK: _ACK.size, RecordType.NACK: _NACK.size,
     RecordType.TELEMETRY: _TELEMETRY.size, RecordType.EVENT: _EVENT.size,
 }
+
+#: The data records as numpy structured dtypes, for decoding many at once: one element is a
+#: COBS-decoded frame, the record (the struct layouts above) followed by its CRC.
+_DATA_FIELDS = [("type", "u1"), ("seq", "<u2"), ("time", "<u4"), ("status", "<u2"),
+                ("wrench", "<i2", 6)]
+DATA_FRAME_DTYPES = {
+    RecordType.WRENCH: np.dtype(_DATA_FIELDS + [("crc", ">u2")]),
+    RecordType.WRENCH_RAW: np.dtype(_DATA_FIELDS + [("counts", "<u2", 6), ("crc", ">u2")]),
+}
+for _kind, _dtype in DATA_FRAME_DTYPES.items():
+    if _dtype.itemsize != RECORD_SIZES[_kind] + CRC_SIZE:   # the two layouts must agree
+        raise AssertionError(f"{_kind.name}: dtype of {_dtype.itemsize} bytes, struct of "
+                             f"{RECORD_SIZES[_kind]} + CRC")
+
 #: Argument layout of each command (after type and request id).
 COMMAND_ARGS = {
     Command.GET_INFO: "", Command.PING: "", Command.START: "H", Command.STOP: "",
@@ -307,9 +322,14 @@ def frame(payload: bytes) -> bytes:
 def unframe(encoded: bytes) -> bytes | None:
     """The payload of one encoded frame (delimiter removed), or None if COBS or CRC fail."""
     decoded = cobs.decode(encoded)
-    if decoded is None or len(decoded) < 3 or crc16(decoded) != 0:
+    return None if decoded is None else checked_payload(decoded)
+
+
+def checked_payload(decoded: bytes) -> bytes | None:
+    """The payload of a COBS-decoded frame (payload + CRC), or None if the CRC fails."""
+    if len(decoded) < CRC_SIZE + 1 or crc16(decoded) != 0:
         return None
-    return decoded[:-2]
+    return decoded[:-CRC_SIZE]
 
 
 # --- encoders (commands for the host; records for tests, captures and benchmarks) -------
