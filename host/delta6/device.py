@@ -126,10 +126,13 @@ class Health:
         return d
 
     def summary(self) -> str:
-        d = self.decoder
-        text = (f"{self.samples} samples, {self.samples_lost} lost in {self.sequence_gaps} gaps, "
-                f"{d.crc_errors + d.cobs_errors + d.length_errors} bad frames, "
-                f"{d.bytes_discarded} bytes discarded, {self.queue_drops} queue drops")
+        return (f"{self.samples} samples, {self.samples_lost} lost in {self.sequence_gaps} gaps, "
+                + self.link_summary())
+
+    def link_summary(self) -> str:
+        """The losses on the way (decoder, queue), then the device's own if it reported any."""
+        text = (f"{self.decoder.errors} bad frames, {self.decoder.bytes_discarded} bytes "
+                f"discarded, {self.queue_drops} queue drops")
         if self.telemetry is not None:
             t = self.telemetry
             text += (f"; device: {t.overruns} overruns, {t.tx_dropped} tx drops, "
