@@ -28,13 +28,10 @@ import serial
 from . import protocol as P
 from .decoder import DecoderStats, SequenceTracker, StreamDecoder
 from .errors import UserError
+from .protocol import DEFAULT_BAUD
 from .serialurl import register as _register_url_handlers
 
 _register_url_handlers()
-
-#: The recommended UART rate (docs/protocol.md, "Baud rate"): exact on 16 MHz AVRs, carries
-#: 1 kHz of wrench records at half load.
-DEFAULT_BAUD = 500_000
 
 
 class DeviceError(UserError):
@@ -149,9 +146,6 @@ class _Pending:
         self.response = None
 
 
-_ANSWER_COMMAND = {P.Info: P.Command.GET_INFO, P.Telemetry: P.Command.GET_TELEMETRY}
-
-
 class Device:
     """A Delta6 on ``port``: a serial device name or any pyserial URL (``delta6sim://``,
     ``socket://host:port``, ``loop://``).
@@ -188,6 +182,7 @@ class Device:
         self._tracker = SequenceTracker()
         self._health = Health(decoder=self._decoder.stats)
         self._info: P.Info | None = None
+        self._lsb: np.ndarray | None = None       # self._info.lsb, parsed once per info
         self._failure: DeviceError | None = None
         self._started = False
         self.callback_error: BaseException | None = None
@@ -370,7 +365,7 @@ class Device:
         info = self._require_info()
         t_us, host_t, seq, status, w, counts = zip(*items)
         status = np.array(status, dtype=np.int64)
-        wrench = P.wrench_values(np.array(w, dtype=np.int64), status, info.lsb)
+        wrench = P.wrench_values(np.array(w, dtype=np.int64), status, self._lsb)
         theta = None
         if any(c is not None for c in counts):
             theta = P.theta_values(P.raw_counts(counts), status, info.zero_counts)
@@ -426,7 +421,12 @@ class Device:
 
     def _update_info(self, **changes) -> None:
         if self._info is not None:
-            self._info = self._info._replace(**changes)
+            self._set_info(self._info._replace(**changes))
+
+    def _set_info(self, info: P.Info) -> None:
+        # The scale first: whoever sees the new info (another thread) sees its scale too.
+        self._lsb = info.lsb
+        self._info = info
 
     def _next_request_id(self) -> int:
         self._request_id = self._request_id % 255 + 1    # 1..255; 0 means unsolicited
@@ -526,7 +526,7 @@ class Device:
                 elif isinstance(r, (P.Ack, P.Nack)):
                     self._resolve(r.request_id, r.command, r)
                 elif isinstance(r, P.Info):
-                    self._info = r
+                    self._set_info(r)
                     self._resolve(r.request_id, P.Command.GET_INFO, r)
                 elif isinstance(r, P.Telemetry):
                     self._health.telemetry = r
@@ -578,7 +578,7 @@ class Device:
         info = self._require_info()
         t_us, host_t, seq, status, w, counts = item
         wrench = P.wrench_values(np.array(w, dtype=np.int64)[None], np.array([status]),
-                                 info.lsb)[0]
+                                 self._lsb)[0]
         raw = theta = None
         if counts is not None:
             raw = np.array(counts)

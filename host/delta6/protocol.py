@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import enum
 import struct
+from fractions import Fraction
 from typing import NamedTuple
 
 import numpy as np
@@ -18,6 +19,9 @@ from .model import ENCODER_COUNT_RAD
 
 VERSION = (1, 0)
 
+#: The recommended UART rate (docs/protocol.md, "Baud rate"): exact on 16 MHz AVRs, carries
+#: 1 kHz of wrench records at half load.
+DEFAULT_BAUD = 500_000
 #: Frame bytes on the wire beyond the payload: CRC (2), COBS code (1), delimiter (1).
 FRAME_OVERHEAD = 4
 CRC_SIZE = 2
@@ -29,7 +33,8 @@ INVALID_VALUE = -32768
 MAX_VALUE = 32767
 TEMPERATURE_UNKNOWN = 0x7FFF
 BITS_PER_BYTE = 10           # UART: start bit, 8 data bits, stop bit
-LINK_BUDGET = 0.9            # data records may fill 90 % of the link
+#: Data records may fill 90 % of the link (a fraction: the firmware computes in integers).
+LINK_BUDGET = Fraction(9, 10)
 
 
 class RecordType(enum.IntEnum):
@@ -176,7 +181,10 @@ def link_rate_limit(baud: int, mode: Mode | int) -> int:
     """The device's own limit (integer arithmetic as in the firmware): 90 % of the link."""
     if baud == 0:
         return 0xFFFF
-    return min(0xFFFF, baud // 100 * 9 // wire_bytes(data_record_type(mode)))
+    # Budget bytes per second, baud / 100 * 9 as the firmware divides (first, so that no
+    # product overflows 32 bits): BITS_PER_BYTE x the budget's denominator is the 100.
+    budget = baud // (BITS_PER_BYTE * LINK_BUDGET.denominator) * LINK_BUDGET.numerator
+    return min(0xFFFF, budget // wire_bytes(data_record_type(mode)))
 
 
 # --- records ----------------------------------------------------------------------------

@@ -106,8 +106,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             while args.duration is None or time.monotonic() - started < args.duration:
                 try:
-                    block = dev.read_block(timeout=max(1.0, 20.0 / rate))
-                    _write(stats, block)
+                    _write(stats, dev.read_block())
                 except DeviceError as exc:
                     lost = exc
                     break

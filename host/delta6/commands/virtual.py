@@ -12,12 +12,12 @@ import threading
 from pathlib import Path
 
 from .. import virtualboard as vb
+from ..design import DEFAULT_DESIGN
 from ..errors import UserError
 from ..protocol import theta_to_counts, valid_counts
 from ._port import number
 
 NAME = "virtual"
-DEFAULT_DESIGN = Path(__file__).resolve().parents[3] / "designs" / "delta6.toml"
 #: The twin's sample rate when it drives the board: above any rate the board samples at.
 TWIN_RATE_HZ = 1000.0
 HELP = ("run the virtual board (the firmware on an emulated ATmega328P with six emulated "
@@ -143,7 +143,7 @@ def _serve(board: vb.VirtualBoard, args: argparse.Namespace, what: str | None,
                              daemon=True).start()
         print(board.port, flush=True)
         notes = [f"virtual board on {board.port}: firmware {board.image.elf.name} on an emulated "
-                 "ATmega328P at 16 MHz, 500000 baud"]
+                 f"ATmega328P at 16 MHz, {board.baud} baud"]
         if what:
             notes.append(f"encoders: {what}")
         if board.live_path is not None:
