@@ -47,6 +47,23 @@ def test_partial_file_until_clean_close(tmp_path):
     assert len(read_log(path)) == 1
 
 
+def test_blocks_reach_the_os_at_once_and_the_disk_every_flush_every_rows(tmp_path,
+                                                                           monkeypatch):
+    synced = []
+    monkeypatch.setattr("delta6.logfile.os.fsync", lambda fd: synced.append(fd))
+    path = tmp_path / "run.csv"
+    partial = tmp_path / ("run.csv" + PARTIAL_SUFFIX)
+    log = LogWriter(path, flush_every=25)
+    for i in range(10):
+        t = np.arange(10) * 0.001 + i * 0.01
+        log.write_block(t, np.zeros((10, 6)), np.ones((10, 6)))
+        # A crash now would leave every row written so far in the .partial file.
+        assert len(partial.read_text().strip().splitlines()) - 3 == 10 * (i + 1)
+    assert len(synced) == 3          # after 30, 60 and 90 rows, not after every block
+    log.close()
+    assert len(synced) == 4 and len(read_log(path)) == 100
+
+
 def test_exception_inside_context_still_keeps_the_data(tmp_path):
     path = tmp_path / "run.csv"
     with pytest.raises(RuntimeError):

@@ -7,6 +7,7 @@ from hypothesis import given, strategies as st
 from hypothesis.extra.numpy import arrays
 
 from delta6 import model, twin
+from delta6 import protocol as P
 from delta6.logfile import read_log
 
 
@@ -67,7 +68,7 @@ def test_replay_file_is_the_log(short_run, tmp_path):
 def test_counts_are_what_the_encoder_reports(theta, zero):
     counts = twin.to_counts(theta, zero)
     assert counts.dtype == np.uint16 and np.all(counts < 2**14)
-    back = (counts.astype(np.int64) - zero + 2**13) % 2**14 - 2**13
+    back = P.count_delta(counts, zero)
     assert np.allclose(back * model.ENCODER_COUNT_RAD, theta, atol=model.ENCODER_COUNT_RAD / 2
                        + 1e-12)
 

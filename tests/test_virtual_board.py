@@ -40,8 +40,8 @@ def design():
 def motion(tmp_path):
     """3 s of motion over most of the joint box, at 1 kHz, as raw counts with ZERO."""
     t, theta = demo_trajectory(duration_s=3.0, rate_hz=1000.0, amplitude=0.9)
-    return t, theta_to_counts(theta, ZERO), write_replay(tmp_path / "motion.d6rp", t,
-                                                          theta_to_counts(theta, ZERO))
+    counts = theta_to_counts(theta, ZERO)
+    return t, counts, write_replay(tmp_path / "motion.d6rp", t, counts)
 
 
 def samples_as_arrays(samples):

@@ -14,16 +14,8 @@ import numpy as np
 
 from .crc import crc16_rows
 from .decoder import DecoderStats, decode_frame
-from .protocol import (ENCODED_SIZES, INVALID_VALUE, Info, RecordType, Status, WrenchRecord,
-                       counts_to_theta)
-
-_DATA_DTYPES = {
-    RecordType.WRENCH: np.dtype([("type", "u1"), ("seq", "<u2"), ("time", "<u4"),
-                                 ("status", "<u2"), ("wrench", "<i2", 6), ("crc", ">u2")]),
-    RecordType.WRENCH_RAW: np.dtype([("type", "u1"), ("seq", "<u2"), ("time", "<u4"),
-                                     ("status", "<u2"), ("wrench", "<i2", 6),
-                                     ("counts", "<u2", 6), ("crc", ">u2")]),
-}
+from .protocol import (DATA_FRAME_DTYPES, ENCODED_SIZES, NO_COUNTS, Info, WrenchRecord,
+                       raw_counts, theta_values, wrench_values)
 
 
 @dataclass
@@ -34,7 +26,7 @@ class Capture:
     time_us: np.ndarray      # unwrapped device time (int64)
     status: np.ndarray       # uint16
     wrench_counts: np.ndarray  # (N, 6) int16, INVALID_VALUE where the sample had no wrench
-    counts: np.ndarray       # (N, 6) int32 raw encoder counts, -1 where not sent
+    counts: np.ndarray       # (N, 6) int32 raw encoder counts, NO_COUNTS where not sent
     frame_index: np.ndarray  # position of each record among the capture's frames
     other: list = field(default_factory=list)   # (frame index, record) of non-data records
     stats: DecoderStats = field(default_factory=DecoderStats)
@@ -56,16 +48,11 @@ class Capture:
 
     def wrench(self, lsb) -> np.ndarray:
         """Wrench in N and N*m: counts x LSB per axis; NaN where the sample had none."""
-        values = self.wrench_counts * np.asarray(lsb, dtype=float)
-        invalid = ((self.status & Status.WRENCH_INVALID) != 0)[:, None] | (
-            self.wrench_counts == INVALID_VALUE)
-        return np.where(invalid, np.nan, values)
+        return wrench_values(self.wrench_counts, self.status, lsb)
 
     def theta(self, zero_counts) -> np.ndarray:
         """Encoder angles (rad); NaN where no counts were sent or the encoder failed."""
-        theta = counts_to_theta(self.counts, zero_counts)
-        failed = (self.status[:, None] >> np.arange(6)) & 1
-        return np.where((self.counts < 0) | (failed != 0), np.nan, theta)
+        return theta_values(self.counts, self.status, zero_counts)
 
 
 def decode_capture(data: bytes | np.ndarray) -> Capture:
@@ -79,7 +66,7 @@ def decode_capture(data: bytes | np.ndarray) -> Capture:
     parts = []        # (frame indices, structured records) per data type
     handled = np.zeros(len(starts), dtype=bool)
     handled[lengths == 0] = True
-    for kind, dtype in _DATA_DTYPES.items():
+    for kind, dtype in DATA_FRAME_DTYPES.items():
         length = ENCODED_SIZES[kind]
         index = np.flatnonzero(lengths == length)
         if index.size == 0:
@@ -138,15 +125,14 @@ def _assemble(parts, recovered) -> Capture:
     status = [p[1]["status"] for p in parts]
     wrench = [p[1]["wrench"] for p in parts]
     counts = [p[1]["counts"].astype(np.int32) if "counts" in p[1].dtype.names
-              else np.full((len(p[1]), 6), -1, np.int32) for p in parts]
+              else np.full((len(p[1]), 6), NO_COUNTS, np.int32) for p in parts]
     if recovered:
         index.append(np.array([i for i, _ in recovered]))
         seq.append(np.array([r.seq for _, r in recovered]))
         time.append(np.array([r.time_us for _, r in recovered]))
         status.append(np.array([r.status for _, r in recovered]))
         wrench.append(np.array([r.wrench for _, r in recovered]))
-        counts.append(np.array([r.counts if r.counts is not None else (-1,) * 6
-                                for _, r in recovered]))
+        counts.append(raw_counts(r.counts for _, r in recovered))
     if not index:
         empty = np.zeros(0, np.int64)
         return Capture(empty, empty, np.zeros(0, np.uint16), np.zeros((0, 6), np.int16),
@@ -170,6 +156,13 @@ def _assemble(parts, recovered) -> Capture:
     seq = np.concatenate(([seq16[0]], seq16[0] + np.cumsum(seq_step))) if len(seq16) else seq16
     time_us = (np.concatenate(([time32[0]], time32[0] + np.cumsum(time_step)))
                if len(time32) else time32)
+    gaps, lost = sequence_counts(seq)
     return Capture(seq=seq, time_us=time_us, status=status, wrench_counts=wrench, counts=counts,
-                   frame_index=frame_index, gaps=int((seq_step > 1).sum()), lost=int((seq_step - 1).clip(0).sum()),
-                   duplicates=duplicates)
+                   frame_index=frame_index, gaps=gaps, lost=lost, duplicates=duplicates)
+
+
+def sequence_counts(seq: np.ndarray) -> tuple[int, int]:
+    """(gaps, lost) of unwrapped sequence numbers: jumps of more than one, and the records
+    missing in them (as :class:`delta6.decoder.SequenceTracker` counts them)."""
+    steps = np.diff(np.asarray(seq, dtype=np.int64))
+    return int((steps > 1).sum()), int((steps - 1).clip(0).sum())

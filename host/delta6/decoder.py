@@ -11,8 +11,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from . import cobs
-from .crc import crc16
-from .protocol import ENCODED_SIZES, MAX_RECORD_SIZE, ProtocolError, parse_payload
+from .protocol import (ENCODED_SIZES, MAX_RECORD_SIZE, ProtocolError, checked_payload,
+                       parse_payload, unframe)
 
 #: Frames longer than this are discarded without decoding (largest record + slack).
 MAX_FRAME = MAX_RECORD_SIZE + 64
@@ -52,21 +52,21 @@ def decode_frame(encoded: bytes, stats: DecoderStats, first: bool = False):
     if not encoded:
         return None
     stats.frames += 1
-    if len(encoded) <= MAX_FRAME:
-        decoded = cobs.decode(encoded)
-        if decoded is not None and len(decoded) >= 3 and crc16(decoded) == 0:
-            try:
-                record = parse_payload(decoded[:-2])
-            except ProtocolError:
-                if decoded[0] in _KNOWN_TYPES:
-                    stats.length_errors += 1
-                else:
-                    stats.unknown_types += 1
-                stats.bytes_discarded += len(encoded)
-                stats.resyncs += 1
-                return None
-            stats.records += 1
-            return record
+    decoded = cobs.decode(encoded) if len(encoded) <= MAX_FRAME else None
+    payload = None if decoded is None else checked_payload(decoded)
+    if payload is not None:
+        try:
+            record = parse_payload(payload)
+        except ProtocolError:
+            if payload[0] in _KNOWN_TYPES:
+                stats.length_errors += 1
+            else:
+                stats.unknown_types += 1
+            stats.bytes_discarded += len(encoded)
+            stats.resyncs += 1
+            return None
+        stats.records += 1
+        return record
     record, used = _recover_tail(encoded)
     if first:
         stats.frames -= 1
@@ -74,7 +74,7 @@ def decode_frame(encoded: bytes, stats: DecoderStats, first: bool = False):
     else:
         if len(encoded) > MAX_FRAME:
             stats.oversize += 1
-        elif cobs.decode(encoded) is None:
+        elif decoded is None:
             stats.cobs_errors += 1
         else:
             stats.crc_errors += 1
@@ -94,11 +94,8 @@ def _recover_tail(encoded: bytes):
     for length in _TAIL_LENGTHS:
         if length >= len(encoded):
             break
-        decoded = cobs.decode(encoded[-length:])
-        if decoded is None or crc16(decoded) != 0:
-            continue
-        payload = decoded[:-2]
-        if ENCODED_SIZES.get(payload[0]) != length:
+        payload = unframe(encoded[-length:])
+        if payload is None or ENCODED_SIZES.get(payload[0]) != length:
             continue
         return parse_payload(payload), length
     return None, 0

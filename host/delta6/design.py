@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+#: The design the tools use when none is given: the paper's Delta6.
+DEFAULT_DESIGN = Path(__file__).resolve().parents[2] / "designs" / "delta6.toml"
 #: Joint range of every encoder, both signs, in radians (the paper samples [-pi/6, pi/6]).
 DEFAULT_JOINT_LIMIT_RAD = math.pi / 6
 

@@ -28,13 +28,10 @@ import serial
 from . import protocol as P
 from .decoder import DecoderStats, SequenceTracker, StreamDecoder
 from .errors import UserError
+from .protocol import DEFAULT_BAUD
 from .serialurl import register as _register_url_handlers
 
 _register_url_handlers()
-
-#: The recommended UART rate (docs/protocol.md, "Baud rate"): exact on 16 MHz AVRs, carries
-#: 1 kHz of wrench records at half load.
-DEFAULT_BAUD = 500_000
 
 
 class DeviceError(UserError):
@@ -126,10 +123,13 @@ class Health:
         return d
 
     def summary(self) -> str:
-        d = self.decoder
-        text = (f"{self.samples} samples, {self.samples_lost} lost in {self.sequence_gaps} gaps, "
-                f"{d.crc_errors + d.cobs_errors + d.length_errors} bad frames, "
-                f"{d.bytes_discarded} bytes discarded, {self.queue_drops} queue drops")
+        return (f"{self.samples} samples, {self.samples_lost} lost in {self.sequence_gaps} gaps, "
+                + self.link_summary())
+
+    def link_summary(self) -> str:
+        """The losses on the way (decoder, queue), then the device's own if it reported any."""
+        text = (f"{self.decoder.errors} bad frames, {self.decoder.bytes_discarded} bytes "
+                f"discarded, {self.queue_drops} queue drops")
         if self.telemetry is not None:
             t = self.telemetry
             text += (f"; device: {t.overruns} overruns, {t.tx_dropped} tx drops, "
@@ -144,9 +144,6 @@ class _Pending:
         self.command = command
         self.event = threading.Event()
         self.response = None
-
-
-_ANSWER_COMMAND = {P.Info: P.Command.GET_INFO, P.Telemetry: P.Command.GET_TELEMETRY}
 
 
 class Device:
@@ -185,6 +182,7 @@ class Device:
         self._tracker = SequenceTracker()
         self._health = Health(decoder=self._decoder.stats)
         self._info: P.Info | None = None
+        self._lsb: np.ndarray | None = None       # self._info.lsb, parsed once per info
         self._failure: DeviceError | None = None
         self._started = False
         self.callback_error: BaseException | None = None
@@ -327,7 +325,7 @@ class Device:
 
     def set_zero(self, counts) -> None:
         counts = [int(c) for c in counts]
-        if len(counts) != 6 or not all(0 <= c < P.COUNTS_PER_TURN for c in counts):
+        if not P.valid_counts(counts):
             raise DeviceError("zero counts are six integers 0..16383")
         self._request(P.Command.SET_ZERO, *counts)
         self.info(refresh=True)
@@ -367,11 +365,10 @@ class Device:
         info = self._require_info()
         t_us, host_t, seq, status, w, counts = zip(*items)
         status = np.array(status, dtype=np.int64)
-        wrench = _scale(np.array(w, dtype=np.int64), status, info.lsb)
+        wrench = P.wrench_values(np.array(w, dtype=np.int64), status, self._lsb)
         theta = None
         if any(c is not None for c in counts):
-            raw = np.array([c if c is not None else (-1,) * 6 for c in counts], dtype=np.int64)
-            theta = _theta(raw, status, info.zero_counts)
+            theta = P.theta_values(P.raw_counts(counts), status, info.zero_counts)
         return SampleBlock(t=np.array(t_us) * 1e-6, host_t=np.array(host_t),
                            seq=np.array(seq, dtype=np.int64), status=status, wrench=wrench,
                            theta=theta)
@@ -424,7 +421,12 @@ class Device:
 
     def _update_info(self, **changes) -> None:
         if self._info is not None:
-            self._info = self._info._replace(**changes)
+            self._set_info(self._info._replace(**changes))
+
+    def _set_info(self, info: P.Info) -> None:
+        # The scale first: whoever sees the new info (another thread) sees its scale too.
+        self._lsb = info.lsb
+        self._info = info
 
     def _next_request_id(self) -> int:
         self._request_id = self._request_id % 255 + 1    # 1..255; 0 means unsolicited
@@ -524,7 +526,7 @@ class Device:
                 elif isinstance(r, (P.Ack, P.Nack)):
                     self._resolve(r.request_id, r.command, r)
                 elif isinstance(r, P.Info):
-                    self._info = r
+                    self._set_info(r)
                     self._resolve(r.request_id, P.Command.GET_INFO, r)
                 elif isinstance(r, P.Telemetry):
                     self._health.telemetry = r
@@ -575,24 +577,14 @@ class Device:
     def _sample(self, item) -> Sample:
         info = self._require_info()
         t_us, host_t, seq, status, w, counts = item
-        wrench = _scale(np.array(w, dtype=np.int64)[None], np.array([status]), info.lsb)[0]
+        wrench = P.wrench_values(np.array(w, dtype=np.int64)[None], np.array([status]),
+                                 self._lsb)[0]
         raw = theta = None
         if counts is not None:
             raw = np.array(counts)
-            theta = _theta(raw[None], np.array([status]), info.zero_counts)[0]
+            theta = P.theta_values(raw[None], np.array([status]), info.zero_counts)[0]
         return Sample(t=t_us * 1e-6, host_t=host_t, seq=seq, status=status, wrench=wrench,
                       counts=raw, theta=theta)
-
-
-def _scale(counts: np.ndarray, status: np.ndarray, lsb: np.ndarray) -> np.ndarray:
-    invalid = ((status & P.Status.WRENCH_INVALID) != 0)[:, None] | (counts == P.INVALID_VALUE)
-    return np.where(invalid, np.nan, counts * lsb)
-
-
-def _theta(counts: np.ndarray, status: np.ndarray, zero) -> np.ndarray:
-    failed = ((status[:, None] >> np.arange(6)) & 1) != 0
-    theta = P.counts_to_theta(counts, zero)
-    return np.where(failed | (counts < 0), np.nan, theta)
 
 
 def _reason(exc: BaseException) -> str:

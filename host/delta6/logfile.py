@@ -4,7 +4,9 @@ One format for everything that records samples: the host logger (``delta6 log``)
 capture decoder (``delta6 decode``), the digital twin (``delta6 simulate``) and the gap
 diagnosis (``delta6 diagnose``, which reads it). Writers stream into ``FILE.partial`` and
 rename it to ``FILE`` only on a clean close, so a file without the suffix is always complete,
-and a crash leaves everything flushed so far in the ``.partial`` file.
+and a crash leaves everything flushed so far in the ``.partial`` file (flushed to the operating
+system: every block, and every ``flush_every`` rows; to the disk, fsync: every ``flush_every``
+rows and at the end).
 """
 from __future__ import annotations
 
@@ -72,6 +74,8 @@ class LogWriter:
 
     ``meta`` goes into the header as ``# key=value`` lines (conventionally ``design``,
     ``design_hash``, ``source``). ``optional`` picks the optional columns to write.
+    ``flush_every`` rows are forced to disk at a time (fsync); blocks are handed to the
+    operating system as they are written, so only a power cut can lose the rows since.
     Use as a context manager: a clean exit renames the file, an exception still closes and
     renames it (nothing received is lost) unless ``keep_partial_on_error`` is set.
     """
@@ -123,9 +127,14 @@ class LogWriter:
         text = buf.getvalue().replace("nan", "")
         self._file.write(text)
         self.rows += n
-        self.flush()
+        self._pending += n
+        if self._pending >= self.flush_every:
+            self.flush()
+        else:
+            self._file.flush()     # to the OS: a crash of this process loses none of it
 
     def flush(self) -> None:
+        """Everything written so far to the OS and on to the disk (fsync)."""
         self._file.flush()
         os.fsync(self._file.fileno())
         self._pending = 0

@@ -7,26 +7,34 @@ single frames; :mod:`delta6.decoder` and :mod:`delta6.bulkdecode` split byte str
 from __future__ import annotations
 
 import enum
-import math
 import struct
+from fractions import Fraction
 from typing import NamedTuple
 
 import numpy as np
 
 from . import cobs
 from .crc import crc16
+from .model import ENCODER_COUNT_RAD
 
 VERSION = (1, 0)
 
+#: The recommended UART rate (docs/protocol.md, "Baud rate"): exact on 16 MHz AVRs, carries
+#: 1 kHz of wrench records at half load.
+DEFAULT_BAUD = 500_000
 #: Frame bytes on the wire beyond the payload: CRC (2), COBS code (1), delimiter (1).
 FRAME_OVERHEAD = 4
+CRC_SIZE = 2
 COUNTS_PER_TURN = 16384
-COUNT_RAD = 2 * math.pi / COUNTS_PER_TURN
+COUNT_RAD = ENCODER_COUNT_RAD
+#: Raw counts of a sample that carried none (wrench-only mode): never a real 14-bit count.
+NO_COUNTS = -1
 INVALID_VALUE = -32768
 MAX_VALUE = 32767
 TEMPERATURE_UNKNOWN = 0x7FFF
 BITS_PER_BYTE = 10           # UART: start bit, 8 data bits, stop bit
-LINK_BUDGET = 0.9            # data records may fill 90 % of the link
+#: Data records may fill 90 % of the link (a fraction: the firmware computes in integers).
+LINK_BUDGET = Fraction(9, 10)
 
 
 class RecordType(enum.IntEnum):
@@ -128,6 +136,20 @@ RECORD_SIZES = {
     RecordType.INFO: _INFO.size, RecordType.ACK: _ACK.size, RecordType.NACK: _NACK.size,
     RecordType.TELEMETRY: _TELEMETRY.size, RecordType.EVENT: _EVENT.size,
 }
+
+#: The data records as numpy structured dtypes, for decoding many at once: one element is a
+#: COBS-decoded frame, the record (the struct layouts above) followed by its CRC.
+_DATA_FIELDS = [("type", "u1"), ("seq", "<u2"), ("time", "<u4"), ("status", "<u2"),
+                ("wrench", "<i2", 6)]
+DATA_FRAME_DTYPES = {
+    RecordType.WRENCH: np.dtype(_DATA_FIELDS + [("crc", ">u2")]),
+    RecordType.WRENCH_RAW: np.dtype(_DATA_FIELDS + [("counts", "<u2", 6), ("crc", ">u2")]),
+}
+for _kind, _dtype in DATA_FRAME_DTYPES.items():
+    if _dtype.itemsize != RECORD_SIZES[_kind] + CRC_SIZE:   # the two layouts must agree
+        raise AssertionError(f"{_kind.name}: dtype of {_dtype.itemsize} bytes, struct of "
+                             f"{RECORD_SIZES[_kind]} + CRC")
+
 #: Argument layout of each command (after type and request id).
 COMMAND_ARGS = {
     Command.GET_INFO: "", Command.PING: "", Command.START: "H", Command.STOP: "",
@@ -159,7 +181,10 @@ def link_rate_limit(baud: int, mode: Mode | int) -> int:
     """The device's own limit (integer arithmetic as in the firmware): 90 % of the link."""
     if baud == 0:
         return 0xFFFF
-    return min(0xFFFF, baud // 100 * 9 // wire_bytes(data_record_type(mode)))
+    # Budget bytes per second, baud / 100 * 9 as the firmware divides (first, so that no
+    # product overflows 32 bits): BITS_PER_BYTE x the budget's denominator is the 100.
+    budget = baud // (BITS_PER_BYTE * LINK_BUDGET.denominator) * LINK_BUDGET.numerator
+    return min(0xFFFF, budget // wire_bytes(data_record_type(mode)))
 
 
 # --- records ----------------------------------------------------------------------------
@@ -305,9 +330,14 @@ def frame(payload: bytes) -> bytes:
 def unframe(encoded: bytes) -> bytes | None:
     """The payload of one encoded frame (delimiter removed), or None if COBS or CRC fail."""
     decoded = cobs.decode(encoded)
-    if decoded is None or len(decoded) < 3 or crc16(decoded) != 0:
+    return None if decoded is None else checked_payload(decoded)
+
+
+def checked_payload(decoded: bytes) -> bytes | None:
+    """The payload of a COBS-decoded frame (payload + CRC), or None if the CRC fails."""
+    if len(decoded) < CRC_SIZE + 1 or crc16(decoded) != 0:
         return None
-    return decoded[:-2]
+    return decoded[:-CRC_SIZE]
 
 
 # --- encoders (commands for the host; records for tests, captures and benchmarks) -------
@@ -367,3 +397,42 @@ def count_delta(counts, zero) -> np.ndarray:
 def counts_to_theta(counts, zero) -> np.ndarray:
     """Encoder angles theta_e (rad) from raw counts and the device's zero counts."""
     return count_delta(counts, zero) * COUNT_RAD
+
+
+def theta_to_counts(theta, zero=0) -> np.ndarray:
+    """Encoder angles (rad) -> the raw 14-bit counts an encoder reports (uint16), given the
+    counts at zero deflection: the inverse of :func:`counts_to_theta` to the nearest count."""
+    steps = np.round(np.asarray(theta, dtype=float) / COUNT_RAD).astype(np.int64)
+    return np.mod(steps + np.asarray(zero, dtype=np.int64), COUNTS_PER_TURN).astype(np.uint16)
+
+
+def valid_counts(counts, shape: tuple | None = (6,)) -> bool:
+    """Whether ``counts`` are raw encoder counts, 0..16383, of ``shape`` (None: any)."""
+    counts = np.asarray(counts)
+    if shape is not None and counts.shape != tuple(shape):
+        return False
+    return bool(np.all((counts >= 0) & (counts < COUNTS_PER_TURN)))
+
+
+# --- data records as values ----------------------------------------------------------------
+
+def raw_counts(rows) -> np.ndarray:
+    """(N, 6) int64 raw counts from N records' ``counts`` (None: :data:`NO_COUNTS`)."""
+    return np.array([c if c is not None else (NO_COUNTS,) * 6 for c in rows], dtype=np.int64)
+
+
+def wrench_values(wrench_counts, status, lsb) -> np.ndarray:
+    """(N, 6) wrench in N and N*m: counts x LSB per axis; NaN where a sample had no wrench
+    (WRENCH_INVALID set) or an axis holds INVALID_VALUE."""
+    wrench_counts = np.asarray(wrench_counts)
+    invalid = ((np.asarray(status) & Status.WRENCH_INVALID) != 0)[:, None] | (
+        wrench_counts == INVALID_VALUE)
+    return np.where(invalid, np.nan, wrench_counts * np.asarray(lsb, dtype=float))
+
+
+def theta_values(counts, status, zero) -> np.ndarray:
+    """(N, 6) encoder angles (rad) from raw counts; NaN where a sample sent no counts
+    (:data:`NO_COUNTS`) or its status flags that encoder as failed."""
+    counts = np.asarray(counts)
+    failed = ((np.asarray(status)[:, None] >> np.arange(6)) & 1) != 0
+    return np.where(failed | (counts < 0), np.nan, counts_to_theta(counts, zero))

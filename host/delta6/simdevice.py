@@ -21,13 +21,13 @@ from pathlib import Path
 import numpy as np
 
 from . import nativebuild
-from .design import Design, load
+from .design import DEFAULT_DESIGN, Design, load
 from .model import wrench as model_wrench
-from .protocol import COUNT_RAD, COUNTS_PER_TURN, TEMPERATURE_UNKNOWN, Mode, count_delta
+from .protocol import (DEFAULT_BAUD, TEMPERATURE_UNKNOWN, Mode, counts_to_theta,
+                       theta_to_counts)
 from .spec import full_scale
 from delta6_codegen.solver_constants import limit_counts
 
-DEFAULT_DESIGN = nativebuild.ROOT / "designs" / "delta6.toml"
 #: Encoder counts at zero deflection of the simulated mechanism (any values do).
 DEFAULT_ZERO = (1200, 5400, 9800, 14100, 300, 16000)
 EEPROM_SIZE = 256
@@ -231,7 +231,7 @@ class SimulatedDevice:
     """
 
     def __init__(self, design: Design | str | Path | None = None, *, rate_hz: int = 200,
-                 baud: int = 500_000, max_rate_hz: int = 2000, motion: Motion | None = None,
+                 baud: int = DEFAULT_BAUD, max_rate_hz: int = 2000, motion: Motion | None = None,
                  zero_counts=DEFAULT_ZERO, eeprom: bytes | None = None, tx_capacity: int = 256,
                  encoder_faults: dict | None = None, solver_fail: float = 0.0,
                  overrun: float = 0.0, loop_time_us: int = 600,
@@ -240,6 +240,7 @@ class SimulatedDevice:
         if design is None or isinstance(design, (str, Path)):
             design = load(design or DEFAULT_DESIGN, check_geometry=False)
         self.design = design
+        self.baud = baud
         self.full_scale = full_scale(design)
         self.motion = motion or Motion.sine(design, seed=seed)
         self.mech_zero = np.asarray(zero_counts, dtype=np.int64)
@@ -306,8 +307,7 @@ class SimulatedDevice:
 
     def counts_at(self, time_us) -> np.ndarray:
         """What the encoders read: the angle in whole counts from the mechanical zero."""
-        steps = np.round(self.true_angles(time_us) / COUNT_RAD).astype(np.int64)
-        return (self.mech_zero + steps) % COUNTS_PER_TURN
+        return theta_to_counts(self.true_angles(time_us), self.mech_zero).astype(np.int64)
 
     def _take(self, times: np.ndarray) -> None:
         n = len(times)
@@ -317,7 +317,7 @@ class SimulatedDevice:
             errors |= ((self._rng.random(n) < probability) << (joint - 1)).astype(np.uint8)
         counts = np.where((errors[:, None] >> np.arange(6)) & 1, 0, counts)
         # The application: angles from the device's current zero counts, then the solver.
-        theta = count_delta(counts, self.core.zero_counts) * COUNT_RAD
+        theta = counts_to_theta(counts, self.core.zero_counts)
         wrench = model_wrench(self.design, theta).astype(np.float32)
         solver_ok = np.isfinite(wrench).all(axis=1) & (errors == 0)
         if self.solver_fail:

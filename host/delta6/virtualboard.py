@@ -32,12 +32,11 @@ import numpy as np
 from . import appbuild, avrbuild, avrsim
 from .errors import UserError
 from .logfile import LogError, read_log
-from .twin.realtime import to_counts
+from .protocol import DEFAULT_BAUD, theta_to_counts, valid_counts
 
 HARNESS_DIR = avrbuild.REPO_ROOT / "tools" / "simavr" / "virtual_board"
 CONTRACT = avrbuild.FIRMWARE / "src" / "board_contract.h"
 FAULT_KINDS = ("biterror", "weak", "strong", "noanswer")
-COUNTS_PER_TURN = 16384
 EEPROM_SIZE = 1024
 REPLAY_MAGIC = b"D6RP"
 
@@ -101,13 +100,7 @@ def firmware(design_include: Path | None = None, *, test_hooks: bool = False,
     return appbuild.build_app(design_include, name=name, defines=extra)
 
 
-# --- angles -----------------------------------------------------------------------------------
-
-def theta_to_counts(theta, zero=0) -> np.ndarray:
-    """Encoder angles (rad) -> the raw 14-bit counts a sensor reports, given the counts at zero
-    deflection (the digital twin's encoder model)."""
-    return to_counts(theta, np.asarray(zero, dtype=np.int64))
-
+# --- replay files -----------------------------------------------------------------------------
 
 def write_replay(path: Path, t, counts) -> Path:
     """The harness's replay file: t (s, from 0, non-decreasing) and (n, 6) raw counts."""
@@ -117,7 +110,7 @@ def write_replay(path: Path, t, counts) -> Path:
         raise VirtualBoardError("a replay needs n time stamps and (n, 6) counts, n >= 1")
     if not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0) or t[0] < 0:
         raise VirtualBoardError("replay time stamps must be finite, from 0, non-decreasing")
-    if np.any((counts < 0) | (counts >= COUNTS_PER_TURN)):
+    if not valid_counts(counts, shape=None):
         raise VirtualBoardError("replay counts must be 0..16383")
     records = np.zeros(len(t), dtype=[("t", "<f8"), ("c", "<u2", (6,))])
     records["t"] = t
@@ -132,15 +125,11 @@ def replay_from_log(log_path: Path, out: Path, zero=0) -> tuple[Path, int]:
     """Convert a log (``t``, ``theta_e1..6``; ``docs/log-format.md``) into a replay file whose
     times start at 0. Rows with a missing angle hold the previous row's counts. Returns the
     path and the number of samples."""
-    try:
+    try:   # a log has samples and strictly increasing time, or read_log says why not
         data = read_log(log_path, require_complete_rows=False)
     except LogError as exc:
         raise VirtualBoardError(f"replay file: {exc}") from None
     t, theta = np.asarray(data.t, dtype=float), np.asarray(data.theta, dtype=float)
-    if len(t) == 0:
-        raise VirtualBoardError(f"replay file {log_path} has no samples")
-    if np.any(np.diff(t) < 0):
-        raise VirtualBoardError(f"replay file {log_path}: time goes back")
     missing = ~np.isfinite(theta).all(axis=1)
     if missing.all():
         raise VirtualBoardError(f"replay file {log_path} has no complete row of theta_e1..6 "
@@ -190,12 +179,12 @@ class VirtualBoard:
                  eeprom: Path | None = None, speed: float = 1.0,
                  duration: float | None = None, read_log: Path | None = None,
                  wait_for_client: bool = True, bus_timing_ns: tuple[int, int, int] | None = None,
-                 baud: int = 500_000, ram_dump: Path | None = None):
+                 baud: int = DEFAULT_BAUD, ram_dump: Path | None = None):
         self.image = image or firmware()
         self.replay = Path(replay) if replay else None
         self.loop = loop
         self.zero = np.broadcast_to(np.asarray(zero, dtype=np.int64), (6,)).copy()
-        if np.any((self.zero < 0) | (self.zero >= COUNTS_PER_TURN)):
+        if not valid_counts(self.zero):
             raise VirtualBoardError("zero counts must be 0..16383")
         self.want_live = live
         self.faults = list(faults)
@@ -404,7 +393,7 @@ class LiveChannel:
 
     def set_counts(self, t: float | None, counts) -> None:
         values = [int(c) for c in counts]
-        if len(values) != 6 or not all(0 <= c < COUNTS_PER_TURN for c in values):
+        if not valid_counts(values):
             raise VirtualBoardError("counts are six integers 0..16383")
         self._send(f"counts {self._at(t)} " + " ".join(map(str, values)))
 

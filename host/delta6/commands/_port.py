@@ -5,9 +5,11 @@ import argparse
 import sys
 
 from ..device import DEFAULT_BAUD, Device
+from ..model import AXES  # noqa: F401 - the axis names the subcommands print
 from ..protocol import Info, Mode, Status
 
-AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+#: Status bits that inform rather than warn: left out of the short display.
+QUIET_FLAGS = Status.TARE_ACTIVE | Status.CONFIG_DEFAULTS
 
 
 def number(option: str, kind: type = float, low: float | None = None,
@@ -57,9 +59,8 @@ def start_stream(dev: Device, args: argparse.Namespace) -> int:
     return dev.start(args.rate)
 
 
-def flag_names(status: int) -> str:
-    """Status bits as short names ('ok' when none but the informational ones are set)."""
-    quiet = Status.TARE_ACTIVE | Status.CONFIG_DEFAULTS
+def flag_names(status: int, quiet: int = QUIET_FLAGS) -> str:
+    """Status bits as short names, without the ``quiet`` ones ('ok' when none is left)."""
     names = [f.name.lower() for f in Status if f & status and not f & quiet]
     return ",".join(names) if names else "ok"
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bulkdecode import decode_capture
+from ..bulkdecode import decode_capture, sequence_counts
 from ..design import load
 from ..errors import UserError
 from ..logfile import LogWriter
@@ -76,9 +76,8 @@ def run(args: argparse.Namespace) -> int:
                 progress.show(f"{part.stop} / {rows} rows")
     progress.end()
     s = capture.stats
-    steps = np.diff(capture.seq[:rows])
-    print(f"{args.output}: {rows} samples, {int((steps - 1).sum())} missing in "
-          f"{int((steps > 1).sum())} "
+    gaps, lost = sequence_counts(capture.seq[:rows])    # before the restart, if one cut it
+    print(f"{args.output}: {rows} samples, {lost} missing in {gaps} "
           f"gaps, {s.resyncs} damaged frames ({s.recovered} records recovered), "
           f"{s.bytes_discarded} bytes discarded, {capture.duplicates} duplicates"
           + ("" if theta is not None or zero is None else "; no raw counts: angles left empty")

@@ -5,7 +5,7 @@ import argparse
 import json
 
 from ..protocol import Mode, Status, link_rate_limit
-from ._port import AXES, add_port_arguments, open_device
+from ._port import AXES, add_port_arguments, flag_names, open_device
 
 NAME = "info"
 HELP = "print the device's identity, scaling, configuration and health"
@@ -26,7 +26,6 @@ def run(args: argparse.Namespace) -> int:
                "telemetry": telemetry._asdict()}
         print(json.dumps(out, indent=2))
         return 0
-    flags = [f.name.lower() for f in Status if f & info.status] or ["ok"]
     unit = ("N",) * 3 + ("N*m",) * 3
     lines = [
         f"Delta6 on {args.port}: design '{info.design_name}' (hash 0x{info.design_hash:08x}), "
@@ -36,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
         f"carries {link_rate_limit(info.baud, Mode.WRENCH)} Hz wrench, "
         f"{link_rate_limit(info.baud, Mode.WRENCH_RAW)} Hz wrench+raw)",
         f"  mode {Mode(info.mode).name.lower()}, {'streaming' if info.streaming else 'stopped'}, "
-        f"status {','.join(flags)}, ping {rtt * 1e3:.1f} ms",
+        f"status {flag_names(info.status, quiet=0)}, ping {rtt * 1e3:.1f} ms",
         "  axis  full scale      LSB        tare",
     ]
     for i, axis in enumerate(AXES):

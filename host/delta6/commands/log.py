@@ -32,15 +32,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 class Stats:
-    """Rate and loss figures of a finished log."""
+    """Rate and loss figures of a log being written (its rows: ``writer.rows``)."""
 
-    def __init__(self):
-        self.rows = 0
+    def __init__(self, writer: LogWriter):
+        self.writer = writer
         self.first_t = self.last_t = None
         self.first_seq = self.last_seq = None
 
+    @property
+    def rows(self) -> int:
+        return self.writer.rows
+
     def add(self, block) -> None:
-        self.rows += len(block)
         if self.first_t is None:
             self.first_t, self.first_seq = block.t[0], int(block.seq[0])
         self.last_t, self.last_seq = block.t[-1], int(block.seq[-1])
@@ -54,24 +57,17 @@ class Stats:
             return "no samples received"
         expected = self.last_seq - self.first_seq + 1
         missing = expected - self.rows
-        d = health.decoder
-        text = (f"{self.rows} samples over {self.last_t - self.first_t:.3f} s device time, "
+        return (f"{self.rows} samples over {self.last_t - self.first_t:.3f} s device time, "
                 f"{self.rate():.1f} Hz; {missing} of {expected} missing "
                 f"({100 * missing / expected:.3g} %) in {health.sequence_gaps} gaps; "
-                f"{d.crc_errors + d.cobs_errors + d.length_errors} bad frames, "
-                f"{d.bytes_discarded} bytes discarded, {health.queue_drops} queue drops")
-        t = health.telemetry
-        if t is not None:
-            text += (f"; device: {t.overruns} overruns, {t.tx_dropped} transmit drops, "
-                     f"{sum(t.encoder_errors)} encoder errors")
-        return text
+                + health.link_summary())
 
 
 class DeviceRestarted(DeviceError):
     """The device rebooted mid-log: its clock and sequence start again."""
 
 
-def _write(writer: LogWriter, stats: Stats, block) -> None:
+def _write(stats: Stats, block) -> None:
     """Append a block; a device that restarted (time not increasing) ends the log there, as a
     log's time must increase and the samples after a reboot belong to a new one."""
     t = np.concatenate(([stats.last_t], block.t)) if stats.rows else block.t
@@ -79,30 +75,30 @@ def _write(writer: LogWriter, stats: Stats, block) -> None:
     if back.size:
         keep = int(back[0]) + (0 if stats.rows else 1)
         if keep:
-            _write(writer, stats, block.head(keep))
+            _write(stats, block.head(keep))
         raise DeviceRestarted("the device restarted during the log (its clock went back)")
-    writer.write_block(block.t, block.theta, block.wrench, seq=block.seq, status=block.status,
-                       host_t=block.host_t)
+    stats.writer.write_block(block.t, block.theta, block.wrench, seq=block.seq,
+                             status=block.status, host_t=block.host_t)
     stats.add(block)
 
 
-def _drain(dev, writer: LogWriter, stats: Stats) -> None:
+def _drain(dev, stats: Stats) -> None:
     """Write what was received but not yet read: the log keeps every sample that arrived."""
     while True:
         try:
-            _write(writer, stats, dev.read_block(timeout=0.0))
+            _write(stats, dev.read_block(timeout=0.0))
         except DeviceError:
             return
 
 
 def run(args: argparse.Namespace) -> int:
     progress = Progress()
-    stats = Stats()
     with open_device(args, capture=args.capture) as dev:
         rate = start_stream(dev, args)
         info = dev.info()
         meta = {**log_meta(info, args.port, "delta6 log --port"), "rate_hz": rate}
         writer = LogWriter(args.output, meta, optional=("seq", "status", "host_t"))
+        stats = Stats(writer)
         started = time.monotonic()
         next_show = started
         lost: DeviceError | None = None
@@ -110,8 +106,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             while args.duration is None or time.monotonic() - started < args.duration:
                 try:
-                    block = dev.read_block(timeout=max(1.0, 20.0 / rate))
-                    _write(writer, stats, block)
+                    _write(stats, dev.read_block())
                 except DeviceError as exc:
                     lost = exc
                     break
@@ -125,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
             interrupted = True
         finally:
             if lost is None:
-                _drain(dev, writer, stats)
+                _drain(dev, stats)
             path = writer.close()
             progress.end()
         health = dev.health

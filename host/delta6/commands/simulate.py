@@ -18,7 +18,7 @@ from ..twin.truth import effects_from_truth, truth_path
 
 NAME = "simulate"
 HELP = "simulate a calibration run (digital twin): a log of encoder angles and reference wrench"
-DEFAULT_DESIGN = Path(__file__).resolve().parents[3] / "designs" / "delta6.toml"
+DEFAULT_DESIGN = design_mod.DEFAULT_DESIGN
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
         window = []          # device times of the samples since the last update
         try:
             while args.duration is None or time.monotonic() - started < args.duration:
-                block = dev.read_block(timeout=max(1.0, 20.0 / rate))
+                block = dev.read_block()
                 window.append(block.t)
                 now = time.monotonic()
                 if now >= next_show:

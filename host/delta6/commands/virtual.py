@@ -12,11 +12,12 @@ import threading
 from pathlib import Path
 
 from .. import virtualboard as vb
+from ..design import DEFAULT_DESIGN
 from ..errors import UserError
+from ..protocol import theta_to_counts, valid_counts
 from ._port import number
 
 NAME = "virtual"
-DEFAULT_DESIGN = Path(__file__).resolve().parents[3] / "designs" / "delta6.toml"
 #: The twin's sample rate when it drives the board: above any rate the board samples at.
 TWIN_RATE_HZ = 1000.0
 HELP = ("run the virtual board (the firmware on an emulated ATmega328P with six emulated "
@@ -73,7 +74,7 @@ def parse_zero(text: str | None):
         values = [int(v) for v in text.split(",")]
     except ValueError:
         raise UserError(f"--zero takes six counts separated by commas, got {text!r}") from None
-    if len(values) != 6 or not all(0 <= v < vb.COUNTS_PER_TURN for v in values):
+    if not valid_counts(values):
         raise UserError(f"--zero takes six counts 0..16383, got {text!r}")
     return values
 
@@ -98,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
                     f"{args.twin_duration:g} s looped), through the live channel")
         elif not args.static and args.live is None:
             t, theta = vb.demo_trajectory()
-            replay = vb.write_replay(Path(tmp) / "demo.d6rp", t, vb.theta_to_counts(theta, zero))
+            replay = vb.write_replay(Path(tmp) / "demo.d6rp", t, theta_to_counts(theta, zero))
             loop, what = True, "a demo motion (20 s, looping; --static for rest)"
         live = args.live if args.live is not None else run_of_twin is not None
         board = vb.VirtualBoard(image=image, replay=replay, loop=loop, zero=zero, live=live,
@@ -142,7 +143,7 @@ def _serve(board: vb.VirtualBoard, args: argparse.Namespace, what: str | None,
                              daemon=True).start()
         print(board.port, flush=True)
         notes = [f"virtual board on {board.port}: firmware {board.image.elf.name} on an emulated "
-                 "ATmega328P at 16 MHz, 500000 baud"]
+                 f"ATmega328P at 16 MHz, {board.baud} baud"]
         if what:
             notes.append(f"encoders: {what}")
         if board.live_path is not None:

@@ -29,7 +29,8 @@ from pathlib import Path
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
-from ..simdevice import DEFAULT_DESIGN, Motion, SimulatedDevice
+from ..design import DEFAULT_DESIGN
+from ..simdevice import Motion, SimulatedDevice
 
 
 def _floats(text: str, n: int, name: str) -> list[float]:
@@ -108,7 +109,6 @@ class Serial(SerialBase):
         self._sim = SimulatedDevice(design_path, eeprom=eeprom, **opts)
         self._sim.motion = (Motion.static(pose) if kind == "static" else
                             Motion.sine(self._sim.design, amplitude, opts.get("seed", 0)))
-        self._sim_baud = opts.get("baud", 500_000)
         self._eeprom_writes = self._sim.core.eeprom_writes
         self._opened_at = time.monotonic()
         self.is_open = True
@@ -137,7 +137,7 @@ class Serial(SerialBase):
 
     def _garble(self, data: bytes) -> bytes:
         """Bytes at a baud rate other than the device's arrive as nonsense."""
-        if self._baudrate == self._sim_baud:
+        if self._baudrate == self._sim.baud:
             return data
         return bytes(b ^ 0xA5 for b in data)
 

@@ -9,7 +9,7 @@ from typing import Callable, Iterator, NamedTuple
 import numpy as np
 
 from ..logfile import LogWriter
-from ..model import ENCODER_COUNT_RAD
+from ..protocol import theta_to_counts
 from .truth import truth_path, write_truth
 
 #: Rows per write (and per progress report).
@@ -97,9 +97,8 @@ class EncoderTrack:
         return self.theta[index]
 
 
-def to_counts(theta: np.ndarray, zero: int | np.ndarray = 0, bits: int = 14) -> np.ndarray:
+def to_counts(theta: np.ndarray, zero: int | np.ndarray = 0) -> np.ndarray:
     """Encoder angles (rad) as the raw absolute counts an encoder would report, given the count
-    at zero deflection (``zero``): what a virtual board's encoder model serves."""
-    count = 2 * np.pi / 2**bits if bits != 14 else ENCODER_COUNT_RAD
-    raw = np.round(np.asarray(theta, dtype=float) / count).astype(np.int64) + np.asarray(zero)
-    return np.mod(raw, 2**bits).astype(np.uint16)
+    at zero deflection (``zero``): what a virtual board's encoder model serves
+    (:func:`delta6.protocol.theta_to_counts`)."""
+    return theta_to_counts(theta, zero)
