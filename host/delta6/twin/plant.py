@@ -8,8 +8,8 @@ the encoders see, with the active effects applied at their stages, in this fixed
 5. ANGLE    what the encoders read of the joint angles (mechanical play, then readout errors)
 
 Everything runs on the fine time grid of the simulation; the history-dependent effects use
-blocked scans (``twin.scan``), the history-free statics runs in chunks so that long runs can
-report progress.
+blocked scans (``delta6.operators``), the history-free statics runs in chunks so that long runs
+can report progress.
 """
 from __future__ import annotations
 
@@ -55,7 +55,7 @@ def true_wrench(effects: Sequence[Effect], sig: Signals, torque: np.ndarray,
     n = len(torque)
     for start in range(0, n, CHUNK):
         part = slice(start, min(n, start + CHUNK))
-        piece = Signals(sig.t[part], sig.q[part], sig.qd[part], sig.temp_c[part], sig.nominal)
+        piece = sig.rows(part)
         geo = PlantGeometry(sig.nominal)
         for e in geometric:
             geo = e.geometry(geo, piece, torque[part])
