@@ -98,11 +98,11 @@ def simulate(design: Design, effects: Sequence[Effect] = (), duration_s: float =
     sig = Signals(t=fine_t, q=q, qd=qd, temp_c=temp, nominal=nominal)
     say("trajectory", 1.0)
 
-    out = plant.run(effects, sig, progress=lambda f: say("plant", f))
+    out = plant.run(effects, sig, logged, progress=lambda f: say("plant", f))
 
     say("measurement", 0.0)
     theta = measurement.encoders(out.encoder[logged])
-    wrench = measurement.reference(out.reference[logged], stream(seed, "reference noise"))
+    wrench = measurement.reference(out.reference, stream(seed, "reference noise"))
     if record_temp is None:
         record_temp = any(e.NAME == "thermal_drift" for e in effects)
     temp_c = None
@@ -112,7 +112,7 @@ def simulate(design: Design, effects: Sequence[Effect] = (), duration_s: float =
     say("measurement", 1.0)
 
     result = SimResult(design=design, t=fine_t[logged], theta=theta, wrench=wrench,
-                       temp_c=temp_c, true_angles=q[logged], true_wrench=out.wrench[logged],
+                       temp_c=temp_c, true_angles=q[logged], true_wrench=out.wrench,
                        path=path)
     result.truth = build_truth(
         result, effects=effects, seed=seed, duration_s=duration_s, rate_hz=rate_hz,
