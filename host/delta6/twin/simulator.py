@@ -11,6 +11,7 @@ effect changes nothing else of a run.
 """
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -53,8 +54,14 @@ class SimResult:
         return len(self.t)
 
     def model_wrench(self) -> np.ndarray:
-        """The analytical model applied to the logged angles."""
-        return model.wrench(self.design, self.theta)
+        """The analytical model applied to the logged angles (computed once, read-only)."""
+        return self._model_wrench
+
+    @functools.cached_property
+    def _model_wrench(self) -> np.ndarray:
+        w = model.wrench(self.design, self.theta)
+        w.flags.writeable = False   # shared by every caller
+        return w
 
     def gap(self, which=accuracy.PERCENTILES) -> dict[str, list[float]]:
         """The analytical model's per-axis error against the reference, % FS percentiles."""
