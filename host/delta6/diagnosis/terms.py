@@ -32,7 +32,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..model import ENCODER_COUNT_RAD, branch_forces
+from ..model import ENCODER_COUNT_RAD, link_tension
 from .data import GapData
 from .sensitivity import GEOMETRY_NAMES
 from .signals import dwell_ramps, lagged, play_state, smooth_velocity
@@ -167,8 +167,7 @@ def _backlash(data: GapData) -> np.ndarray:
 def _compliance(data: GapData) -> np.ndarray:
     # Axial: each distal link stretches by c * (its force); bending: each proximal link's tip
     # moves as if the joint turned by c * (its torque), without changing the spring torque.
-    _, lever = branch_forces(data.params, data.theta[:, :3])
-    tension = -data.params.k[:3] * data.theta[:, :3] / lever       # signed link force, N
+    tension = link_tension(data.params, data.theta[:, :3])          # signed link force, N
     dlb = data.geometry_jacobian[:, :, 9:12] * 1e3                 # per m of lb_i
     axial = dlb * tension[:, None, :]                               # per (m/N)
     bending = _kinematic_part(data)[:, :, :3] * (data.params.k[:3]
