@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, strategies as st
 
 from delta6 import model, twin
 from delta6.errors import UserError
@@ -88,6 +89,18 @@ def test_truth_reproduces_the_run_exactly(baseline, tmp_path):
         assert rec["name"] == e.NAME and rec["formulation"] == e.formulation
         for k, v in e.params.items():
             assert np.array_equal(np.asarray(rec["parameters"][k]).reshape(v.shape), v)
+
+
+small = st.floats(-1.0, 1.0, allow_nan=False)
+
+
+@given(st.booleans(), st.integers(4, 24), st.floats(0, 1), st.floats(0, 1),
+       st.tuples(small, small, small), st.tuples(small, small, small))
+def test_measurement_settings_round_trip_through_the_truth_record(quantize, bits, force, moment,
+                                                                  turn, offset):
+    m = twin.Measurement(quantize=quantize, encoder_bits=bits, force_noise_n=force,
+                         moment_noise_nm=moment, sensor_turn_rad=turn, sensor_offset_m=offset)
+    assert twin.Measurement.from_dict(json.loads(json.dumps(m.as_dict()))) == m
 
 
 def test_truth_holds_what_the_issue_asks(baseline):
