@@ -1,12 +1,13 @@
-"""The blocked scans equal the sample-by-sample recurrences, and the play operator has the
-properties that make the twin's hysteresis and backlash rate-independent."""
+"""The blocked scans (``delta6.operators``) equal the sample-by-sample recurrences, and the
+play operator has the properties that make the twin's hysteresis and backlash, and the
+diagnosis's history features, rate-independent."""
 from __future__ import annotations
 
 import numpy as np
 from hypothesis import given, strategies as st
 from hypothesis.extra.numpy import arrays
 
-from delta6.twin.scan import affine_scan, clamp_scan, play
+from delta6.operators import affine_scan, clamp_scan, first_order, play
 
 lengths = st.integers(0, 300)
 tails = st.sampled_from([(), (1,), (3,), (2, 5), (17,)])
@@ -45,6 +46,8 @@ def test_play_output_stays_within_the_radius(x, r):
     y = play(x, r)
     assert np.all(np.abs(x - y) <= r + 1e-12)
     assert y[0] == x[0]
+    # It only moves when pushed: a step of y is never larger than the step of x.
+    assert np.all(np.abs(np.diff(y)) <= np.abs(np.diff(x)) + 1e-12)
 
 
 @given(arrays(float, st.integers(2, 60), elements=st.floats(-1, 1)), st.floats(0, 0.3),
@@ -64,3 +67,19 @@ def test_play_stands_still_after_a_reversal_then_follows():
     back = y[101:]
     assert np.all(back[:19] == y[100])               # 0.2 of travel: the whole play
     assert np.allclose(back[21:], x[122:] + 0.1)
+
+
+@given(arrays(float, st.integers(1, 120), elements=st.floats(-1, 1)),
+       st.lists(st.floats(0, 0.5), min_size=1, max_size=4))
+def test_play_radii_broadcast_like_copies_of_the_input(x, radii):
+    """One operator per radius on a broadcast input equals each radius on its own."""
+    wide = play(x[:, None], np.array(radii))
+    for i, r in enumerate(radii):
+        assert np.array_equal(wide[:, i], play(x, r))
+
+
+@given(arrays(float, st.integers(1, 200), elements=finite), st.floats(0, 1))
+def test_first_order_equals_the_recurrence(x, a):
+    want = loop(lambda i, y: a * y + (1.0 - a) * x[i], x[0], len(x))
+    assert np.allclose(first_order(x, a), want, rtol=1e-9, atol=1e-9)
+    assert np.allclose(first_order(x, a, 2.0)[0], a * 2.0 + (1.0 - a) * x[0])

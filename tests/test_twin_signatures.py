@@ -6,10 +6,13 @@ import numpy as np
 import pytest
 
 from delta6 import model, twin
+from delta6.operators import first_order
 
-from twinkit import CLEAN, residual, reversed_path, sine_path
+from twinkit import CLEAN, held_path, residual, reversed_path, sine_path
 
 MX = 3
+#: A pose away from the centre, held during the thermal runs.
+HELD = [0.3, -0.2, 0.1, 0.25, -0.3, 0.2]
 
 
 def one(name, **kw):
@@ -198,9 +201,8 @@ def test_link_compliance_grows_faster_than_load(baseline, name, kw, low, high):
 
 def test_thermal_residual_follows_temperature(baseline):
     effect = one("thermal_drift", formulation="instant", magnitude=1.0)
-    hold = twin.FunctionPath(lambda t: (np.tile([0.3, -0.2, 0.1, 0.25, -0.3, 0.2], (len(t), 1)),
-                                        np.zeros((len(t), 6))))
-    result = twin.simulate(baseline, effect, duration_s=120, seed=9, measurement=CLEAN, path=hold)
+    result = twin.simulate(baseline, effect, duration_s=120, seed=9, measurement=CLEAN,
+                           path=held_path(HELD))
     assert result.temp_c is not None and np.ptp(result.temp_c) > 5
     r = residual(result)
     for axis in range(6):
@@ -209,14 +211,11 @@ def test_thermal_residual_follows_temperature(baseline):
 
 def test_lagged_thermal_drift_follows_the_device_temperature(baseline):
     effect = one("thermal_drift", formulation="lagged", magnitude=1.0, lag_s=20.0)
-    hold = twin.FunctionPath(lambda t: (np.tile([0.3, -0.2, 0.1, 0.25, -0.3, 0.2], (len(t), 1)),
-                                        np.zeros((len(t), 6))))
-    result = twin.simulate(baseline, effect, duration_s=300, seed=9, measurement=CLEAN, path=hold)
+    result = twin.simulate(baseline, effect, duration_s=300, seed=9, measurement=CLEAN,
+                           path=held_path(HELD))
     r = residual(result)[:, MX]
     a = 20.0 / (20.0 + 1 / 200)
-    device = np.copy(result.temp_c)
-    from delta6.twin.scan import affine_scan
-    device = affine_scan(np.full(len(device), a ** 4), (1 - a ** 4) * device, device[0])
+    device = first_order(result.temp_c, a ** 4)
     raw = abs(np.corrcoef(r, result.temp_c)[0, 1])
     lagged = abs(np.corrcoef(r, device)[0, 1])
     assert lagged > raw and lagged > 0.97

@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given, strategies as st
 
 from delta6 import model, twin
 from delta6.errors import UserError
@@ -56,6 +57,23 @@ def test_effects_do_not_disturb_each_others_random_streams(baseline):
     assert not np.array_equal(plain.theta, shifted.theta)
 
 
+def test_wrench_at_the_logged_rows_equals_the_fine_grid_one(baseline):
+    """Without a TIME effect the statics runs on the logged rows only; a zero transport delay
+    makes the plant compute it on every step instead: the same numbers."""
+    rows = run(baseline, [twin.make_effect("link_compliance", 8)], seed=8)
+    fine = run(baseline, [twin.make_effect("link_compliance", 8),
+                          twin.make_effect("sensor_latency", 8, latency_s=0.0)], seed=8)
+    assert np.array_equal(rows.true_wrench, fine.true_wrench)
+    assert np.array_equal(rows.wrench, fine.wrench)
+
+
+def test_model_wrench_is_the_model_on_the_logged_angles_computed_once(baseline):
+    result = run(baseline, duration=5)
+    assert np.array_equal(result.model_wrench(), model.wrench(baseline, result.theta))
+    assert result.model_wrench() is result.model_wrench()
+    assert not result.model_wrench().flags.writeable
+
+
 def test_truth_reproduces_the_run_exactly(baseline, tmp_path):
     effects = [twin.random_effect(n, 21) for n in twin.EFFECT_NAMES]
     result = run(baseline, effects, seed=21, duration=20, scenario="everything")
@@ -71,6 +89,18 @@ def test_truth_reproduces_the_run_exactly(baseline, tmp_path):
         assert rec["name"] == e.NAME and rec["formulation"] == e.formulation
         for k, v in e.params.items():
             assert np.array_equal(np.asarray(rec["parameters"][k]).reshape(v.shape), v)
+
+
+small = st.floats(-1.0, 1.0, allow_nan=False)
+
+
+@given(st.booleans(), st.integers(4, 24), st.floats(0, 1), st.floats(0, 1),
+       st.tuples(small, small, small), st.tuples(small, small, small))
+def test_measurement_settings_round_trip_through_the_truth_record(quantize, bits, force, moment,
+                                                                  turn, offset):
+    m = twin.Measurement(quantize=quantize, encoder_bits=bits, force_noise_n=force,
+                         moment_noise_nm=moment, sensor_turn_rad=turn, sensor_offset_m=offset)
+    assert twin.Measurement.from_dict(json.loads(json.dumps(m.as_dict()))) == m
 
 
 def test_truth_holds_what_the_issue_asks(baseline):

@@ -53,3 +53,17 @@ def test_pulling_the_platform_down_puts_every_link_in_tension():
     theta = np.array([[0.2, 0.2, 0.2, 0, 0, 0]])
     assert model.wrench(P, theta)[0, 2] > 0        # F_z > 0: pulling away from the base
     assert np.all(link_tension(PlantGeometry(P), theta, P.k * theta) > 0)
+    # The model's own form defaults to the spring torques (what the diagnosis uses).
+    assert np.array_equal(model.link_tension(P, theta[:, :3]),
+                          link_tension(PlantGeometry(P), theta, P.k * theta))
+
+
+
+@given(angles)
+def test_link_tensions_balance_the_platform_force(theta):
+    """Eq. (10) from the tensions: each link pulls the platform toward its elbow, along -v."""
+    t3 = theta[:, :3]
+    v = model.forward_kinematics(P, t3)[:, None, :] - model.branch_centres(P, t3)
+    vhat = v / P.lb[:, None]
+    pulled = np.sum(-model.link_tension(P, t3)[..., None] * vhat, axis=-2)
+    assert np.allclose(pulled, -model.base_force(P, t3), rtol=1e-9, atol=1e-9)

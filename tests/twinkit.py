@@ -26,6 +26,13 @@ def sine_path(joint: int, amplitude: float, freq_hz: float, base=0.0) -> twin.Fu
     return twin.FunctionPath(fn, f"sine on joint {joint}")
 
 
+def held_path(pose) -> twin.FunctionPath:
+    """The joints held still at ``pose`` (6,) for the whole run."""
+    pose = np.asarray(pose, dtype=float)
+    return twin.FunctionPath(lambda t: (np.tile(pose, (len(t), 1)), np.zeros((len(t), 6))),
+                             "held pose")
+
+
 def reversed_path(path, duration_s: float) -> twin.FunctionPath:
     """The same poses visited backwards in time (history reversed, poses unchanged)."""
     def fn(t):

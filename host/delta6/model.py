@@ -138,6 +138,21 @@ def branch_forces(p: Params | Design, theta_e123: np.ndarray, position: np.ndarr
     return magnitude[..., None] * vhat, lever                             # eq. (9)
 
 
+def link_tension(p: Params | Design, theta_e123: np.ndarray,
+                 torque123: np.ndarray | None = None) -> np.ndarray:
+    """Axial force of each parallelogram link, N, positive in tension, shape (..., 3).
+
+    :func:`branch_forces` gives the force of each link on the platform along v (elbow to
+    platform), torque / lever; a link in tension pulls the platform toward the elbow, hence
+    the minus sign. ``torque123`` defaults to the spring torques k*theta_e1..3."""
+    p = as_params(p)
+    theta_e123 = np.asarray(theta_e123, dtype=float)
+    if torque123 is None:
+        torque123 = np.asarray(p.k)[..., :3] * theta_e123
+    _, lever = branch_forces(p, theta_e123, torque123=torque123)
+    return -torque123 / lever
+
+
 def base_force(p: Params | Design, theta_e123: np.ndarray,
                torque123: np.ndarray | None = None) -> np.ndarray:
     """Eq. (10): the force at {E0}, in {B} = {E0} axes, N, shape (..., 3). ``torque123``
@@ -169,9 +184,15 @@ def wrench(p: Params | Design, theta_e: np.ndarray, torque: np.ndarray | None = 
         torque = np.asarray(torque, dtype=float)
         f0 = base_force(p, theta_e[..., :3], torque[..., :3])
         m0 = np.broadcast_to(torque[..., 3:], f0.shape)
-    rt = np.swapaxes(rotation(theta_e[..., 3:]), -1, -2)                 # eq. (12): R^T
-    force = np.einsum("...ij,...j->...i", rt, f0)
-    moment = np.einsum("...ij,...j->...i", rt, m0)
+    return wrench_in_e(theta_e[..., 3:], f0, m0)
+
+
+def wrench_in_e(theta_e456: np.ndarray, force_e0: np.ndarray, moment_e0: np.ndarray
+                ) -> np.ndarray:
+    """Eq. (12): a force and a moment in {E0} axes expressed in {E}, [R^T F, R^T M], (..., 6)."""
+    rt = np.swapaxes(rotation(theta_e456), -1, -2)
+    force = np.einsum("...ij,...j->...i", rt, force_e0)
+    moment = np.einsum("...ij,...j->...i", rt, moment_e0)
     return np.concatenate([force, moment], axis=-1)
 
 

@@ -19,7 +19,8 @@ import numpy as np
 
 from . import boxsearch
 from .design import Design
-from .model import ENCODER_COUNT_RAD, Params, base_force, base_moment, forward_kinematics, rotation
+from .model import (ENCODER_COUNT_RAD, Params, base_force, base_moment, forward_kinematics,
+                    rotation, wrench)
 from .workspace import joint_box
 
 AXIS_KEYS = ("x", "y", "z")
@@ -135,8 +136,7 @@ def _converged(design: Design) -> Spec:
     seed_rot = rotation(seed3)
 
     def force(t6):
-        rt = np.swapaxes(rotation(t6[:, 3:]), -1, -2)
-        return np.einsum("nij,nj->ni", rt, base_force(p, t6[:, :3]))
+        return wrench(p, t6)[:, :3]
 
     def seeded_extreme(f, seed_values, sign):
         # seed_values: (n_rot, n_force) values of f on the separable seed pairs.

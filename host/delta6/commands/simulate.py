@@ -13,8 +13,8 @@ from .. import accuracy, design as design_mod
 from ..errors import UserError
 from ..twin import (EFFECT_NAMES, REGISTRY, SCENARIOS, build_effects, parse_request,
                     random_effect, simulate, write_log)
-from ..twin.scenarios import SCENARIO_HELP
-from ..twin.truth import effects_from_truth, truth_path
+from ..twin.scenarios import SCENARIO_HELP, refuse_repeats
+from ..twin.truth import truth_path
 
 NAME = "simulate"
 HELP = "simulate a calibration run (digital twin): a log of encoder angles and reference wrench"
@@ -72,8 +72,6 @@ def run(args: argparse.Namespace) -> int:
     rate = _number(args.rate, "--rate", low=0.0, high=10_000.0)
     magnitude = (None if args.magnitude is None
                  else _number(args.magnitude, "--magnitude", low=0.0, high=1.0))
-    if duration * rate < 2:
-        raise UserError(f"--duration {args.duration} s at {rate:g} Hz gives fewer than 2 samples")
     out = Path(args.output)
     if not out.parent.is_dir():
         raise UserError(f"cannot write {out}: directory {out.parent} does not exist")
@@ -94,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     log_path, truth_file = write_log(result, out, progress=lambda f: progress.stage("write", f))
     progress.done()
     written = time.perf_counter() - started - simulated
-    print(summary(result, log_path, truth_file, simulated, written))
+    print(summary(result, effects, log_path, truth_file, simulated, written))
     return 0
 
 
@@ -115,7 +113,7 @@ def _effects(args, seed: int, magnitude: float | None):
     for r in extra:
         if r.params or r.formulation or r.magnitude is not None or r.joints:
             raise UserError(f"--random draws {r.name} entirely; give it without settings")
-    build_effects(fixed + extra, seed)   # refuses duplicates
+    refuse_repeats(fixed + extra)
     return build_effects(fixed, seed) + [random_effect(r.name, seed) for r in extra]
 
 
@@ -152,7 +150,8 @@ def describe(effect) -> str:
     return f"{effect.NAME} ({effect.formulation}, acts on {'+'.join(s.value for s in effect.ACTS_ON)}): {params}"
 
 
-def summary(result, log_path: Path, truth_file: Path, simulated: float, written: float) -> str:
+def summary(result, effects, log_path: Path, truth_file: Path, simulated: float,
+            written: float) -> str:
     truth = result.truth
     n = len(result)
     lines = [
@@ -162,7 +161,7 @@ def summary(result, log_path: Path, truth_file: Path, simulated: float, written:
         f"{truth['scenario'] or '-'}, seed {truth['seed']}",
         "effects:" if truth["effects"] else "effects: none (ideal plant; noise and quantization only)",
     ]
-    lines += [f"  {describe(e)}" for e in effects_from_truth(truth)]
+    lines += [f"  {describe(e)}" for e in effects]
     table = {k: v for k, v in truth["analytical_error_pct_fs"].items() if k != "p100"}
     lines.append("analytical model vs reference (percent of full scale):")
     lines.append(accuracy.format_table(table, title=""))

@@ -1,38 +1,24 @@
-"""History features of the encoder signals: play operators and smoothed velocities."""
+"""History features of the encoder signals: play states, smoothed velocities, dwell ramps."""
 from __future__ import annotations
 
 import numpy as np
 
-
-def play(x: np.ndarray, radius: np.ndarray) -> np.ndarray:
-    """Play (backlash) operator, column-wise: the output stays put until the input pulls it
-    along from ``radius`` away. ``x`` (n, m), ``radius`` (m,). Starts centred on x[0].
-
-    A sum of play operators of different radii is the Prandtl-Ishlinskii model of
-    rate-independent hysteresis: the output depends on the turning points of the history,
-    never on how fast the input moved between them.
-    """
-    x = np.asarray(x, dtype=float)
-    radius = np.broadcast_to(np.asarray(radius, dtype=float), x.shape[1:])
-    out = np.empty_like(x)
-    y = x[0].copy()
-    lo, hi = x - radius, x + radius
-    for i in range(len(x)):
-        np.clip(y, lo[i], hi[i], out=y)
-        out[i] = y
-    return out
+from ..operators import first_order, play
 
 
 def play_state(x: np.ndarray, radii) -> np.ndarray:
     """Normalised play state (x - play_r(x)) / r in [-1, 1] for every column of ``x`` (n, j)
     and every radius: shape (n, j, len(radii)). +1 after rising by at least 2r, -1 after
-    falling by at least 2r, in between along the way."""
-    x = np.asarray(x, dtype=float)
+    falling by at least 2r, in between along the way. Each play starts centred on x[0]."""
+    x = np.asarray(x, dtype=float)[:, :, None]
     radii = np.asarray(radii, dtype=float)
-    n, j = x.shape
-    wide = np.repeat(x[:, :, None], len(radii), axis=2).reshape(n, -1)
-    r = np.tile(radii, j)
-    return ((wide - play(wide, r)) / r).reshape(n, j, len(radii))
+    return (x - play(x, radii)) / radii
+
+
+def lagged(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
+    """First-order lag of ``x`` with time constant ``tau``, started settled. Logs are sampled
+    uniformly (up to jitter): one pole, from the median step."""
+    return first_order(x, np.exp(-np.median(np.diff(t)) / tau))
 
 
 def smooth_velocity(x: np.ndarray, t: np.ndarray, half_width: int = 2) -> np.ndarray:

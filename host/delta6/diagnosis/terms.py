@@ -32,10 +32,10 @@ from typing import Callable
 
 import numpy as np
 
-from ..model import ENCODER_COUNT_RAD, branch_forces
+from ..model import ENCODER_COUNT_RAD, link_tension
 from .data import GapData
 from .sensitivity import GEOMETRY_NAMES
-from .signals import dwell_ramps, play_state, smooth_velocity
+from .signals import dwell_ramps, lagged, play_state, smooth_velocity
 
 #: Widths (radius, rad) of the hysteresis play operators, doubling from 16 encoder counts
 #: to a fifth of the joint range: enough to follow an exponential (Dahl, Bouc-Wen) approach
@@ -167,8 +167,7 @@ def _backlash(data: GapData) -> np.ndarray:
 def _compliance(data: GapData) -> np.ndarray:
     # Axial: each distal link stretches by c * (its force); bending: each proximal link's tip
     # moves as if the joint turned by c * (its torque), without changing the spring torque.
-    _, lever = branch_forces(data.params, data.theta[:, :3])
-    tension = -data.params.k[:3] * data.theta[:, :3] / lever       # signed link force, N
+    tension = link_tension(data.params, data.theta[:, :3])          # signed link force, N
     dlb = data.geometry_jacobian[:, :, 9:12] * 1e3                 # per m of lb_i
     axial = dlb * tension[:, None, :]                               # per (m/N)
     bending = _kinematic_part(data)[:, :, :3] * (data.params.k[:3]
@@ -232,25 +231,12 @@ def _thermal(data: GapData) -> np.ndarray:
     # calibration temperature): a warm log is a soft spring even if its temperature is
     # constant. Lagged copies of the temperature cover parts that warm up slowly.
     temps = [data.temp_c - data.ref_temp_c]
-    temps += [_first_order(data.temp_c, data.t, lag) - data.ref_temp_c for lag in THERMAL_LAGS_S]
+    temps += [lagged(data.temp_c, data.t, lag) - data.ref_temp_c for lag in THERMAL_LAGS_S]
     parts = []
     for temp in temps:
         dt = temp[:, None, None]
         parts += [_stiffness(data) * dt, _encoder_offset(data) * dt]
     return np.concatenate(parts, axis=-1)
-
-
-def _first_order(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
-    """First-order lag of ``x`` with time constant ``tau``, started settled."""
-    out = np.empty_like(x)
-    y = x[0]
-    prev = t[0]
-    for i, (ti, xi) in enumerate(zip(t, x)):
-        a = np.exp(-(ti - prev) / tau)
-        y = a * y + (1 - a) * xi
-        out[i] = y
-        prev = ti
-    return out
 
 
 TERMS: tuple[Term, ...] = (

@@ -62,3 +62,12 @@ class Measurement:
                                  "r_te": self.sensor_rotation().tolist(),
                                  "p_t_m": list(self.sensor_offset_m),
                                  "mapping": "eq. (14), model.sensor_to_e"}}
+
+    @classmethod
+    def from_dict(cls, record: dict) -> "Measurement":
+        """The settings an :meth:`as_dict` record describes (a truth file's ``measurement``)."""
+        noise, frame = record["reference_noise"], record["sensor_frame"]
+        return cls(quantize=record["quantize"], encoder_bits=record["encoder_bits"],
+                   force_noise_n=noise["force_sd_n"], moment_noise_nm=noise["moment_sd_nm"],
+                   sensor_turn_rad=tuple(frame["turn_rad"]),
+                   sensor_offset_m=tuple(frame["p_t_m"]))

@@ -7,9 +7,10 @@ the encoders see, with the active effects applied at their stages, in this fixed
 4. TIME     what the reference sensor sees of that wrench, and when
 5. ANGLE    what the encoders read of the joint angles (mechanical play, then readout errors)
 
-Everything runs on the fine time grid of the simulation; the history-dependent effects use
-blocked scans (``twin.scan``), the history-free statics runs in chunks so that long runs can
-report progress.
+The joint torques and the encoder angles run on the fine time grid of the simulation (the
+history-dependent effects use the blocked scans of ``delta6.operators``). The statics is
+history-free: it runs on the samples the caller keeps, unless a TIME effect needs the wrench
+between them; in chunks, so that long runs can report progress.
 """
 from __future__ import annotations
 
@@ -28,8 +29,8 @@ CHUNK = 50_000
 @dataclass
 class PlantOutput:
     torque: np.ndarray      # (M, 6) true joint torques, N*m
-    wrench: np.ndarray      # (M, 6) true wrench at {E}
-    reference: np.ndarray   # (M, 6) the wrench as the reference sensor reports it (no noise)
+    wrench: np.ndarray      # (N, 6) true wrench at {E}, at the kept samples
+    reference: np.ndarray   # (N, 6) the wrench as the reference sensor reports it (no noise)
     encoder: np.ndarray     # (M, 6) encoder angles before quantization, rad
 
 
@@ -55,7 +56,7 @@ def true_wrench(effects: Sequence[Effect], sig: Signals, torque: np.ndarray,
     n = len(torque)
     for start in range(0, n, CHUNK):
         part = slice(start, min(n, start + CHUNK))
-        piece = Signals(sig.t[part], sig.q[part], sig.qd[part], sig.temp_c[part], sig.nominal)
+        piece = sig.rows(part)
         geo = PlantGeometry(sig.nominal)
         for e in geometric:
             geo = e.geometry(geo, piece, torque[part])
@@ -65,13 +66,20 @@ def true_wrench(effects: Sequence[Effect], sig: Signals, torque: np.ndarray,
     return out
 
 
-def run(effects: Sequence[Effect], sig: Signals,
+def run(effects: Sequence[Effect], sig: Signals, keep: np.ndarray,
         progress: Callable[[float], None] | None = None) -> PlantOutput:
+    """The plant on the fine grid ``sig``; the wrench and the reference at the samples ``keep``
+    (indices into the fine grid) only."""
     torque = joint_torque(effects, sig)
-    wrench = true_wrench(effects, sig, torque, progress)
-    reference = wrench
-    for e in at_stage(effects, Stage.TIME):
-        reference = e.reference(reference, sig)
+    timed = at_stage(effects, Stage.TIME)
+    if timed:   # the sensor sees the wrench between the kept samples too
+        wrench = true_wrench(effects, sig, torque, progress)
+        reference = wrench
+        for e in timed:
+            reference = e.reference(reference, sig)
+        wrench, reference = wrench[keep], reference[keep]
+    else:
+        wrench = reference = true_wrench(effects, sig.rows(keep), torque[keep], progress)
     encoder = sig.q
     for e in at_stage(effects, Stage.ANGLE):
         encoder = e.encoder(encoder, sig)

@@ -37,18 +37,21 @@ def make_effect(name: str, seed: int, *, formulation: str | None = None,
                      joints=joints, overrides=params)
 
 
-def build_effects(requests, seed: int, magnitude: float | None = None) -> list[Effect]:
-    """Effects for a list of requests; ``magnitude`` applies where a request has none."""
+def refuse_repeats(requests) -> None:
+    """A run takes each effect once."""
     seen = set()
-    effects = []
     for r in requests:
         if r.name in seen:
             raise EffectError(f"effect {r.name} requested twice")
         seen.add(r.name)
-        effects.append(make_effect(r.name, seed, formulation=r.formulation,
-                                   magnitude=r.magnitude if r.magnitude is not None else magnitude,
-                                   joints=r.joints, **r.params))
-    return effects
+
+
+def build_effects(requests, seed: int, magnitude: float | None = None) -> list[Effect]:
+    """Effects for a list of requests; ``magnitude`` applies where a request has none."""
+    refuse_repeats(requests)
+    return [make_effect(r.name, seed, formulation=r.formulation,
+                        magnitude=r.magnitude if r.magnitude is not None else magnitude,
+                        joints=r.joints, **r.params) for r in requests]
 
 
 def random_effect(name: str, seed: int, *, magnitude_range=(0.0, 1.0)) -> Effect:

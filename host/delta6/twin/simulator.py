@@ -11,6 +11,7 @@ effect changes nothing else of a run.
 """
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -53,8 +54,14 @@ class SimResult:
         return len(self.t)
 
     def model_wrench(self) -> np.ndarray:
-        """The analytical model applied to the logged angles."""
-        return model.wrench(self.design, self.theta)
+        """The analytical model applied to the logged angles (computed once, read-only)."""
+        return self._model_wrench
+
+    @functools.cached_property
+    def _model_wrench(self) -> np.ndarray:
+        w = model.wrench(self.design, self.theta)
+        w.flags.writeable = False   # shared by every caller
+        return w
 
     def gap(self, which=accuracy.PERCENTILES) -> dict[str, list[float]]:
         """The analytical model's per-axis error against the reference, % FS percentiles."""
@@ -98,11 +105,11 @@ def simulate(design: Design, effects: Sequence[Effect] = (), duration_s: float =
     sig = Signals(t=fine_t, q=q, qd=qd, temp_c=temp, nominal=nominal)
     say("trajectory", 1.0)
 
-    out = plant.run(effects, sig, progress=lambda f: say("plant", f))
+    out = plant.run(effects, sig, logged, progress=lambda f: say("plant", f))
 
     say("measurement", 0.0)
     theta = measurement.encoders(out.encoder[logged])
-    wrench = measurement.reference(out.reference[logged], stream(seed, "reference noise"))
+    wrench = measurement.reference(out.reference, stream(seed, "reference noise"))
     if record_temp is None:
         record_temp = any(e.NAME == "thermal_drift" for e in effects)
     temp_c = None
@@ -112,7 +119,7 @@ def simulate(design: Design, effects: Sequence[Effect] = (), duration_s: float =
     say("measurement", 1.0)
 
     result = SimResult(design=design, t=fine_t[logged], theta=theta, wrench=wrench,
-                       temp_c=temp_c, true_angles=q[logged], true_wrench=out.wrench[logged],
+                       temp_c=temp_c, true_angles=q[logged], true_wrench=out.wrench,
                        path=path)
     result.truth = build_truth(
         result, effects=effects, seed=seed, duration_s=duration_s, rate_hz=rate_hz,

@@ -44,12 +44,9 @@ def rotation_from_vector(rotvec: np.ndarray) -> np.ndarray:
 
 
 def link_tension(geo: PlantGeometry, q: np.ndarray, torque: np.ndarray) -> np.ndarray:
-    """Axial force of each parallelogram link, N, positive in tension, shape (M, 3).
-
-    ``model.branch_forces`` gives the force of each link on the platform along v (elbow to
-    platform); a link in tension pulls the platform toward the elbow, hence the minus sign."""
-    _, lever = model.branch_forces(geo.params, q[..., :3], torque123=torque[..., :3])
-    return -torque[..., :3] / lever
+    """Axial force of each parallelogram link, N, positive in tension, shape (M, 3)
+    (``model.link_tension`` in the plant's geometry)."""
+    return model.link_tension(geo.params, q[..., :3], torque[..., :3])
 
 
 def base_force(geo: PlantGeometry, q: np.ndarray, torque: np.ndarray) -> np.ndarray:
@@ -64,7 +61,4 @@ def plant_wrench(geo: PlantGeometry, q: np.ndarray, torque: np.ndarray) -> np.nd
         return model.wrench(geo.params, q, torque=torque)
     f_b = base_force(geo, q, torque)
     f_e0 = np.einsum("...ji,...j->...i", geo.e0_rotation, f_b)          # {B} -> {E0}
-    rt = np.swapaxes(model.rotation(q[..., 3:]), -1, -2)                 # eq. (12): R^T
-    force = np.einsum("...ij,...j->...i", rt, f_e0)
-    moment = np.einsum("...ij,...j->...i", rt, torque[..., 3:])
-    return np.concatenate([force, moment], axis=-1)
+    return model.wrench_in_e(q[..., 3:], f_e0, torque[..., 3:])

@@ -8,7 +8,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .scan import affine_scan
+from ..operators import first_order
+from .effects.base import grid_step
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,5 @@ def ambient(t: np.ndarray, duration_s: float, rng: np.random.Generator,
     index = np.where(t < 0, 0, np.minimum(np.floor(np.maximum(t, 0) / step).astype(int) + 1,
                                           settings.steps))
     target = setpoints[index]
-    dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
-    a = math.exp(-dt / (step / 4))   # the air settles within a step
-    return affine_scan(np.full(t.shape, a), (1 - a) * target, settings.start_c)
+    a = math.exp(-grid_step(t) / (step / 4))   # the air settles within a step
+    return first_order(target, a, settings.start_c)

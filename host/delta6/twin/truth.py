@@ -88,7 +88,6 @@ def replay_arguments(truth: dict) -> dict:
     random trajectory only; a custom path is not recorded)."""
     if "custom" in truth["trajectory"]:
         raise UserError("the run used a custom path, which a truth file does not record")
-    m = truth["measurement"]
     temp = {k: v for k, v in truth["temperature"].items() if k != "recorded"}
     design = validate({"name": truth["design"]["name"], **truth["design"]["parameters"]})
     return {
@@ -97,12 +96,7 @@ def replay_arguments(truth: dict) -> dict:
         "duration_s": truth["duration_s"], "rate_hz": truth["rate_hz"], "seed": truth["seed"],
         "trajectory": TrajectorySettings(**truth["trajectory"]),
         "temperature": TemperatureSettings(**temp),
-        "measurement": Measurement(
-            quantize=m["quantize"], encoder_bits=m["encoder_bits"],
-            force_noise_n=m["reference_noise"]["force_sd_n"],
-            moment_noise_nm=m["reference_noise"]["moment_sd_nm"],
-            sensor_turn_rad=tuple(m["sensor_frame"]["turn_rad"]),
-            sensor_offset_m=tuple(m["sensor_frame"]["p_t_m"])),
+        "measurement": Measurement.from_dict(truth["measurement"]),
         "record_temp": truth["temperature"]["recorded"],
         "oversample": truth["oversample"], "scenario": truth["scenario"],
     }

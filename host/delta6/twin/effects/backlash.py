@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scan import play
+from ...operators import play
 from .base import Effect, ParamSpec, Stage
 
 #: Contact points of the 'elastic_contact' formulation (clearances spread around the mean).
@@ -37,8 +37,7 @@ class Backlash(Effect):
         return half[None, :] * (1.0 + spread)
 
     def encoder(self, angle, sig):
-        radii = self.radii()
-        return play(np.repeat(angle[:, None, :], len(radii), axis=1), radii).mean(axis=1)
+        return play(angle[:, None, :], self.radii()).mean(axis=1)
 
     def summary(self):
         return {"play_rad": self.p("play_rad"),

@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
 from ...errors import UserError
+from ...operators import first_order
 
 JOINTS = 6
 BRANCHES = 3
@@ -45,10 +46,28 @@ class Signals:
     qd: np.ndarray        # (M, 6) their rates, rad/s
     temp_c: np.ndarray    # (M,) ambient temperature, degC
     nominal: object       # model.Params of the design (the analytical model's parameters)
+    _lagged_temp: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @property
     def dt(self) -> float:
-        return float(self.t[1] - self.t[0]) if len(self.t) > 1 else 0.0
+        return grid_step(self.t)
+
+    def rows(self, index) -> "Signals":
+        """The signals at some of the samples (for the history-free stages)."""
+        return Signals(self.t[index], self.q[index], self.qd[index], self.temp_c[index],
+                       self.nominal)
+
+    def lagged_temp(self, lag_s: float) -> np.ndarray:
+        """``temp_c`` through a first-order lag of time constant ``lag_s`` (backward Euler,
+        started settled), computed once per lag: a thermal effect acts on two stages."""
+        if lag_s not in self._lagged_temp:
+            self._lagged_temp[lag_s] = first_order(self.temp_c, lag_s / (lag_s + self.dt))
+        return self._lagged_temp[lag_s]
+
+
+def grid_step(t: np.ndarray) -> float:
+    """The step of a uniform time grid (0 with fewer than two samples)."""
+    return float(t[1] - t[0]) if len(t) > 1 else 0.0
 
 
 _SHAPES = {"joint": (JOINTS,), "branch": (BRANCHES,), "vec3": (3,), "scalar": ()}

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scan import affine_scan
+from ...operators import affine_scan
 from .base import Effect, ParamSpec, Stage
 
 #: Speeds over which the formulation-independent Coulomb and viscous equivalents are fitted.

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scan import affine_scan
+from ...operators import first_order
 from .base import Effect, ParamSpec, Stage
 
 
@@ -29,9 +29,8 @@ class SensorLatency(Effect):
         if self.formulation == "delay":
             back = sig.t - latency
             return np.stack([np.interp(back, sig.t, w) for w in wrench.T], axis=1)
-        # y_n = a y_(n-1) + (1 - a) x_n with a = tau / (tau + dt): its DC group delay is tau.
-        a = latency / (latency + sig.dt)
-        return affine_scan(np.full(wrench.shape, a), (1.0 - a) * wrench, wrench[0])
+        # Backward Euler, a = tau / (tau + dt): its DC group delay is tau.
+        return first_order(wrench, latency / (latency + sig.dt))
 
     def summary(self):
         return {"latency_s": float(self.p("latency_s"))}

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scan import affine_scan, play
+from ...operators import affine_scan, play
 from .base import Effect, ParamSpec, Stage
 
 #: Play operators of the 'play_sum' formulation (radii evenly spaced up to the saturation
@@ -45,7 +45,7 @@ class SpringHysteresis(Effect):
             return affine_scan(a, width * np.sign(step) * (1.0 - a), np.zeros(q.shape[1]))
         radii = self.p("saturation_angle_rad")[None, :] * np.arange(1, PLAYS + 1)[:, None] / PLAYS
         weight = width / radii.sum(axis=0)                       # saturated sum = H
-        stops = q[:, None, :] - play(q[:, None, :].repeat(PLAYS, axis=1), radii)
+        stops = q[:, None, :] - play(q[:, None, :], radii)
         return weight * stops.sum(axis=1)
 
     def extra_torque(self, sig):

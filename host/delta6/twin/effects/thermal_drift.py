@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scan import affine_scan
 from .base import Effect, ParamSpec, Stage
 
 
@@ -35,9 +34,7 @@ class ThermalDrift(Effect):
         """Device temperature above the reference, (M, 1)."""
         temp = sig.temp_c
         if self.formulation == "lagged":
-            lag = float(self.p("lag_s"))
-            a = lag / (lag + sig.dt)
-            temp = affine_scan(np.full(temp.shape, a), (1.0 - a) * temp, temp[0])
+            temp = sig.lagged_temp(float(self.p("lag_s")))
         return (temp - float(self.p("ref_temp_c")))[:, None]
 
     def spring_scale(self, sig):

@@ -1,7 +1,8 @@
 """Sequential state without a Python loop per sample: blocked scans of associative maps.
 
-Every history-dependent effect of the twin advances its state with a per-sample map from a
-family that is closed under composition:
+The history operators of the digital twin's effects and of the gap diagnosis's candidate terms
+(play operators, first-order lags) share this one implementation. Each advances its state with
+a per-sample map from a family that is closed under composition:
 
 * affine maps ``x -> a x + b`` (first-order lags, the Dahl/Bouc-Wen hysteresis and the LuGre
   bristle, both integrated exactly over a sample),
@@ -97,8 +98,24 @@ def clamp_scan(lo: np.ndarray, hi: np.ndarray, x0) -> np.ndarray:
 
 def play(x: np.ndarray, radius, y0=None) -> np.ndarray:
     """The play (backlash) operator along axis 0: the output stays put until the input is more
-    than ``radius`` away, then is dragged along at that distance. ``y0`` defaults to x[0]."""
+    than ``radius`` away, then is dragged along at that distance. ``y0`` defaults to x[0].
+
+    ``radius`` broadcasts against ``x``: ``play(x[:, None, :], radii)`` with radii (r, m) runs
+    r operators on every column of x (n, m) without copying x r times. A sum of play operators
+    of different radii is the Prandtl-Ishlinskii model of rate-independent hysteresis: the
+    output depends on the turning points of the history, never on how fast the input moved
+    between them.
+    """
     x = np.asarray(x, dtype=float)
     radius = np.asarray(radius, dtype=float)
     y0 = x[0] if y0 is None else y0
     return clamp_scan(x - radius, x + radius, y0)
+
+
+def first_order(x: np.ndarray, a: float, x0=None) -> np.ndarray:
+    """First-order lag along axis 0 with a constant pole: y_n = a y_(n-1) + (1 - a) x_n,
+    from y_0 = ``x0`` (default x[0]: started settled). On a uniform grid of step dt,
+    a = exp(-dt / tau) is the exact lag of time constant tau for an input held over each step,
+    a = tau / (tau + dt) its backward-Euler form."""
+    x = np.asarray(x, dtype=float)
+    return affine_scan(np.full(x.shape, a), (1.0 - a) * x, x[0] if x0 is None else x0)
