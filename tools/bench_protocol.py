@@ -20,17 +20,13 @@ import shutil
 import sys
 import threading
 import time
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "host"))
-sys.path.insert(0, str(ROOT / "tests"))     # avr_session: the scripted AVR session
-
-from delta6 import avrbuild, nativebuild, protocol as P  # noqa: E402
-from delta6.bulkdecode import decode_capture  # noqa: E402
-from delta6.decoder import StreamDecoder  # noqa: E402
-from delta6.device import Device  # noqa: E402
-from delta6.simdevice import SimulatedDevice  # noqa: E402
+from delta6.build import avrbuild, nativebuild
+from delta6.link import protocol as P
+from delta6.link.bulkdecode import decode_capture
+from delta6.link.decoder import StreamDecoder
+from delta6.link.device import Device
+from delta6.sim.simdevice import SimulatedDevice
 
 BAUDS = (115_200, 230_400, 250_000, 460_800, 500_000, 921_600, 1_000_000, 2_000_000)
 
@@ -185,7 +181,7 @@ def avr_cycles() -> None:
     if shutil.which("avr-g++") is None or shutil.which("simavr") is None:
         print("5. AVR cycles: avr-g++ or simavr not installed (tools/bootstrap.sh installs them)")
         return
-    import avr_session
+    from delta6.sim import avrsession as avr_session
     result = avr_session.run_on_avr()
     same = result.uart == avr_session.run_natively()
     c = avr_session.cycles(result)

@@ -20,14 +20,16 @@ from pathlib import Path
 
 import numpy as np
 
+from delta6.build import avrbuild
+from delta6.core.design import load
+from delta6.core.errors import UserError
+from delta6.core.model import AXES, ENCODER_COUNT_RAD, wrench
+from delta6.core.spec import full_scale
+from delta6.sim import solverbench
+from delta6_codegen import render
+
 ROOT = Path(__file__).resolve().parents[1]
 
-from delta6 import avrbuild, solverbench  # noqa: E402
-from delta6.design import load  # noqa: E402
-from delta6.errors import UserError  # noqa: E402
-from delta6.model import AXES, ENCODER_COUNT_RAD, wrench  # noqa: E402
-from delta6.spec import full_scale  # noqa: E402
-from delta6_codegen import render  # noqa: E402
 
 F_CPU = 16_000_000
 REQUIRED_CYCLES = 40_000

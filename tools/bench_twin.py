@@ -16,12 +16,11 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "host"))
+from delta6.core.design import load
+from delta6.twin import EFFECT_NAMES, REGISTRY, make_effect, scenario_effects, simulate, write_log
 
-from delta6.design import load  # noqa: E402
-from delta6.twin import (EFFECT_NAMES, REGISTRY, make_effect, scenario_effects,  # noqa: E402
-                         simulate, write_log)
+ROOT = Path(__file__).resolve().parents[1]
+
 
 DURATION_S, RATE_HZ, SEED = 2000.0, 50.0, 1
 

@@ -22,13 +22,16 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "host"))
-
-from delta6 import protocol as P  # noqa: E402
-from delta6.device import Device  # noqa: E402
-from delta6.virtualboard import (VirtualBoard, demo_trajectory, firmware,  # noqa: E402
-                                 stack_depth, theta_to_counts, write_replay)
+from delta6.link import protocol as P
+from delta6.link.device import Device
+from delta6.sim.virtualboard import (
+    VirtualBoard,
+    demo_trajectory,
+    firmware,
+    stack_depth,
+    theta_to_counts,
+    write_replay,
+)
 
 F_CPU = 16_000_000
 DEFAULT_RATES = (250, 300, 350, 400, 425, 450, 475, 500, 550)

@@ -34,7 +34,7 @@ def main() -> int:
     parser.add_argument("--out", default=str(ROOT / "build" / "gap-benchmark"))
     args = parser.parse_args()
 
-    from delta6.design import load
+    from delta6.core.design import load
     from delta6.diagnosis import benchmark as bench
 
     seed = bench.DEFAULT_BASE_SEED if args.seed is None else args.seed

@@ -21,15 +21,15 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "host"))
+from delta6.core.accuracy import error_pct_fs
+from delta6.core.design import load
+from delta6.core.model import AXES
+from delta6.core.spec import full_scale
+from delta6.twin import build_effects, scenario_effects, simulate
+from delta6.twin.scenarios import PAPER
 
-from delta6.accuracy import error_pct_fs  # noqa: E402
-from delta6.design import load  # noqa: E402
-from delta6.spec import full_scale  # noqa: E402
-from delta6.model import AXES  # noqa: E402
-from delta6.twin import build_effects, scenario_effects, simulate  # noqa: E402
-from delta6.twin.scenarios import PAPER  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
+
 
 #: The paper's Table V, analytical rows (% FS).
 TABLE_V = {"p95": [3.81, 4.62, 2.58, 5.45, 5.41, 3.42],

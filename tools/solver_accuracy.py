@@ -15,14 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))  # the ctypes driver the tests use
+from delta6.build.nativesolver import native_solver
+from delta6.core.design import load
+from delta6.core.model import AXES, ENCODER_COUNT_RAD, wrench
+from delta6.core.spec import full_scale
+from delta6_codegen import solver_constants
 
-from delta6.design import load  # noqa: E402
-from delta6.model import AXES, ENCODER_COUNT_RAD, wrench  # noqa: E402
-from delta6.spec import full_scale  # noqa: E402
-from delta6_codegen import solver_constants  # noqa: E402
-from solver_native import native_solver  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
+
 
 CHUNK = 200_000
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from delta6.design import Design
-from delta6.spec import full_scale
+from delta6.core.design import Design
+from delta6.core.spec import full_scale
 
 from .solver_constants import CONSTANTS_VERSION, TABLE_STEP, SolverConstants, f32, solver_constants
 
@@ -66,7 +66,7 @@ def render(design: Design, source_label: str, constants: SolverConstants | None 
     lines = [
         "// GENERATED FILE - DO NOT EDIT.",
         f"// Written by `{COMMAND} {source_label}` from the design file {source_label}.",
-        "// Regenerate with that command; tests/test_codegen.py fails when this file is out of",
+        "// Regenerate with that command; tests/firmware/test_codegen.py fails when this file is out of",
         "// date. Values are SI units rounded to float32 (codegen/delta6_codegen/).",
         "#ifndef DELTA6_GENERATED_DESIGN_H",
         "#define DELTA6_GENERATED_DESIGN_H",
@@ -80,7 +80,7 @@ def render(design: Design, source_label: str, constants: SolverConstants | None 
         "namespace design {",
         "",
         f"constexpr char kName[] = {c_string(design.name)};",
-        "// delta6.design.Design.hash32(): which variant a board runs.",
+        "// delta6.core.design.Design.hash32(): which variant a board runs.",
         f"constexpr uint32_t kHash = 0x{design.hash32():08X}UL;",
         "",
         "// Design parameters.",
@@ -95,7 +95,7 @@ def render(design: Design, source_label: str, constants: SolverConstants | None 
         f"constexpr float kJointLimitRad = {c_float(c.limit_rad)};",
         f"constexpr int16_t kJointLimitCounts = {c.limit_counts};",
         *_array("constexpr float kFullScale[6]", fs,
-                "full scale of Fx, Fy, Fz (N), Mx, My, Mz (N*m): delta6.spec.full_scale"),
+                "full scale of Fx, Fy, Fz (N), Mx, My, Mz (N*m): delta6.core.spec.full_scale"),
         "",
         "// Solver tables (fastmath::table_cos_sin): coarse rows every kTableStep counts from",
         "// q = -table_origin counts, fine rows for l = 0 .. kTableStep-1 counts.",

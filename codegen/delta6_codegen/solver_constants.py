@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from delta6.design import Design, DesignError
-from delta6.model import ENCODER_COUNT_RAD
-from delta6.workspace import MIN_HEIGHT_FRACTION, MIN_LEVER_FRACTION
+from delta6.core.design import Design, DesignError
+from delta6.core.model import ENCODER_COUNT_RAD
+from delta6.core.workspace import MIN_HEIGHT_FRACTION, MIN_LEVER_FRACTION
 
 #: Must equal delta6::kTableStep and kSolverConstantsVersion (the header static_asserts it).
 TABLE_STEP = 64

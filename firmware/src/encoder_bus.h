@@ -94,7 +94,7 @@ void scan(uint16_t word[6], uint16_t inverse[6]) {
     if (i == D6_ENCODER_COMMAND_BITS - 1) {
 #if defined(DELTA6_TEST_LATE_RELEASE)
       // Test builds only: release the line too late, so that the virtual board's contention
-      // detector has something to find (tests/test_virtual_board.py).
+      // detector has something to find (tests/sim/test_virtual_board.py).
       Pins::clockLow();
       delayNs<kDataValidNs + 500>();
       Pins::releaseData();

@@ -7,9 +7,9 @@ import argparse
 import importlib
 import sys
 
-from . import __version__
-from .design import DesignError
-from .errors import UserError
+from delta6 import __version__
+from delta6.core.design import DesignError
+from delta6.core.errors import UserError
 
 #: Subcommand modules, in the order ``delta6 --help`` lists them.
 COMMAND_MODULES = ("design", "codegen", "virtual", "info", "stream", "log", "tare", "decode",

@@ -1,5 +1,5 @@
 // C ABI over the firmware's encoder-frame check (delta6_encoder.h) for the ctypes tests
-// (tests/test_encoder_frame.py), compiled together with the virtual board's frame model
+// (tests/firmware/test_encoder_frame.py), compiled together with the virtual board's frame model
 // (tools/simavr/virtual_board/frame.c): what the emulated sensor sends, the firmware must read.
 #include <stdint.h>
 

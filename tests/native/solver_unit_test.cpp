@@ -1,5 +1,5 @@
 // Native unit tests of the portable solver core, built with -fsanitize=address,undefined by
-// tests/test_solver_unit.py (C++11, like the oldest toolchain the firmware meets). Checks the
+// tests/firmware/test_solver_unit.py (C++11, like the oldest toolchain the firmware meets). Checks the
 // bit-level helpers against the operations they replace, sweeps every count of every joint,
 // and breaks the constants to reach each fault path. Prints one line per failure and exits
 // non-zero if any.

@@ -1,6 +1,6 @@
 // GENERATED FILE - DO NOT EDIT.
 // Written by `delta6 codegen designs/delta6.toml` from the design file designs/delta6.toml.
-// Regenerate with that command; tests/test_codegen.py fails when this file is out of
+// Regenerate with that command; tests/firmware/test_codegen.py fails when this file is out of
 // date. Values are SI units rounded to float32 (codegen/delta6_codegen/).
 #ifndef DELTA6_GENERATED_DESIGN_H
 #define DELTA6_GENERATED_DESIGN_H
@@ -14,7 +14,7 @@ namespace delta6 {
 namespace design {
 
 constexpr char kName[] = "delta6";
-// delta6.design.Design.hash32(): which variant a board runs.
+// delta6.core.design.Design.hash32(): which variant a board runs.
 constexpr uint32_t kHash = 0x535534AFUL;
 
 // Design parameters.
@@ -31,7 +31,7 @@ constexpr float kSpringRate[6] = {
 // Joint box: |theta_e| <= kJointLimitRad, i.e. |count delta| <= kJointLimitCounts.
 constexpr float kJointLimitRad = 0.523598731f;
 constexpr int16_t kJointLimitCounts = 1365;
-// full scale of Fx, Fy, Fz (N), Mx, My, Mz (N*m): delta6.spec.full_scale
+// full scale of Fx, Fy, Fz (N), Mx, My, Mz (N*m): delta6.core.spec.full_scale
 constexpr float kFullScale[6] = {
     15.0280781f, 15.0280781f, 25.1027393f, 0.380488485f, 0.334703177f, 0.426585585f
 };

@@ -4,9 +4,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..device import DEFAULT_BAUD, Device
-from ..model import AXES  # noqa: F401 - the axis names the subcommands print
-from ..protocol import Info, Mode, Status
+from delta6.core.model import AXES  # noqa: F401 - the axis names the subcommands print
+from delta6.link.device import DEFAULT_BAUD, Device
+from delta6.link.protocol import Info, Mode, Status
 
 #: Status bits that inform rather than warn: left out of the short display.
 QUIET_FLAGS = Status.TARE_ACTIVE | Status.CONFIG_DEFAULTS

@@ -5,9 +5,11 @@ import argparse
 import sys
 from pathlib import Path
 
-from .. import avrbuild
-from .. import design as design_mod
-from ..errors import UserError
+from delta6.build import avrbuild
+from delta6.core import design as design_mod
+from delta6.core import paths
+from delta6.core.errors import UserError
+from delta6.core.workspace import load_checked
 
 NAME = "codegen"
 HELP = ("write the firmware header generated/delta6_design.h for a design "
@@ -34,15 +36,18 @@ def source_label(path: Path) -> str:
     """How the banner names the design file: relative to the repository when inside it, so
     the bytes do not depend on the working directory."""
     resolved = path.resolve()
+    shipped = paths.DESIGNS_DIR.resolve()
+    if resolved.parent == shipped:      # a shipped design, however it was reached
+        return f"designs/{resolved.name}"
     try:
-        return resolved.relative_to(avrbuild.REPO_ROOT).as_posix()
+        return resolved.relative_to(paths.REPO_ROOT.resolve()).as_posix()
     except ValueError:
         return resolved.name
 
 
 def header_text(path: Path) -> tuple[design_mod.Design, str]:
     from delta6_codegen import render
-    design = design_mod.load(path)
+    design = load_checked(path)
     return design, render(design, source_label(path))
 
 
@@ -65,6 +70,8 @@ def include_dir_of(header: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.build or args.output is None:
+        paths.checkout()    # the firmware tree the header belongs to, or one line saying so
     design, text = header_text(args.design)
     out = output_path(args, design)
     if args.check:
@@ -91,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
 def build_image(design: design_mod.Design, include_dir: Path) -> avrbuild.Image:
     """The firmware application for ``design`` (header under ``include_dir``), in
     build/designs/NAME/atmega328p/."""
-    from ..appbuild import build_app
+    from delta6.build.appbuild import build_app
     return build_app(include_dir, name=f"delta6-{design.name}",
                      out_dir=avrbuild.design_build_dir(design.name) / "atmega328p")
 

@@ -7,13 +7,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..bulkdecode import decode_capture, sequence_counts
-from ..design import load
-from ..errors import UserError
-from ..logfile import LogWriter
-from ..protocol import Event, EventCode
-from ..wirescale import design_lsb
-from ._port import Progress, log_meta
+from delta6.commands._port import Progress, log_meta
+from delta6.core.design import load
+from delta6.core.errors import UserError
+from delta6.link.bulkdecode import decode_capture, sequence_counts
+from delta6.link.logfile import LogWriter
+from delta6.link.protocol import Event, EventCode
+from delta6.link.wirescale import design_lsb
 
 NAME = "decode"
 HELP = "decode a raw capture of the device's byte stream into a CSV log"

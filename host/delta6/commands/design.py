@@ -4,8 +4,10 @@ from __future__ import annotations
 import argparse
 import json
 
-from .. import design as design_mod
-from ..spec import Spec, converged_spec, grid_spec
+from delta6.core import design as design_mod
+from delta6.core.paths import DEFAULT_DESIGN
+from delta6.core.spec import Spec, converged_spec, grid_spec
+from delta6.core.workspace import load_checked
 
 NAME = "design"
 HELP = "print the specification of design variants (workspace, ranges, resolution)"
@@ -23,7 +25,8 @@ def _grid(text: str) -> int:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("designs", nargs="+", metavar="DESIGN.toml", help="design file(s)")
+    parser.add_argument("designs", nargs="*", metavar="DESIGN.toml",
+                        help="design file(s); the paper's Delta6 (designs/delta6.toml) when none is given")
     parser.add_argument("--grid", type=_grid, metavar="N",
                         help="sample N angles per joint as the paper did (10 reproduces its "
                              "tables); default: the converged limits over the joint box")
@@ -32,12 +35,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def evaluate(path: str, grid: int | None) -> tuple[design_mod.Design, Spec]:
-    d = design_mod.load(path)
+    d = load_checked(path)
     return d, (grid_spec(d, grid) if grid else converged_spec(d))
 
 
 def run(args: argparse.Namespace) -> int:
-    results = [(path, *evaluate(path, args.grid)) for path in args.designs]
+    results = [(path, *evaluate(path, args.grid)) for path in (args.designs or [str(DEFAULT_DESIGN)])]
     if args.json:
         objects = [{"design": d.name, "file": path, "hash": f"0x{d.hash32():08x}", **s.as_dict()}
                    for path, d, s in results]
@@ -55,6 +58,10 @@ def _g(value: float, digits: int = 4) -> str:
     return text.rstrip(".") if "e" not in text else text
 
 
+def _method_suffix(method: str) -> str:
+    return " points per joint" if method.startswith("grid") else " limits over the joint box"
+
+
 def format_single(path: str, d: design_mod.Design, s: Spec) -> str:
     ks = sorted(set(d.k_nm_per_rad))
     k_text = f"{ks[0]:g}" if len(ks) == 1 else "[" + ", ".join(f"{k:g}" for k in d.k_nm_per_rad) + "]"
@@ -65,7 +72,7 @@ def format_single(path: str, d: design_mod.Design, s: Spec) -> str:
         f"la = {d.la_mm:g} mm, lb = {d.lb_mm:g} mm",
         f"  theta_offset = {d.theta_offset_rad:.4f} rad, k = {k_text} N*m/rad, "
         f"joint box |theta_e| <= {d.joint_limit_rad:.4f} rad",
-        f"Specification ({s.method}{' points per joint' if s.method.startswith('grid') else ' limits over the joint box'})",
+        f"Specification ({s.method}{_method_suffix(s.method)})",
         "  TCP workspace       " + " x ".join(_g(v) for v in s.workspace_mm) + " mm",
     ]
     for axis in "xyz":

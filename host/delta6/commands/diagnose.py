@@ -7,13 +7,14 @@ import json
 import sys
 from pathlib import Path
 
-from .. import design as design_mod
-from ..diagnosis.report import write_report
-from ..diagnosis.data import GapData
-from ..diagnosis.run import diagnose_data
-from ..errors import UserError
-from ..logfile import read_log
-from ..model import AXES
+from delta6.core.errors import UserError
+from delta6.core.model import AXES
+from delta6.core.paths import DEFAULT_DESIGN
+from delta6.core.workspace import load_checked
+from delta6.diagnosis.data import GapData
+from delta6.diagnosis.report import write_report
+from delta6.diagnosis.run import diagnose_data
+from delta6.link.logfile import read_log
 
 NAME = "diagnose"
 HELP = "diagnose the gap between the analytical model and a log of reference wrenches"
@@ -22,7 +23,7 @@ HELP = "diagnose the gap between the analytical model and a log of reference wre
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", metavar="LOG.csv", help="log with t, theta_e1..6, Fx..Mz "
                         "(docs/log-format.md); temp_c optional")
-    parser.add_argument("--design", required=True, metavar="DESIGN.toml",
+    parser.add_argument("--design", default=str(DEFAULT_DESIGN), metavar="DESIGN.toml",
                         help="the design the log was recorded with")
     parser.add_argument("--json", metavar="OUT.json", help="write the full result as JSON")
     parser.add_argument("--report", metavar="OUT_DIR",
@@ -32,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    design = design_mod.load(args.design)
+    design = load_checked(args.design)
     log = read_log(args.log)
 
     def progress(message: str) -> None:

@@ -4,8 +4,8 @@ from __future__ import annotations
 import argparse
 import json
 
-from ..protocol import Mode, Status, link_rate_limit
-from ._port import AXES, add_port_arguments, flag_names, open_device
+from delta6.commands._port import AXES, add_port_arguments, flag_names, open_device
+from delta6.link.protocol import Mode, Status, link_rate_limit
 
 NAME = "info"
 HELP = "print the device's identity, scaling, configuration and health"

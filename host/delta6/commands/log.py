@@ -12,10 +12,17 @@ import time
 
 import numpy as np
 
-from ..device import DeviceError
-from ..logfile import LogWriter
-from ._port import Progress, add_port_arguments, add_stream_arguments, log_meta, number, \
-    open_device, start_stream
+from delta6.commands._port import (
+    Progress,
+    add_port_arguments,
+    add_stream_arguments,
+    log_meta,
+    number,
+    open_device,
+    start_stream,
+)
+from delta6.link.device import DeviceError
+from delta6.link.logfile import LogWriter
 
 NAME = "log"
 HELP = "record the wrench stream to a CSV log (progress shown; Ctrl-C ends it cleanly)"

@@ -9,12 +9,22 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import accuracy, design as design_mod
-from ..errors import UserError
-from ..twin import (EFFECT_NAMES, REGISTRY, SCENARIOS, build_effects, parse_request,
-                    random_effect, simulate, write_log)
-from ..twin.scenarios import SCENARIO_HELP, refuse_repeats
-from ..twin.truth import truth_path
+from delta6.core import accuracy
+from delta6.core import design as design_mod
+from delta6.core.errors import UserError
+from delta6.core.workspace import load_checked
+from delta6.twin import (
+    EFFECT_NAMES,
+    REGISTRY,
+    SCENARIOS,
+    build_effects,
+    parse_request,
+    random_effect,
+    simulate,
+    write_log,
+)
+from delta6.twin.scenarios import SCENARIO_HELP, refuse_repeats
+from delta6.twin.truth import truth_path
 
 NAME = "simulate"
 HELP = "simulate a calibration run (digital twin): a log of encoder angles and reference wrench"
@@ -77,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"cannot write {out}: directory {out.parent} does not exist")
     if out.is_dir():
         raise UserError(f"cannot write {out}: it is a directory")
-    design = design_mod.load(args.design or DEFAULT_DESIGN)
+    design = load_checked(args.design or DEFAULT_DESIGN)
     effects = _effects(args, seed, magnitude)
 
     progress = Progress(sys.stderr, enabled=duration * rate >= 20_000)

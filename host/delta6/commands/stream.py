@@ -7,8 +7,16 @@ import time
 
 import numpy as np
 
-from ._port import AXES, Progress, add_port_arguments, add_stream_arguments, flag_names, \
-    number, open_device, start_stream
+from delta6.commands._port import (
+    AXES,
+    Progress,
+    add_port_arguments,
+    add_stream_arguments,
+    flag_names,
+    number,
+    open_device,
+    start_stream,
+)
 
 NAME = "stream"
 HELP = "show the wrench live (Ctrl-C ends it)"

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from ._port import AXES, add_port_arguments, number, open_device
+from delta6.commands._port import AXES, add_port_arguments, number, open_device
 
 NAME = "tare"
 HELP = "tare the wrench on the device (average N samples); --clear undoes it, --save keeps it"

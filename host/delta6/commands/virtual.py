@@ -11,11 +11,11 @@ import tempfile
 import threading
 from pathlib import Path
 
-from .. import virtualboard as vb
-from ..design import DEFAULT_DESIGN
-from ..errors import UserError
-from ..protocol import theta_to_counts, valid_counts
-from ._port import number
+from delta6.commands._port import number
+from delta6.core.design import DEFAULT_DESIGN
+from delta6.core.errors import UserError
+from delta6.link.protocol import theta_to_counts, valid_counts
+from delta6.sim import virtualboard as vb
 
 NAME = "virtual"
 #: The twin's sample rate when it drives the board: above any rate the board samples at.
@@ -86,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--loop goes with --replay")
     run_of_twin = _simulate_twin(args) if args.twin else None
     if args.design is not None:
-        from .codegen import design_firmware
+        from delta6.commands.codegen import design_firmware
         image = design_firmware(args.design)
     else:
         image = vb.firmware()
@@ -109,13 +109,13 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _simulate_twin(args: argparse.Namespace):
-    from .. import design as design_mod
-    from .. import twin
+    from delta6 import twin
+    from delta6.core.workspace import load_checked
     try:
         effects = twin.scenario_effects(args.twin, args.seed)
     except twin.EffectError as exc:
         raise UserError(str(exc)) from None
-    design = design_mod.load(args.design or DEFAULT_DESIGN)
+    design = load_checked(args.design or DEFAULT_DESIGN)
     print(f"simulating {args.twin_duration:g} s of the twin (scenario {args.twin}) ...",
           file=sys.stderr, flush=True)
     return twin.simulate(design, effects, args.twin_duration, TWIN_RATE_HZ, args.seed,
@@ -124,7 +124,7 @@ def _simulate_twin(args: argparse.Namespace):
 
 def _drive(board: vb.VirtualBoard, run_of_twin, speed: float, stop: threading.Event) -> None:
     """Feed the twin's angles through the live channel, paced by the board's clock."""
-    from ..twin import iter_realtime
+    from delta6.twin import iter_realtime
     samples = iter_realtime(run_of_twin, speed=speed if speed > 0 else 1e6, loop=True)
     try:
         board.live.drive(samples, stop=stop)

@@ -7,12 +7,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..design import Design
-from ..errors import UserError
-from ..logfile import LogData
-from ..model import Params, forward_kinematics, wrench
-from ..spec import full_scale
-from . import sensitivity
+from delta6.core.design import Design
+from delta6.core.errors import UserError
+from delta6.core.model import Params, forward_kinematics, wrench
+from delta6.core.spec import full_scale
+from delta6.diagnosis import sensitivity
+from delta6.link.logfile import LogData
 
 #: Temperature at which the design's spring rates and the encoder zeros are taken to hold.
 DEFAULT_REF_TEMP_C = 23.0

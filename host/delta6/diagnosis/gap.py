@@ -1,6 +1,6 @@
 """Where the gap lies: the analytical model's error broken down every way a user asks about.
 
-All errors are in percent of each axis's full scale (``delta6.spec.full_scale``), the form of
+All errors are in percent of each axis's full scale (``delta6.core.spec.full_scale``), the form of
 the paper's Table V. Every function takes the :class:`~delta6.diagnosis.data.GapData` of a log
 and returns plain dicts of lists (they go straight into the JSON and the report).
 """
@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import accuracy
-from ..model import AXES
-from .data import GapData
+from delta6.core import accuracy
+from delta6.core.model import AXES
+from delta6.diagnosis.data import GapData
+
 
 def percent_table(err_pct: np.ndarray) -> dict:
     """Per-axis percentiles of |error| (already in % FS): {"p50": [6], ..., "max": [6]}."""

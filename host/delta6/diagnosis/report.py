@@ -5,15 +5,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..model import AXES
-from .data import GapData
+from delta6.core.model import AXES
+from delta6.diagnosis.data import GapData
 
 
 def _plt():
     try:
         import matplotlib
     except ImportError:  # pragma: no cover - depends on the install
-        from ..errors import UserError
+        from delta6.core.errors import UserError
         raise UserError("--report needs matplotlib: pip install 'delta6[plots]'") from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -108,7 +108,7 @@ def write_report(result: dict, data: GapData, out_dir: str | Path, source: str =
                   + " (needs a temp_c column that varies)."]
     lines += ["", "![candidates](candidates.png)", "", "## How far it shrinks", ""]
     lines += _table(["step", "added", "gain", *(f"p99 {a}" for a in AXES)],
-                    [f"| 0 | analytical model | - | " + " | ".join(
+                    ["| 0 | analytical model | - | " + " | ".join(
                         f"{v:.2f}" for v in result["baseline_heldout_p99_pct"]) + " |"] + [
         f"| {i + 1} | {s['added']} | {s['gain']:.3f} | " + " | ".join(
             f"{v:.2f}" for v in s["heldout_p99_pct"]) + " |"

@@ -6,12 +6,12 @@ import time
 
 import numpy as np
 
-from ..design import Design
-from ..logfile import LogData
-from ..model import AXES
-from . import gap, selection
-from .data import GapData
-from .terms import TERMS
+from delta6.core.design import Design
+from delta6.core.model import AXES
+from delta6.diagnosis import gap, selection
+from delta6.diagnosis.data import GapData
+from delta6.diagnosis.terms import TERMS
+from delta6.link.logfile import LogData
 
 
 def _p99(values_pct: np.ndarray) -> list[float]:
@@ -19,7 +19,7 @@ def _p99(values_pct: np.ndarray) -> list[float]:
 
 
 def diagnose(log: LogData, design: Design, **kwargs) -> dict:
-    """Diagnose a log read with ``delta6.logfile.read_log`` (see :func:`diagnose_data`)."""
+    """Diagnose a log read with ``delta6.link.logfile.read_log`` (see :func:`diagnose_data`)."""
     return diagnose_data(GapData.from_log(log, design), **kwargs)
 
 

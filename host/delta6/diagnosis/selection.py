@@ -26,8 +26,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .data import GapData
-from .terms import Term
+from delta6.diagnosis.data import GapData
+from delta6.diagnosis.terms import Term
 
 N_BLOCKS = 40
 N_FOLDS = 5

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model import Params, branch_forces, rotation, wrench
+from delta6.core.model import Params, branch_forces, rotation, wrench
 
 
 def torque_map(p: Params, theta: np.ndarray) -> np.ndarray:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..operators import first_order, play
+from delta6.core.operators import first_order, play
 
 
 def play_state(x: np.ndarray, radii) -> np.ndarray:

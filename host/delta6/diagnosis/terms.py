@@ -32,10 +32,10 @@ from typing import Callable
 
 import numpy as np
 
-from ..model import ENCODER_COUNT_RAD, link_tension
-from .data import GapData
-from .sensitivity import GEOMETRY_NAMES
-from .signals import dwell_ramps, lagged, play_state, smooth_velocity
+from delta6.core.model import ENCODER_COUNT_RAD, link_tension
+from delta6.diagnosis.data import GapData
+from delta6.diagnosis.sensitivity import GEOMETRY_NAMES
+from delta6.diagnosis.signals import dwell_ramps, lagged, play_state, smooth_velocity
 
 #: Widths (radius, rad) of the hysteresis play operators, doubling from 16 encoder counts
 #: to a fifth of the joint range: enough to follow an exponential (Dahl, Bouc-Wen) approach
@@ -115,7 +115,7 @@ def _force_rotation(data: GapData, vectors: np.ndarray) -> np.ndarray:
     """Wrench change when {E0} turns by a small rotation about each {B} axis e_k, scaled by
     ``vectors`` (n, 3) per sample (or ones): Delta F_E = -R^T (e_k x F0), moments unchanged.
     Returns (n, 6, 3)."""
-    from ..model import base_force, rotation
+    from delta6.core.model import base_force, rotation
     f0 = base_force(data.params, data.theta[:, :3])
     rt = np.swapaxes(rotation(data.theta[:, 3:]), -1, -2)
     cols = np.zeros((len(data), 6, 3))
@@ -174,7 +174,7 @@ def _compliance(data: GapData) -> np.ndarray:
                                                   * data.theta[:, :3])[:, None, :]
     # The platform tilts with the moment about its centre P: the gimbal's moment plus the
     # force at {E}, c below P. The tilt turns the force like a misaligned gimbal would.
-    from ..model import base_force
+    from delta6.core.model import base_force
     f0 = base_force(data.params, data.theta[:, :3])
     m_p = data.params.k[3:] * data.theta[:, 3:] + np.cross([0.0, 0.0, data.params.c], f0)
     tilt = _force_rotation(data, m_p).sum(axis=-1, keepdims=True)  # isotropic, rad/(N*m)

@@ -7,17 +7,39 @@
 """
 from __future__ import annotations
 
-from .effects import (EFFECT_NAMES, REGISTRY, Effect, EffectError, ParamSpec, Stage, effect_class,
-                      registry_info)
-from .measurement import Measurement
-from .realtime import EncoderSample, EncoderTrack, iter_realtime, to_counts, write_log
-from .scenarios import (SCENARIOS, EffectRequest, build_effects, make_effect, parse_request,
-                        random_effect, random_effects, scenario_effects)
-from .simulator import SimResult, simulate
-from .temperature import TemperatureSettings
-from .trajectory import FunctionPath, RandomTrajectory, TrajectorySettings
-from .truth import (effects_from_truth, read_truth, replay_arguments, truth_path, without,
-                    write_truth)
+from delta6.twin.effects import (
+                      EFFECT_NAMES,
+                      REGISTRY,
+                      Effect,
+                      EffectError,
+                      ParamSpec,
+                      Stage,
+                      effect_class,
+                      registry_info,
+)
+from delta6.twin.measurement import Measurement
+from delta6.twin.realtime import EncoderSample, EncoderTrack, iter_realtime, to_counts, write_log
+from delta6.twin.scenarios import (
+                      SCENARIOS,
+                      EffectRequest,
+                      build_effects,
+                      make_effect,
+                      parse_request,
+                      random_effect,
+                      random_effects,
+                      scenario_effects,
+)
+from delta6.twin.simulator import SimResult, simulate
+from delta6.twin.temperature import TemperatureSettings
+from delta6.twin.trajectory import FunctionPath, RandomTrajectory, TrajectorySettings
+from delta6.twin.truth import (
+                      effects_from_truth,
+                      read_truth,
+                      replay_arguments,
+                      truth_path,
+                      without,
+                      write_truth,
+)
 
 __all__ = [
     "EFFECT_NAMES", "REGISTRY", "Effect", "EffectError", "ParamSpec", "Stage", "effect_class",

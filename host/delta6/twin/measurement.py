@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import model
-from .statics import rotation_from_vector
+from delta6.core import model
+from delta6.twin.statics import rotation_from_vector
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ the encoders see, with the active effects applied at their stages, in this fixed
 5. ANGLE    what the encoders read of the joint angles (mechanical play, then readout errors)
 
 The joint torques and the encoder angles run on the fine time grid of the simulation (the
-history-dependent effects use the blocked scans of ``delta6.operators``). The statics is
+history-dependent effects use the blocked scans of ``delta6.core.operators``). The statics is
 history-free: it runs on the samples the caller keeps, unless a TIME effect needs the wrench
 between them; in chunks, so that long runs can report progress.
 """
@@ -19,8 +19,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .effects import Effect, Signals, Stage
-from .statics import PlantGeometry, plant_wrench
+from delta6.twin.effects import Effect, Signals, Stage
+from delta6.twin.statics import PlantGeometry, plant_wrench
 
 #: Fine samples per statics chunk (bounds memory, paces the progress display).
 CHUNK = 50_000

@@ -8,9 +8,9 @@ from typing import Callable, Iterator, NamedTuple
 
 import numpy as np
 
-from ..logfile import LogWriter
-from ..protocol import theta_to_counts
-from .truth import truth_path, write_truth
+from delta6.link.logfile import LogWriter
+from delta6.link.protocol import theta_to_counts
+from delta6.twin.truth import truth_path, write_truth
 
 #: Rows per write (and per progress report).
 WRITE_BLOCK = 10_000
@@ -77,7 +77,7 @@ class EncoderTrack:
     """A run's encoder angles as a function of time, held between samples (zero-order hold),
     for consumers that sample at their own times: ``angles(t_s)`` (s from the run's start,
     any shape (M,)) -> (M, 6) rad. This is the ``motion`` interface of
-    ``delta6.simdevice.SimulatedDevice``: ``SimulatedDevice(motion=EncoderTrack(result))`` runs
+    ``delta6.sim.simdevice.SimulatedDevice``: ``SimulatedDevice(motion=EncoderTrack(result))`` runs
     the firmware core on the twin's encoder angles. ``loop`` repeats the run; otherwise the last
     sample holds."""
 
@@ -100,5 +100,5 @@ class EncoderTrack:
 def to_counts(theta: np.ndarray, zero: int | np.ndarray = 0) -> np.ndarray:
     """Encoder angles (rad) as the raw absolute counts an encoder would report, given the count
     at zero deflection (``zero``): what a virtual board's encoder model serves
-    (:func:`delta6.protocol.theta_to_counts`)."""
+    (:func:`delta6.link.protocol.theta_to_counts`)."""
     return theta_to_counts(theta, zero)

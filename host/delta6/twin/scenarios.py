@@ -10,8 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .effects import EFFECT_NAMES, Effect, EffectError, effect_class
-from .streams import stream
+from delta6.twin.effects import EFFECT_NAMES, Effect, EffectError, effect_class
+from delta6.twin.streams import stream
 
 #: Magnitude of an effect requested without one (the middle of its realistic range, log scale).
 DEFAULT_MAGNITUDE = 0.5

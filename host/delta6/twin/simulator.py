@@ -18,16 +18,16 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .. import accuracy, model
-from ..design import Design
-from ..spec import full_scale
-from . import plant
-from .effects import Effect, Signals, Stage
-from .measurement import Measurement
-from .streams import stream
-from .temperature import TemperatureSettings, ambient
-from .trajectory import RandomTrajectory, TrajectorySettings
-from .truth import build_truth
+from delta6.core import accuracy, model
+from delta6.core.design import Design
+from delta6.core.spec import full_scale
+from delta6.twin import plant
+from delta6.twin.effects import Effect, Signals, Stage
+from delta6.twin.measurement import Measurement
+from delta6.twin.streams import stream
+from delta6.twin.temperature import TemperatureSettings, ambient
+from delta6.twin.trajectory import RandomTrajectory, TrajectorySettings
+from delta6.twin.truth import build_truth
 
 #: Seconds at rest simulated before t = 0 (the lags and the latency start settled).
 PRE_ROLL_S = 1.0

@@ -1,6 +1,6 @@
 """The true plant's statics: joint torques to the wrench at {E}, through the reference model.
 
-The analytical model (``delta6.model``) is the only statics in the project. The twin feeds it
+The analytical model (``delta6.core.model``) is the only statics in the project. The twin feeds it
 the plant's own parameters (per sample where an effect makes them vary) and the plant's joint
 torques instead of k*theta_e, and adds the one thing the model has no place for: the gimbal's
 neutral frame {E0} rotated relative to {B} (a misaligned 3-DOF unit, a platform tilting
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import model
+from delta6.core import model
 
 
 @dataclass

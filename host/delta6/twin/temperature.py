@@ -8,8 +8,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..operators import first_order
-from .effects.base import grid_step
+from delta6.core.operators import first_order
+from delta6.twin.effects.base import grid_step
 
 
 @dataclass(frozen=True)

@@ -10,13 +10,13 @@ import json
 import os
 from pathlib import Path
 
-from .. import __version__
-from ..design import validate
-from ..errors import UserError
-from .effects import Effect, effect_class
-from .measurement import Measurement
-from .temperature import TemperatureSettings
-from .trajectory import TrajectorySettings
+from delta6 import __version__
+from delta6.core.design import validate
+from delta6.core.errors import UserError
+from delta6.twin.effects import Effect, effect_class
+from delta6.twin.measurement import Measurement
+from delta6.twin.temperature import TemperatureSettings
+from delta6.twin.trajectory import TrajectorySettings
 
 SCHEMA = "delta6-twin-truth/1"
 SUFFIX = ".truth.json"

@@ -2,16 +2,16 @@
 effect, and the registry by name."""
 from __future__ import annotations
 
-from .backlash import Backlash
-from .base import Effect, EffectError, ParamSpec, Signals, Stage
-from .encoder_offset import EncoderOffset
-from .geometry_error import GeometryError
-from .joint_friction import JointFriction
-from .link_compliance import LinkCompliance
-from .sensor_latency import SensorLatency
-from .spring_hysteresis import SpringHysteresis
-from .stiffness_mismatch import StiffnessMismatch
-from .thermal_drift import ThermalDrift
+from delta6.twin.effects.backlash import Backlash
+from delta6.twin.effects.base import Effect, EffectError, ParamSpec, Signals, Stage
+from delta6.twin.effects.encoder_offset import EncoderOffset
+from delta6.twin.effects.geometry_error import GeometryError
+from delta6.twin.effects.joint_friction import JointFriction
+from delta6.twin.effects.link_compliance import LinkCompliance
+from delta6.twin.effects.sensor_latency import SensorLatency
+from delta6.twin.effects.spring_hysteresis import SpringHysteresis
+from delta6.twin.effects.stiffness_mismatch import StiffnessMismatch
+from delta6.twin.effects.thermal_drift import ThermalDrift
 
 #: name -> effect class, in the order of the issue's vocabulary.
 REGISTRY: dict[str, type[Effect]] = {cls.NAME: cls for cls in (

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...operators import play
-from .base import Effect, ParamSpec, Stage
+from delta6.core.operators import play
+from delta6.twin.effects.base import Effect, ParamSpec, Stage
 
 #: Contact points of the 'elastic_contact' formulation (clearances spread around the mean).
 CONTACTS = 5

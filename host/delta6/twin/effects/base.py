@@ -19,8 +19,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from ...errors import UserError
-from ...operators import first_order
+from delta6.core.errors import UserError
+from delta6.core.operators import first_order
 
 JOINTS = 6
 BRANCHES = 3

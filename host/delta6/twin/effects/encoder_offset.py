@@ -1,7 +1,7 @@
 """``encoder_offset``: each encoder reads its joint angle plus a constant (angle side)."""
 from __future__ import annotations
 
-from .base import Effect, ParamSpec, Stage
+from delta6.twin.effects.base import Effect, ParamSpec, Stage
 
 
 class EncoderOffset(Effect):

@@ -1,10 +1,8 @@
 """``geometry_error``: the built mechanism differs from the nominal design (geometry)."""
 from __future__ import annotations
 
-import numpy as np
-
-from ..statics import rotation_from_vector
-from .base import Effect, ParamSpec, Stage
+from delta6.twin.effects.base import Effect, ParamSpec, Stage
+from delta6.twin.statics import rotation_from_vector
 
 _LENGTHS = (("a", "base radius a"), ("b", "platform radius b"),
             ("la", "proximal link length l_a"), ("lb", "parallelogram link length l_b"))

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...operators import affine_scan
-from .base import Effect, ParamSpec, Stage
+from delta6.core.operators import affine_scan
+from delta6.twin.effects.base import Effect, ParamSpec, Stage
 
 #: Speeds over which the formulation-independent Coulomb and viscous equivalents are fitted.
 FIT_SPEEDS_RAD_S = np.linspace(0.05, 0.5, 10)

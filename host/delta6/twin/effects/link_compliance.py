@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import statics
-from ..statics import rotation_from_vector
-from .base import Effect, ParamSpec, Stage
+from delta6.twin import statics
+from delta6.twin.effects.base import Effect, ParamSpec, Stage
+from delta6.twin.statics import rotation_from_vector
 
 #: Loads at which the compliances are stated (and the Hertzian law matches the linear one).
 REF_FORCE_N = 5.0

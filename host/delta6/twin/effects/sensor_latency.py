@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...operators import first_order
-from .base import Effect, ParamSpec, Stage
+from delta6.core.operators import first_order
+from delta6.twin.effects.base import Effect, ParamSpec, Stage
 
 
 class SensorLatency(Effect):

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...operators import affine_scan, play
-from .base import Effect, ParamSpec, Stage
+from delta6.core.operators import affine_scan, play
+from delta6.twin.effects.base import Effect, ParamSpec, Stage
 
 #: Play operators of the 'play_sum' formulation (radii evenly spaced up to the saturation
 #: angle, equal weights).

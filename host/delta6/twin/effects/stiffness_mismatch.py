@@ -1,7 +1,7 @@
 """``stiffness_mismatch``: each joint's spring rate differs from the nominal k (torque side)."""
 from __future__ import annotations
 
-from .base import Effect, ParamSpec, Stage
+from delta6.twin.effects.base import Effect, ParamSpec, Stage
 
 
 class StiffnessMismatch(Effect):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Effect, ParamSpec, Stage
+from delta6.twin.effects.base import Effect, ParamSpec, Stage
 
 
 class ThermalDrift(Effect):

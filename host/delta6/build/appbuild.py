@@ -1,0 +1,48 @@
+"""The firmware application (``firmware/src/``): build the ATmega328P image with the local AVR
+toolchain, and the avrxmega3 size check of its portable part.
+
+The ATmega328P image is what the classic Nano runs and what the virtual board emulates; the
+Nano Every (ATmega4809) image is built by PlatformIO on users' machines (Debian's avr-libc has
+no 4809 support). Used by ``delta6 codegen --build``, ``delta6 virtual``, the tests and
+``tools/bench_virtual_board.py``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from delta6.build import avrbuild, nativebuild
+
+APP_DIR = avrbuild.FIRMWARE / "src"
+SIZE_PROBE = avrbuild.FIRMWARE / "native" / "app_size_probe.cpp"
+
+
+def solver_sources() -> list[Path]:
+    return [avrbuild.CORE_LIB / "delta6_solver.cpp"]
+
+
+def app_sources() -> list[Path]:
+    """The sketch, the application and both board layers (each compiles only for its MCU),
+    plus the portable core."""
+    return [*sorted(APP_DIR.glob("*.cpp")), *solver_sources(), *nativebuild.core_sources()]
+
+
+def build_app(include_dir: Path | None = None, *, name: str = "delta6-app",
+              defines=(), out_dir: Path | None = None) -> avrbuild.Image:
+    """The ATmega328P application image for the design whose generated header is under
+    ``include_dir``/generated/ (default: the committed header, designs/delta6.toml).
+    ``defines``: e.g. ``DELTA6_MAX_RATE_HZ=2000`` (benchmarks) or ``DELTA6_TEST_HOOKS``."""
+    include = include_dir if include_dir is not None else avrbuild.COMMITTED_DESIGN_INCLUDE
+    return avrbuild.build_image(name, app_sources(),
+                                include_dirs=[include, APP_DIR, avrbuild.CORE_LIB],
+                                defines=defines, out_dir=out_dir)
+
+
+def size_check_app(mcu: str = "avrxmega3") -> avrbuild.Image:
+    """The application's portable part (app.cpp, solver, protocol core) on ``mcu`` with a
+    do-nothing board layer: what it costs on the ATmega4809's instruction set. The 4809 board
+    layer itself needs the 4809's device headers, which Debian lacks."""
+    sources = [APP_DIR / "app.cpp", SIZE_PROBE, *solver_sources(), *nativebuild.core_sources()]
+    return avrbuild.size_check(f"delta6-app-probe-{mcu}", sources,
+                               include_dirs=[avrbuild.COMMITTED_DESIGN_INCLUDE, APP_DIR,
+                                             avrbuild.CORE_LIB],
+                               defines=["F_CPU=16000000UL"], mcu=mcu)

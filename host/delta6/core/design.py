@@ -1,0 +1,195 @@
+"""Design files: a Delta6 variant's parameters, loaded from TOML and validated.
+
+A design file names every quantity with its unit in the key (``a_mm``, ``k_nm_per_rad``), so a
+file can never be read in the wrong unit silently. Loading returns a :class:`Design`; anything
+wrong raises :class:`DesignError` with a one-line message that names the offending field.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from delta6.core.paths import DEFAULT_DESIGN  # noqa: F401  (re-exported: the default design)
+
+#: The design the tools use when none is given: the paper's Delta6.
+#: Joint range of every encoder, both signs, in radians (the paper samples [-pi/6, pi/6]).
+DEFAULT_JOINT_LIMIT_RAD = math.pi / 6
+
+LENGTH_KEYS = ("a_mm", "b_mm", "c_mm", "la_mm", "lb_mm")
+REQUIRED_KEYS = ("name",) + LENGTH_KEYS + ("theta_offset_rad", "k_nm_per_rad")
+OPTIONAL_KEYS = ("joint_limit_rad", "description")
+
+# Keys people plausibly write in another unit; mapped to the key we expect, for the message.
+_UNIT_HINTS = {
+    **{f"{base}_{unit}": f"{base}_mm" for base in ("a", "b", "c", "la", "lb")
+       for unit in ("m", "cm", "in", "inch", "um", "")},
+    **{f"{base}": f"{base}_mm" for base in ("a", "b", "c", "la", "lb")},
+    "theta_offset_deg": "theta_offset_rad", "theta_offset": "theta_offset_rad",
+    "k": "k_nm_per_rad", "k_nmm_per_rad": "k_nm_per_rad", "k_nm_per_deg": "k_nm_per_rad",
+    "k_n_mm_per_rad": "k_nm_per_rad", "joint_limit_deg": "joint_limit_rad",
+}
+
+
+class DesignError(ValueError):
+    """A design file or design value is unusable. ``field`` names the culprit."""
+
+    def __init__(self, field: str, message: str, source: str | None = None):
+        self.field = field
+        self.source = source
+        where = f"{source}: " if source else ""
+        super().__init__(f"{where}field '{field}': {message}")
+
+
+@dataclass(frozen=True)
+class Design:
+    """One Delta6 variant. Lengths in mm as in the file; use :meth:`si` values for physics."""
+
+    name: str
+    a_mm: float
+    b_mm: float
+    c_mm: float
+    la_mm: float
+    lb_mm: float
+    theta_offset_rad: float
+    k_nm_per_rad: tuple[float, float, float, float, float, float]
+    joint_limit_rad: float = DEFAULT_JOINT_LIMIT_RAD
+    description: str = ""
+
+    def joint_box(self, joints: int = 6) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper limits of the first ``joints`` joint angles, radians."""
+        lim = self.joint_limit_rad
+        return np.full(joints, -lim), np.full(joints, lim)
+
+    @property
+    def k(self) -> np.ndarray:
+        """Per-joint spring rates, N*m/rad, shape (6,)."""
+        return np.asarray(self.k_nm_per_rad, dtype=float)
+
+    def canonical(self) -> dict:
+        """The physically meaningful content, in a fixed order and form (for hashing)."""
+        return {
+            "a_mm": self.a_mm, "b_mm": self.b_mm, "c_mm": self.c_mm,
+            "la_mm": self.la_mm, "lb_mm": self.lb_mm,
+            "theta_offset_rad": self.theta_offset_rad,
+            "k_nm_per_rad": list(self.k_nm_per_rad),
+            "joint_limit_rad": self.joint_limit_rad,
+        }
+
+    def hash32(self) -> int:
+        """32-bit identity of the physics of this design (name and description excluded).
+
+        SHA-256 over a canonical JSON with floats written by ``repr`` (shortest round-trip
+        form), truncated to 32 bits: stable across machines and Python versions.
+        """
+        text = json.dumps(self.canonical(), sort_keys=True, separators=(",", ":"))
+        return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "big")
+
+    def replace(self, **changes) -> "Design":
+        """A copy with some fields changed, validated like a loaded file."""
+        values = {**self.__dict__, **changes}
+        values["k_nm_per_rad"] = list(values["k_nm_per_rad"])
+        return validate(values, source=None)
+
+
+def _number(raw: dict, key: str, source: str | None) -> float:
+    value = raw[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise DesignError(key, f"must be a number, got {type(value).__name__} {value!r}", source)
+    value = float(value)
+    if not math.isfinite(value):
+        raise DesignError(key, f"must be finite, got {value!r}", source)
+    return value
+
+
+def validate(raw: dict, source: str | None = None) -> Design:
+    """Check a mapping of design keys and build a :class:`Design` (no geometry check)."""
+    for key in raw:
+        if key in REQUIRED_KEYS or key in OPTIONAL_KEYS:
+            continue
+        hint = _UNIT_HINTS.get(key)
+        if hint:
+            raise DesignError(key, f"unknown key; write '{hint}' (units are part of the key name)",
+                              source)
+        raise DesignError(key, "unknown key; expected one of " + ", ".join(REQUIRED_KEYS
+                                                                            + OPTIONAL_KEYS), source)
+    for key in REQUIRED_KEYS:
+        if key not in raw:
+            raise DesignError(key, "missing", source)
+
+    name = raw["name"]
+    if not isinstance(name, str) or not name.strip():
+        raise DesignError("name", "must be a non-empty string", source)
+    if len(name.encode()) > 23 or not name.isascii():
+        # The device-info record carries the name in 24 bytes (NUL-terminated, ASCII).
+        raise DesignError("name", "must be ASCII and at most 23 characters", source)
+
+    lengths = {}
+    for key in LENGTH_KEYS:
+        value = _number(raw, key, source)
+        if key == "c_mm":
+            if value < 0:
+                raise DesignError(key, f"must be >= 0 mm, got {value:g}", source)
+        elif value <= 0:
+            raise DesignError(key, f"must be > 0 mm, got {value:g}", source)
+        lengths[key] = value
+    if lengths["b_mm"] >= lengths["a_mm"]:
+        raise DesignError("b_mm", f"must be smaller than a_mm ({lengths['a_mm']:g}), got "
+                                  f"{lengths['b_mm']:g}", source)
+
+    offset = _number(raw, "theta_offset_rad", source)
+    if not -math.pi / 2 < offset < math.pi / 2:
+        raise DesignError("theta_offset_rad", f"must lie in (-pi/2, pi/2) rad, got {offset:g}",
+                          source)
+
+    k_raw = raw["k_nm_per_rad"]
+    if isinstance(k_raw, (list, tuple)):
+        if len(k_raw) != 6:
+            raise DesignError("k_nm_per_rad", f"a per-joint list needs 6 values, got {len(k_raw)}",
+                              source)
+        ks = []
+        for i, item in enumerate(k_raw):
+            ks.append(_number({f"k_nm_per_rad[{i}]": item}, f"k_nm_per_rad[{i}]", source))
+    else:
+        ks = [_number(raw, "k_nm_per_rad", source)] * 6
+    for i, value in enumerate(ks):
+        if value <= 0:
+            raise DesignError("k_nm_per_rad", f"must be > 0 N*m/rad, got {value:g}"
+                              + (f" for joint {i + 1}" if isinstance(k_raw, (list, tuple)) else ""), source)
+
+    limit = DEFAULT_JOINT_LIMIT_RAD
+    if "joint_limit_rad" in raw:
+        limit = _number(raw, "joint_limit_rad", source)
+        if not 0 < limit < math.pi / 2:
+            raise DesignError("joint_limit_rad", f"must lie in (0, pi/2) rad, got {limit:g}",
+                              source)
+    description = raw.get("description", "")
+    if not isinstance(description, str):
+        raise DesignError("description", "must be a string", source)
+
+    return Design(name=name, theta_offset_rad=offset, k_nm_per_rad=tuple(ks),
+                  joint_limit_rad=limit, description=description, **lengths)
+
+
+def load(path: str | Path) -> Design:
+    """Read a design file and validate its fields. Whether the kinematics is solvable over the
+    whole joint box is a geometric question: :func:`delta6.core.workspace.load_checked` loads
+    and answers it, for the commands that need it."""
+    path = Path(path)
+    source = str(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise DesignError("file", "no such file", source) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DesignError("file", f"cannot be read ({exc.__class__.__name__})", source) from None
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise DesignError("file", f"is not valid TOML ({exc})", source) from None
+    return validate(raw, source)

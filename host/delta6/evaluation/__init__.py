@@ -1,0 +1,1 @@
+"""Evaluations above the twin and the diagnosis: the blind gap benchmark."""

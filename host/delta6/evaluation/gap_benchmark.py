@@ -1,0 +1,333 @@
+"""The blind benchmark of the gap diagnosis (``tools/gap_benchmark.py``).
+
+Fresh twin scenarios (seeds far from any used in development, formulations and magnitudes
+drawn from them) are written as logs; the truth files are moved away before the diagnosis
+reads the log, exactly as ``delta6 diagnose`` would; only then is the verdict scored against
+the truth: which effects, their parameters, and how far the gap shrank against how far it
+shrinks when the true effects are modelled perfectly (``twin.without``).
+
+Every case also gets a ``temp_c`` column, so its presence says nothing about thermal drift.
+"""
+from __future__ import annotations
+
+import itertools
+import json
+import shutil
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from delta6.core import accuracy
+from delta6.core.design import Design, load
+from delta6.core.spec import full_scale
+from delta6.diagnosis.run import diagnose
+from delta6.link.logfile import read_log
+
+#: Development used seeds below 10,000; the benchmark starts far above.
+DEFAULT_BASE_SEED = 7_340_000
+DEFAULT_MAGNITUDES = (0.45, 0.7, 0.95)
+#: An effect "carries" a share of the gap when removing it from the twin (same trajectory,
+#: same noise) lowers the analytical model's squared error by that fraction.
+DETECTABLE_SHARE = 0.10
+
+
+@dataclass
+class Case:
+    kind: str                     # "single", "pair", "none", "paper"
+    effects: list[str]
+    seed: int
+    magnitudes: list[float] = field(default_factory=list)
+
+    @property
+    def label(self) -> str:
+        return "+".join(self.effects) if self.effects else self.kind
+
+
+def plan(base_seed: int = DEFAULT_BASE_SEED, magnitudes=DEFAULT_MAGNITUDES, n_pairs: int = 24,
+         n_none: int = 10, paper: bool = True) -> list[Case]:
+    """The cases: every effect alone at each magnitude (jittered), ``n_pairs`` distinct pairs,
+    ``n_none`` runs without effects, and the paper scenario."""
+    from delta6 import twin
+    rng = np.random.default_rng(base_seed)
+    cases: list[Case] = []
+    seed = base_seed
+    for name in twin.EFFECT_NAMES:
+        for m in magnitudes:
+            seed += 1
+            jitter = float(np.clip(m + rng.uniform(-0.08, 0.08), 0.0, 1.0))
+            cases.append(Case("single", [name], seed, [jitter]))
+    pairs = list(itertools.combinations(twin.EFFECT_NAMES, 2))
+    order = rng.permutation(len(pairs))[:n_pairs]
+    for i in order:
+        seed += 1
+        cases.append(Case("pair", list(pairs[i]), seed,
+                          [float(rng.uniform(0.5, 1.0)) for _ in range(2)]))
+    for _ in range(n_none):
+        seed += 1
+        cases.append(Case("none", [], seed))
+    if paper:
+        cases.append(Case("paper", [], base_seed))
+    return cases
+
+
+def _effects(case: Case):
+    from delta6 import twin
+    if case.kind == "paper":
+        return twin.scenario_effects("paper", seed=case.seed)
+    out = []
+    for i, (name, m) in enumerate(zip(case.effects, case.magnitudes)):
+        # Formulation drawn blind from the seed; the magnitude is the case's.
+        draw = twin.random_effect(name, seed=case.seed + 100_000 * i)
+        out.append(twin.make_effect(name, seed=case.seed + 100_000 * i,
+                                    formulation=draw.formulation, magnitude=m))
+    return out
+
+
+def _gap(design: Design, result, fs) -> tuple[np.ndarray, float]:
+    """The analytical model's error on a twin run: p99 per axis (% FS) and the squared error
+    (FS-normalised) summed over the run."""
+    err = accuracy.error_pct_fs(result.model_wrench(), result.wrench, fs)
+    return np.percentile(err, 99, axis=0), float(((err / 100.0) ** 2).sum())
+
+
+def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> dict:
+    """Simulate, hide the truth, diagnose the log file, then score against the truth."""
+    from delta6 import twin
+    design = load(design_path)
+    fs = full_scale(design)
+    effects = _effects(case)
+    dur = 2000.0 if case.kind == "paper" else duration_s
+    result = twin.simulate(design, effects, duration_s=dur, rate_hz=50.0, seed=case.seed,
+                           record_temp=True, scenario="paper" if case.kind == "paper" else None)
+    work = Path(workdir) / f"case-{case.seed}"
+    work.mkdir(parents=True, exist_ok=True)
+    log_path, truth_path = twin.write_log(result, work / "log.csv")
+    hidden = Path(workdir) / "truth" / f"{case.seed}.truth.json"
+    hidden.parent.mkdir(exist_ok=True)
+    shutil.move(truth_path, hidden)
+
+    # --- blind: the diagnosis sees the log file and the design, nothing else ---------------
+    started = time.perf_counter()
+    verdict = diagnose(read_log(log_path), design, seed=0)
+    seconds = time.perf_counter() - started
+
+    truth = json.loads(hidden.read_text())
+    _, full_sse = _gap(design, result, fs)
+    names = [e["name"] for e in truth["effects"]]
+    clean = twin.simulate(**twin.without(truth, names)) if names else result
+    clean_p99, clean_sse = _gap(design, clean, fs)
+    shares = {}
+    if len(names) > 1:
+        for name in names:
+            _, sse_wo = _gap(design, twin.simulate(**twin.without(truth, [name])), fs)
+            shares[name] = (full_sse - sse_wo) / full_sse
+    elif names:
+        shares[names[0]] = (full_sse - clean_sse) / full_sse
+    baseline = np.array(verdict["baseline_heldout_p99_pct"])
+    final = np.array(verdict["ladder"][-1]["heldout_p99_pct"]) if verdict["ladder"] else baseline
+    shutil.rmtree(work, ignore_errors=True)
+    return {
+        "case": asdict(case), "label": case.label, "kind": case.kind,
+        "truth": [{"name": e["name"], "formulation": e["formulation"],
+                   "magnitude": e["magnitude"], "summary": e["summary"]}
+                  for e in truth["effects"]],
+        "shares": shares,
+        "present": verdict["present"],
+        "ladder": [{"added": s["added"], "heldout_p99_pct": s["heldout_p99_pct"]}
+                   for s in verdict["ladder"]],
+        "params": {s["added"]: s["params"] for s in verdict["ladder"]},
+        "candidates": [(c["name"], c["score"]) for c in verdict["candidates"]],
+        "baseline_p99": baseline.tolist(),
+        "final_p99": final.tolist(),
+        "true_p99": clean_p99.tolist(),
+        "predicted_shrink": float((baseline - final).mean()),
+        "true_shrink": float((baseline - clean_p99).mean()),
+        "seconds": seconds, "samples": int(len(result.t)),
+    }
+
+
+def run(cases: list[Case], design_path: str, duration_s: float, workdir: str, jobs: int = 2,
+        progress=None) -> list[dict]:
+    results = []
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        futures = [pool.submit(run_case, c, design_path, duration_s, workdir) for c in cases]
+        for i, fut in enumerate(futures):
+            results.append(fut.result())
+            if progress:
+                progress(i + 1, len(cases), results[-1])
+    return results
+
+
+# --- scoring -------------------------------------------------------------------------------
+
+def recovery_error(name: str, truth: dict, fitted: dict, design: Design) -> float | None:
+    """Relative error ||fitted - true|| / ||true|| of an effect's main physical quantities
+    (formulation-independent summaries of the twin against the fitted family's)."""
+    pairs = _recovery_pairs(name, truth, fitted, design)
+    if not pairs:
+        return None
+    t = np.concatenate([np.atleast_1d(np.asarray(a, float)) for a, _ in pairs])
+    f = np.concatenate([np.atleast_1d(np.asarray(b, float)) for _, b in pairs])
+    norm = np.linalg.norm(t)
+    return float(np.linalg.norm(f - t) / norm) if norm > 0 else None
+
+
+def _joints(fitted: dict, prefix: str, suffix: str) -> list[float]:
+    return [fitted[f"{prefix}j{i}{suffix}"] for i in range(1, 7)]
+
+
+def _recovery_pairs(name, truth, fitted, design):
+    la = design.la_mm * 1e-3
+    if name == "encoder_offset":
+        return [(truth["offset_rad"], _joints(fitted, "offset_", "_rad"))]
+    if name == "stiffness_mismatch":
+        return [(np.asarray(truth["ratio"]) - 1.0, _joints(fitted, "k_ratio_error_", ""))]
+    if name == "geometry_error":
+        d_ab = np.asarray(truth["delta_a_mm"]) - np.asarray(truth["delta_b_mm"])
+        fit_ab = [fitted[f"a{i}_mm"] - fitted[f"b{i}_mm"] for i in (1, 2, 3)]
+        return [(d_ab, fit_ab),
+                (truth["delta_la_mm"], [fitted[f"la{i}_mm"] for i in (1, 2, 3)]),
+                (truth["delta_lb_mm"], [fitted[f"lb{i}_mm"] for i in (1, 2, 3)])]
+    if name == "spring_hysteresis":
+        return [(truth["half_width_nm"], fitted["loop_half_width_nm"])]
+    if name == "joint_friction":
+        return [(truth["torque_at_ref_speed_nm"], fitted["torque_at_ref_speed_nm"])]
+    if name == "backlash":
+        return [(truth["play_rad"], fitted["play_rad"])]
+    if name == "link_compliance":
+        elbow = [fitted[f"bending_j{i}_rad_per_nm"] * la**2 * 1e3 for i in (1, 2, 3)]
+        return [(truth["elbow_mm_per_n"], elbow)]
+    if name == "sensor_latency":
+        return [(truth["latency_s"], fitted["latency_s"])]
+    if name == "thermal_drift":
+        return [(truth["stiffness_coeff_per_c"], fitted["stiffness_coeff_per_c"])]
+    return []
+
+
+def score(results: list[dict], design: Design) -> dict:
+    singles = [r for r in results if r["kind"] == "single"]
+    detectable = [r for r in singles if r["shares"][r["truth"][0]["name"]] >= DETECTABLE_SHARE]
+    pairs = [r for r in results if r["kind"] == "pair"]
+    balanced = [r for r in pairs if min(r["shares"].values()) >= DETECTABLE_SHARE]
+    nones = [r for r in results if r["kind"] == "none"]
+
+    def top1(rs):
+        return float(np.mean([r["present"][:1] == [r["truth"][0]["name"]] for r in rs])) \
+            if rs else float("nan")
+
+    def both(rs):
+        return float(np.mean([set(x["name"] for x in r["truth"]) <= set(r["present"])
+                              for r in rs])) if rs else float("nan")
+
+    from delta6.diagnosis.terms import EFFECT_NAMES
+    labels = list(EFFECT_NAMES) + ["none"]
+    confusion = {t: {p: 0 for p in labels} for t in labels}
+    for r in singles + nones:
+        t = r["truth"][0]["name"] if r["truth"] else "none"
+        p = r["present"][0] if r["present"] else "none"
+        confusion[t][p] += 1
+    extra = [len(set(r["present"]) - {x["name"] for x in r["truth"]}) for r in singles + pairs]
+
+    recovery: dict[str, list[float]] = {}
+    for r in singles + pairs:
+        for t in r["truth"]:
+            if t["name"] in r["params"]:
+                err = recovery_error(t["name"], t["summary"], r["params"][t["name"]], design)
+                if err is not None:
+                    recovery.setdefault(t["name"], []).append(err)
+
+    shrink = [r for r in singles + pairs + nones if r["true_shrink"] > 0.05]
+    ratios = [r["predicted_shrink"] / r["true_shrink"] for r in shrink]
+    per_effect = {}
+    for name in EFFECT_NAMES:
+        rs = [r for r in singles if r["truth"][0]["name"] == name]
+        per_effect[name] = {"cases": len(rs), "top1": top1(rs),
+                            "formulations": sorted({r["truth"][0]["formulation"] for r in rs}),
+                            "min_share": min((r["shares"][name] for r in rs), default=None)}
+    return {
+        "top1_single": top1(singles), "top1_single_detectable": top1(detectable),
+        "singles": len(singles), "singles_detectable": len(detectable),
+        "pair_both_named": both(pairs), "pair_both_named_balanced": both(balanced),
+        "pairs": len(pairs), "pairs_balanced": len(balanced),
+        "false_positive_rate": float(np.mean([bool(r["present"]) for r in nones]))
+        if nones else float("nan"),
+        "none_runs": len(nones),
+        "extra_effects_per_case": float(np.mean(extra)) if extra else 0.0,
+        "confusion": confusion,
+        "recovery_median_rel_error": {k: float(np.median(v)) for k, v in recovery.items()},
+        "shrink_ratio_median": float(np.median(ratios)) if ratios else float("nan"),
+        "shrink_within_25pct": float(np.mean([abs(x - 1) <= 0.25 for x in ratios]))
+        if ratios else float("nan"),
+        "shrink_cases": len(ratios),
+        "per_effect": per_effect,
+        "diagnosis_seconds_max": max(r["seconds"] for r in results),
+    }
+
+
+def format_markdown(summary: dict, results: list[dict], settings: dict) -> str:
+    """The results as Markdown (the table in docs/diagnosis.md comes from here)."""
+    pct = "{:.0%}".format
+    lines = [
+        f"Blind benchmark: {settings['cases']} fresh twin runs (base seed {settings['base_seed']}, "
+        f"{settings['duration_s']:g} s at 50 Hz each, the paper scenario 2000 s), design "
+        f"`{settings['design']}`; {settings['seconds']:.0f} s in all.", "",
+        "| figure | result | required |", "|---|---|---|",
+        f"| top-1 on single effects | {pct(summary['top1_single'])} of {summary['singles']} "
+        f"({pct(summary['top1_single_detectable'])} of the {summary['singles_detectable']} "
+        f"carrying >= {DETECTABLE_SHARE:.0%} of the gap) | >= 90 % |",
+        f"| false positives on no-effect runs | {pct(summary['false_positive_rate'])} of "
+        f"{summary['none_runs']} | <= 10 % |",
+        f"| both effects named in pairs | {pct(summary['pair_both_named'])} of {summary['pairs']} "
+        f"({pct(summary['pair_both_named_balanced'])} of the {summary['pairs_balanced']} where "
+        f"each carries >= {DETECTABLE_SHARE:.0%}) | >= 75 % |",
+        f"| predicted / true shrink (median) | {summary['shrink_ratio_median']:.2f}; "
+        f"{pct(summary['shrink_within_25pct'])} of {summary['shrink_cases']} cases within 25 % "
+        "| within 25 % |",
+        f"| extra effects named per case | {summary['extra_effects_per_case']:.2f} | - |",
+        f"| slowest diagnosis | {summary['diagnosis_seconds_max']:.1f} s | < 60 s for 10^5 |",
+        "", "Per effect (single-effect runs):", "",
+        "| effect | runs | top-1 | formulations drawn | smallest share of the gap | "
+        "parameter recovery (median rel. error) |", "|---|---|---|---|---|---|"]
+    for name, row in summary["per_effect"].items():
+        rec = summary["recovery_median_rel_error"].get(name)
+        share = "-" if row["min_share"] is None else f"{row['min_share']:.2f}"
+        rec_text = "-" if rec is None else f"{rec:.2f}"
+        lines.append(f"| {name} | {row['cases']} | {pct(row['top1'])} | "
+                     f"{', '.join(row['formulations'])} | {share} | {rec_text} |")
+    from delta6.diagnosis.terms import EFFECT_NAMES
+    labels = list(EFFECT_NAMES) + ["none"]
+    short = {n: n.split("_")[0][:6] for n in labels}
+    lines += ["", "Confusion matrix (rows: truth; columns: the strongest effect named):", "",
+              "| truth \\ named | " + " | ".join(short[n] for n in labels) + " |",
+              "|---|" + "---|" * len(labels)]
+    for t in labels:
+        lines.append(f"| {t} | " + " | ".join(str(summary["confusion"][t][p]) or "0"
+                                                for p in labels) + " |")
+    paper = [r for r in results if r["kind"] == "paper"]
+    if paper:
+        r = paper[0]
+        lines += ["", "The `paper` scenario's ladder (held-out p99, % FS; true: every effect "
+                  "modelled perfectly):", "",
+                  "| step | Fx | Fy | Fz | Mx | My | Mz |", "|---|---|---|---|---|---|---|",
+                  "| analytical | " + " | ".join(f"{v:.2f}" for v in r["baseline_p99"]) + " |"]
+        for s in r["ladder"]:
+            lines.append(f"| + {s['added']} | " + " | ".join(f"{v:.2f}"
+                                                           for v in s["heldout_p99_pct"]) + " |")
+        lines.append("| true effects modelled | " + " | ".join(f"{v:.2f}"
+                                                             for v in r["true_p99"]) + " |")
+        lines.append("")
+        lines.append("Truth: " + ", ".join(f"{t['name']} ({t['formulation']})"
+                                           for t in r["truth"]) + ".")
+    misses = [r for r in results if r["kind"] in ("single", "pair")
+              and not {x["name"] for x in r["truth"]} <= set(r["present"])]
+    if misses:
+        lines += ["", "Cases where an effect was not named (share of the gap each effect "
+                  "carries):", ""]
+        for r in misses:
+            shares = ", ".join(f"{k} {v:.2f}" for k, v in r["shares"].items())
+            lines.append(f"- {r['label']} ({', '.join(t['formulation'] for t in r['truth'])};"
+                         f" shares {shares}): named {r['present'] or 'nothing'}")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,589 @@
+"""The host side of a Delta6: a serial port (or any pyserial URL) speaking the protocol.
+
+    with Device("/dev/ttyACM0") as dev:        # or "delta6sim://", "socket://host:port"
+        print(dev.info().design_name)
+        dev.start(500)
+        dev.tare(200)
+        for sample in dev:                       # or dev.on_sample(callback), dev.latest()
+            print(sample.t, sample.wrench)
+
+A reader thread decodes the stream as it arrives; samples wait in a bounded queue (the oldest
+are dropped, and counted, if nobody reads them). Commands carry request ids, are answered
+while streaming goes on, and are retried on timeout; the device answers a retry without
+running the command twice. Every loss is counted in :attr:`Device.health`.
+"""
+from __future__ import annotations
+
+import collections
+import os
+import random
+import threading
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Callable, Iterator
+
+import numpy as np
+import serial
+
+from delta6.core.errors import UserError
+from delta6.link import protocol as P
+from delta6.link.decoder import DecoderStats, SequenceTracker, StreamDecoder
+from delta6.link.protocol import DEFAULT_BAUD
+
+
+class DeviceError(UserError):
+    """Talking to the device failed; the message names the port and the problem."""
+
+
+class PortLost(DeviceError):
+    """The port went away (cable unplugged, device reset the USB link)."""
+
+
+class CommandTimeout(DeviceError):
+    """A command was not answered after all retries."""
+
+
+class CommandRejected(DeviceError):
+    """The device answered NACK; ``nack`` holds its reason."""
+
+    def __init__(self, message: str, nack: P.Nack):
+        super().__init__(message)
+        self.nack = nack
+
+
+class ProtocolMismatch(DeviceError):
+    """The device speaks an incompatible protocol version."""
+
+
+class SampleTimeout(DeviceError):
+    """No sample arrived in time."""
+
+
+@dataclass(slots=True)
+class Sample:
+    t: float                 # device time, s (unwrapped, since the device started)
+    host_t: float            # host time.monotonic() when the bytes arrived, s
+    seq: int                 # unwrapped sequence number
+    status: int              # status word (protocol.Status)
+    wrench: np.ndarray       # Fx Fy Fz (N), Mx My Mz (N*m) in frame {E}; NaN if invalid
+    counts: np.ndarray | None = None   # raw encoder counts (wrench + raw mode)
+    theta: np.ndarray | None = None    # encoder angles theta_e (rad), from counts and zero
+
+    @property
+    def flags(self) -> P.Status:
+        return P.Status(self.status)
+
+    @property
+    def valid(self) -> bool:
+        return not self.status & P.Status.WRENCH_INVALID
+
+
+@dataclass
+class SampleBlock:
+    """Many samples as arrays (what :meth:`Device.read_block` returns)."""
+
+    t: np.ndarray
+    host_t: np.ndarray
+    seq: np.ndarray
+    status: np.ndarray
+    wrench: np.ndarray           # (n, 6)
+    theta: np.ndarray | None     # (n, 6), NaN rows where no counts were sent
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def head(self, n: int) -> "SampleBlock":
+        """The first ``n`` samples."""
+        return SampleBlock(self.t[:n], self.host_t[:n], self.seq[:n], self.status[:n],
+                           self.wrench[:n], None if self.theta is None else self.theta[:n])
+
+
+@dataclass
+class Health:
+    """Every loss and fault the host saw, plus the device's latest telemetry."""
+
+    decoder: DecoderStats
+    samples: int = 0
+    sequence_gaps: int = 0
+    samples_lost: int = 0
+    duplicates: int = 0
+    queue_drops: int = 0
+    callback_errors: int = 0
+    device_resets: int = 0
+    commands: int = 0
+    command_retries: int = 0
+    telemetry: P.Telemetry | None = field(default=None)
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["telemetry"] = self.telemetry._asdict() if self.telemetry else None
+        return d
+
+    def summary(self) -> str:
+        return (f"{self.samples} samples, {self.samples_lost} lost in {self.sequence_gaps} gaps, "
+                + self.link_summary())
+
+    def link_summary(self) -> str:
+        """The losses on the way (decoder, queue), then the device's own if it reported any."""
+        text = (f"{self.decoder.errors} bad frames, {self.decoder.bytes_discarded} bytes "
+                f"discarded, {self.queue_drops} queue drops")
+        if self.telemetry is not None:
+            t = self.telemetry
+            text += (f"; device: {t.overruns} overruns, {t.tx_dropped} tx drops, "
+                     f"{sum(t.encoder_errors)} encoder errors")
+        return text
+
+
+class _Pending:
+    __slots__ = ("command", "event", "response")
+
+    def __init__(self, command: int):
+        self.command = command
+        self.event = threading.Event()
+        self.response = None
+
+
+class Device:
+    """A Delta6 on ``port``: a serial device name or any pyserial URL (``delta6sim://``,
+    ``socket://host:port``, ``loop://``).
+
+    ``timeout`` (s) bounds each command attempt; ``retries`` repeats it. ``handshake`` asks
+    for the device info on open (turn it off only for a port that is not a device, e.g. to
+    replay recorded frames over ``loop://``). ``capture`` is a file to which every received
+    byte is appended (``delta6 decode`` reads it).
+    """
+
+    def __init__(self, port: str, *, baud: int = DEFAULT_BAUD, timeout: float = 0.5,
+                 retries: int = 2, queue_size: int = 100_000, handshake: bool = True,
+                 capture=None):
+        self.port = port
+        self.baud = baud
+        self.timeout = timeout
+        self.retries = retries
+        self.queue_size = queue_size
+        self.handshake = handshake
+        self._capture_target = capture
+        self._capture = None
+        self._serial = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._cond = threading.Condition()
+        self._command_lock = threading.Lock()
+        self._write_lock = threading.Lock()
+        self._queue: collections.deque = collections.deque()
+        self._latest = None
+        self._pending: dict[int, _Pending] = {}
+        self._request_id = random.randrange(1, 256)   # a new session never repeats the last id
+        self._callbacks: list[Callable[[Sample], None]] = []
+        self._decoder = StreamDecoder()
+        self._tracker = SequenceTracker()
+        self._health = Health(decoder=self._decoder.stats)
+        self._info: P.Info | None = None
+        self._lsb: np.ndarray | None = None       # self._info.lsb, parsed once per info
+        self._failure: DeviceError | None = None
+        self._started = False
+        self.callback_error: BaseException | None = None
+        self.events: list[P.Event] = []
+
+    # -- lifetime ----------------------------------------------------------------------
+
+    def open(self) -> "Device":
+        if self._serial is not None:
+            return self
+        self._stop.clear()
+        self._failure = None
+        self._decoder = StreamDecoder()          # every session counts afresh
+        self._tracker = SequenceTracker()
+        self._health = Health(decoder=self._decoder.stats)
+        try:
+            self._serial = serial.serial_for_url(self.port, baudrate=self.baud, timeout=0.05,
+                                                 write_timeout=2.0)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise DeviceError(f"cannot open {self.port}: {_reason(exc)}") from None
+        target = self._capture_target
+        if isinstance(target, (str, os.PathLike)):
+            try:
+                self._capture = open(target, "ab")
+            except OSError as exc:
+                self._serial.close()
+                raise DeviceError(f"cannot write the capture {target}: {exc.strerror}") from None
+        elif target is not None:
+            self._capture = target            # a binary file object of the caller's
+        try:
+            self._serial.reset_input_buffer()
+        except (serial.SerialException, OSError):
+            pass
+        self._thread = threading.Thread(target=self._reader, name=f"delta6 reader {self.port}",
+                                        daemon=True)
+        self._thread.start()
+        if self.handshake:
+            try:
+                self.info(refresh=True)
+            except DeviceError:
+                self.close()
+                raise
+        return self
+
+    def close(self) -> None:
+        """Stop the stream if this session started it, then release the port."""
+        if self._serial is None:
+            return
+        if self._started and self._failure is None:
+            try:
+                self.stop()
+            except DeviceError:
+                pass
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        try:
+            self._serial.close()
+        except (serial.SerialException, OSError):
+            pass
+        self._serial = None
+        if self._capture is not None:
+            self._capture.flush()
+            if self._capture is not self._capture_target:
+                self._capture.close()
+            self._capture = None
+
+    def __enter__(self) -> "Device":
+        return self.open()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        state = "open" if self._serial is not None else "closed"
+        return f"Device({self.port!r}, {state})"
+
+    # -- commands ----------------------------------------------------------------------
+
+    def info(self, refresh: bool = False) -> P.Info:
+        """The device info record (identity, scaling, rate, mode, zero counts, tare)."""
+        if refresh or self._info is None:
+            info = self._request(P.Command.GET_INFO)
+            if info.protocol[0] != P.VERSION[0]:
+                raise ProtocolMismatch(
+                    f"{self.port} speaks protocol {info.protocol_version}; this delta6 reads "
+                    f"{P.VERSION[0]}.x: update the {'host' if info.protocol[0] > P.VERSION[0] else 'firmware'}")
+        return self._info
+
+    def ping(self) -> tuple[float, int]:
+        """(round-trip time in s, device clock in us when it answered)."""
+        t0 = time.monotonic()
+        ack = self._request(P.Command.PING)
+        return time.monotonic() - t0, ack.value
+
+    def start(self, rate_hz: int | None = None) -> int:
+        """Start streaming at ``rate_hz`` (default: the configured rate); returns the rate."""
+        if rate_hz is not None and not 1 <= rate_hz <= 0xFFFF:
+            raise DeviceError(f"rate must be 1..65535 Hz, got {rate_hz}")
+        ack = self._request(P.Command.START, rate_hz or 0)
+        self._started = True
+        self._update_info(rate_hz=ack.value, streaming=True)
+        return ack.value
+
+    def stop(self) -> None:
+        self._request(P.Command.STOP)
+        self._started = False
+        self._update_info(streaming=False)
+
+    def set_mode(self, mode: P.Mode | str) -> None:
+        """``"wrench"`` or ``"raw"`` (wrench plus the six raw encoder counts)."""
+        if isinstance(mode, str):
+            names = {"wrench": P.Mode.WRENCH, "raw": P.Mode.WRENCH_RAW,
+                     "wrench+raw": P.Mode.WRENCH_RAW}
+            if mode not in names:
+                raise DeviceError(f"mode is 'wrench' or 'raw', got {mode!r}")
+            mode = names[mode]
+        self._request(P.Command.SET_MODE, int(mode))
+        self._update_info(mode=int(mode))
+
+    def tare(self, samples: int = 100) -> np.ndarray:
+        """Average ``samples`` samples on the device and subtract the mean from then on.
+        Returns the offsets (N, N*m). Fails if a sample during averaging is flagged."""
+        if not 1 <= samples <= 0xFFFF:
+            raise DeviceError(f"tare takes 1..65535 samples, got {samples}")
+        self._request(P.Command.TARE, samples, timeout=self._averaging_timeout(samples))
+        return np.array(self.info(refresh=True).tare)
+
+    def clear_tare(self) -> None:
+        self._request(P.Command.CLEAR_TARE)
+        self.info(refresh=True)
+
+    def zero_here(self, samples: int = 100) -> tuple:
+        """Take the current encoder positions (averaged) as zero deflection. Clears the tare.
+        Only with no load on the tool. Returns the new zero counts."""
+        if not 1 <= samples <= 0xFFFF:
+            raise DeviceError(f"zero capture takes 1..65535 samples, got {samples}")
+        self._request(P.Command.ZERO_HERE, samples, timeout=self._averaging_timeout(samples))
+        return self.info(refresh=True).zero_counts
+
+    def set_zero(self, counts) -> None:
+        counts = [int(c) for c in counts]
+        if not P.valid_counts(counts):
+            raise DeviceError("zero counts are six integers 0..16383")
+        self._request(P.Command.SET_ZERO, *counts)
+        self.info(refresh=True)
+
+    def save_config(self) -> None:
+        """Write rate, mode, tare and zero counts to the device's EEPROM."""
+        self._request(P.Command.SAVE_CONFIG, timeout=max(self.timeout, 1.0))
+        self.info(refresh=True)
+
+    def load_defaults(self) -> None:
+        """Factory configuration in RAM (save_config makes it permanent)."""
+        self._request(P.Command.LOAD_DEFAULTS)
+        self.info(refresh=True)
+
+    def telemetry(self) -> P.Telemetry:
+        return self._request(P.Command.GET_TELEMETRY)
+
+    # -- samples -----------------------------------------------------------------------
+
+    def __iter__(self) -> Iterator[Sample]:
+        return self.samples()
+
+    def samples(self, timeout: float | None = None) -> Iterator[Sample]:
+        """Samples in order, forever; raises PortLost after the last sample received before
+        the port went away, SampleTimeout if none arrives within ``timeout``."""
+        while True:
+            yield self.get(timeout)
+
+    def get(self, timeout: float | None = None) -> Sample:
+        item = self._take(1, timeout)[0]
+        return self._sample(item)
+
+    def read_block(self, max_samples: int | None = None,
+                   timeout: float | None = None) -> SampleBlock:
+        """Everything queued (at most ``max_samples``), waiting up to ``timeout`` for one."""
+        items = self._take(max_samples or self.queue_size, timeout)
+        info = self._require_info()
+        t_us, host_t, seq, status, w, counts = zip(*items)
+        status = np.array(status, dtype=np.int64)
+        wrench = P.wrench_values(np.array(w, dtype=np.int64), status, self._lsb)
+        theta = None
+        if any(c is not None for c in counts):
+            theta = P.theta_values(P.raw_counts(counts), status, info.zero_counts)
+        return SampleBlock(t=np.array(t_us) * 1e-6, host_t=np.array(host_t),
+                           seq=np.array(seq, dtype=np.int64), status=status, wrench=wrench,
+                           theta=theta)
+
+    def latest(self) -> Sample | None:
+        """The newest sample received (whether or not it was read from the queue)."""
+        item = self._latest
+        return None if item is None else self._sample(item)
+
+    def flush(self) -> int:
+        """Discard queued samples; returns how many."""
+        with self._cond:
+            n = len(self._queue)
+            self._queue.clear()
+        return n
+
+    def on_sample(self, callback: Callable[[Sample], None]) -> Callable[[], None]:
+        """Call ``callback(sample)`` from the reader thread for every sample (in addition to
+        the queue). Keep it short; it must not send commands. Returns a function that removes
+        it. Exceptions are counted in health.callback_errors and kept in callback_error."""
+        self._callbacks.append(callback)
+        return lambda: self._callbacks.remove(callback) if callback in self._callbacks else None
+
+    @property
+    def health(self) -> Health:
+        """A snapshot of the counters."""
+        with self._cond:
+            h = Health(**{**self._health.__dict__, "decoder": DecoderStats(
+                **self._decoder.stats.as_dict())})
+            h.sequence_gaps = self._tracker.gaps
+            h.samples_lost = self._tracker.lost
+            h.duplicates = self._tracker.duplicates
+        return h
+
+    @property
+    def failure(self) -> DeviceError | None:
+        """Why the port stopped working, if it did."""
+        return self._failure
+
+    # -- internals ---------------------------------------------------------------------
+
+    def _averaging_timeout(self, samples: int) -> float:
+        rate = self._require_info().rate_hz or 1
+        return self.timeout + 1.5 * samples / rate
+
+    def _require_info(self) -> P.Info:
+        if self._info is None:
+            raise DeviceError(f"no device info from {self.port} yet: the wrench scale is unknown")
+        return self._info
+
+    def _update_info(self, **changes) -> None:
+        if self._info is not None:
+            self._set_info(self._info._replace(**changes))
+
+    def _set_info(self, info: P.Info) -> None:
+        # The scale first: whoever sees the new info (another thread) sees its scale too.
+        self._lsb = info.lsb
+        self._info = info
+
+    def _next_request_id(self) -> int:
+        self._request_id = self._request_id % 255 + 1    # 1..255; 0 means unsolicited
+        return self._request_id
+
+    def _request(self, command: P.Command, *args, timeout: float | None = None):
+        if self._serial is None:
+            raise DeviceError(f"{self.port} is not open")
+        if threading.current_thread() is self._thread:
+            raise RuntimeError("commands cannot be sent from a sample callback")
+        name = command.name.lower().replace("_", " ")
+        timeout = self.timeout if timeout is None else timeout
+        with self._command_lock:
+            self._raise_failure()
+            request_id = self._next_request_id()
+            pending = _Pending(command)
+            self._pending[request_id] = pending
+            frame = P.encode_command(command, request_id, *args)
+            try:
+                for attempt in range(self.retries + 1):
+                    self._health.commands += attempt == 0
+                    self._health.command_retries += attempt > 0
+                    self._write(frame)
+                    if pending.event.wait(timeout):
+                        break
+                    self._raise_failure()
+                else:
+                    tries = self.retries + 1
+                    hint = (" (is a Delta6 connected at this baud rate?)"
+                            if self._info is None else "")
+                    raise CommandTimeout(f"{name}: no answer from {self.port} in {tries} "
+                                         f"tries of {timeout:g} s{hint}")
+            finally:
+                self._pending.pop(request_id, None)
+            self._raise_failure()
+        response = pending.response
+        if isinstance(response, P.Nack):
+            raise CommandRejected(f"{name} rejected by the device: {response.text()}", response)
+        return response
+
+    def _write(self, data: bytes) -> None:
+        try:
+            with self._write_lock:
+                self._serial.write(data)
+        except (serial.SerialException, OSError) as exc:
+            self._fail(PortLost(f"lost the device on {self.port}: {_reason(exc)}"))
+            self._raise_failure()
+
+    def _raise_failure(self) -> None:
+        if self._failure is not None:
+            raise self._failure
+
+    def _fail(self, error: DeviceError) -> None:
+        with self._cond:
+            if self._failure is None:
+                self._failure = error
+            for pending in self._pending.values():
+                pending.event.set()
+            self._cond.notify_all()
+
+    def _reader(self) -> None:
+        ser = self._serial
+        while not self._stop.is_set():
+            try:
+                waiting = ser.in_waiting
+                data = ser.read(waiting if waiting else 1)
+            except Exception as exc:  # noqa: BLE001 - any failure of the port ends the stream
+                if not self._stop.is_set():
+                    self._fail(PortLost(f"lost the device on {self.port}: {_reason(exc)}"))
+                return
+            if not data:
+                continue
+            host_t = time.monotonic()
+            if self._capture is not None:
+                self._capture.write(data)
+            records = self._decoder.feed(data)
+            if records:
+                self._dispatch(records, host_t)
+
+    def _dispatch(self, records: list, host_t: float) -> None:
+        fresh = []
+        with self._cond:
+            for r in records:
+                if isinstance(r, P.WrenchRecord):
+                    unwrapped = self._tracker.update(r.seq, r.time_us)
+                    if unwrapped is None:
+                        continue
+                    item = (unwrapped[1], host_t, unwrapped[0], r.status, r.wrench, r.counts)
+                    if len(self._queue) >= self.queue_size:
+                        self._queue.popleft()
+                        self._health.queue_drops += 1
+                    self._queue.append(item)
+                    self._latest = item
+                    self._health.samples += 1
+                    if self._callbacks:
+                        fresh.append(item)
+                elif isinstance(r, (P.Ack, P.Nack)):
+                    self._resolve(r.request_id, r.command, r)
+                elif isinstance(r, P.Info):
+                    self._set_info(r)
+                    self._resolve(r.request_id, P.Command.GET_INFO, r)
+                elif isinstance(r, P.Telemetry):
+                    self._health.telemetry = r
+                    self._resolve(r.request_id, P.Command.GET_TELEMETRY, r)
+                elif isinstance(r, P.Event):
+                    self.events.append(r)
+                    if r.code == P.EventCode.BOOT:
+                        self._health.device_resets += 1
+                        self._tracker.reset()
+            self._cond.notify_all()
+        for item in fresh:
+            self._call_back(item)
+
+    def _resolve(self, request_id: int, command: int, response) -> None:
+        pending = self._pending.get(request_id)
+        if request_id and pending is not None and pending.command == command:
+            pending.response = response
+            pending.event.set()
+
+    def _call_back(self, item) -> None:
+        if self._info is None:
+            return
+        sample = self._sample(item)
+        for callback in list(self._callbacks):
+            try:
+                callback(sample)
+            except Exception as exc:  # noqa: BLE001 - a user callback must not kill the reader
+                self._health.callback_errors += 1
+                self.callback_error = exc
+
+    def _take(self, n: int, timeout: float | None) -> list:
+        if timeout is None:
+            rate = self._info.rate_hz if self._info else 1
+            timeout = max(1.0, 20.0 / max(rate, 1))
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while not self._queue:
+                if self._failure is not None:
+                    raise self._failure
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise SampleTimeout(f"no sample from {self.port} for {timeout:g} s "
+                                        "(is the stream started?)")
+                self._cond.wait(remaining)
+            count = min(n, len(self._queue))
+            return [self._queue.popleft() for _ in range(count)]
+
+    def _sample(self, item) -> Sample:
+        info = self._require_info()
+        t_us, host_t, seq, status, w, counts = item
+        wrench = P.wrench_values(np.array(w, dtype=np.int64)[None], np.array([status]),
+                                 self._lsb)[0]
+        raw = theta = None
+        if counts is not None:
+            raw = np.array(counts)
+            theta = P.theta_values(raw[None], np.array([status]), info.zero_counts)[0]
+        return Sample(t=t_us * 1e-6, host_t=host_t, seq=seq, status=status, wrench=wrench,
+                      counts=raw, theta=theta)
+
+
+def _reason(exc: BaseException) -> str:
+    text = str(exc).strip() or type(exc).__name__
+    return text.splitlines()[0]

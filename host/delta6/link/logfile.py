@@ -1,0 +1,302 @@
+"""The Delta6 log format: CSV with a commented header (``docs/log-format.md``).
+
+One format for everything that records samples: the host logger (``delta6 log``), the
+capture decoder (``delta6 decode``), the digital twin (``delta6 simulate``) and the gap
+diagnosis (``delta6 diagnose``, which reads it). Writers stream into ``FILE.partial`` and
+rename it to ``FILE`` only on a clean close, so a file without the suffix is always complete,
+and a crash leaves everything flushed so far in the ``.partial`` file (flushed to the operating
+system: every block, and every ``flush_every`` rows; to the disk, fsync: every ``flush_every``
+rows and at the end).
+"""
+from __future__ import annotations
+
+import io
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from delta6.core.errors import UserError
+
+SCHEMA_VERSION = 1
+MAGIC = "delta6-log"
+THETA_COLUMNS = tuple(f"theta_e{i}" for i in range(1, 7))
+WRENCH_COLUMNS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+#: Required, in this order, at the start of every row.
+CORE_COLUMNS = ("t",) + THETA_COLUMNS + WRENCH_COLUMNS
+#: Optional columns, after the core ones, in this order when present.
+OPTIONAL_COLUMNS = ("seq", "status", "host_t", "temp_c")
+UNITS = {"t": "s", "theta_e": "rad", "F": "N", "M": "N*m", "host_t": "s (host monotonic)",
+         "temp_c": "degC", "status": "status word (docs/protocol.md)", "seq": "record sequence"}
+PARTIAL_SUFFIX = ".partial"
+
+_FLOAT_FORMAT = "%.9g"      # float32 values survive the round trip exactly
+
+
+class LogError(UserError):
+    """A log file is missing, malformed or unusable; the message names the problem."""
+
+
+@dataclass
+class LogData:
+    """A log read back into arrays. ``theta`` and ``wrench`` are (N, 6); optional columns
+    are None when the file lacks them."""
+
+    t: np.ndarray
+    theta: np.ndarray
+    wrench: np.ndarray
+    seq: np.ndarray | None = None
+    status: np.ndarray | None = None
+    host_t: np.ndarray | None = None
+    temp_c: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def header_lines(meta: dict, columns: tuple[str, ...]) -> list[str]:
+    lines = [f"# {MAGIC} schema={SCHEMA_VERSION}"]
+    for key, value in meta.items():
+        text = str(value)
+        if "\n" in text or "=" in key:
+            raise ValueError(f"metadata {key!r} must be a single line without '=' in the key")
+        lines.append(f"# {key}={text}")
+    lines.append("# units: " + "; ".join(f"{k} {v}" for k, v in UNITS.items()))
+    lines.append(",".join(columns))
+    return lines
+
+
+class LogWriter:
+    """Write samples to ``path`` through ``path.partial``; rename on :meth:`close`.
+
+    ``meta`` goes into the header as ``# key=value`` lines (conventionally ``design``,
+    ``design_hash``, ``source``). ``optional`` picks the optional columns to write.
+    ``flush_every`` rows are forced to disk at a time (fsync); blocks are handed to the
+    operating system as they are written, so only a power cut can lose the rows since.
+    Use as a context manager: a clean exit renames the file, an exception still closes and
+    renames it (nothing received is lost) unless ``keep_partial_on_error`` is set.
+    """
+
+    def __init__(self, path: str | Path, meta: dict | None = None,
+                 optional: tuple[str, ...] = (), flush_every: int = 256,
+                 keep_partial_on_error: bool = False):
+        unknown = set(optional) - set(OPTIONAL_COLUMNS)
+        if unknown:
+            raise ValueError(f"unknown optional columns {sorted(unknown)}")
+        self.path = Path(path)
+        self.partial = self.path.with_name(self.path.name + PARTIAL_SUFFIX)
+        self.columns = CORE_COLUMNS + tuple(c for c in OPTIONAL_COLUMNS if c in optional)
+        self.flush_every = max(1, flush_every)
+        self.keep_partial_on_error = keep_partial_on_error
+        self.rows = 0
+        self._pending = 0
+        try:
+            self._file = open(self.partial, "w", encoding="ascii", newline="\n")
+        except OSError as exc:
+            raise LogError(f"cannot create {self.partial}: {exc.strerror}") from None
+        self._file.write("\n".join(header_lines(dict(meta or {}), self.columns)) + "\n")
+        self._file.flush()
+
+    # -- writing ---------------------------------------------------------------------------
+
+    def write(self, t: float, theta, wrench, **optional) -> None:
+        """One sample. ``theta`` or ``wrench`` may be None (written as empty fields)."""
+        values = [t, *(_six(theta)), *(_six(wrench))]
+        values += [optional.get(c) for c in self.columns[len(CORE_COLUMNS):]]
+        self._file.write(",".join(_cell(v) for v in values) + "\n")
+        self.rows += 1
+        self._pending += 1
+        if self._pending >= self.flush_every:
+            self.flush()
+
+    def write_block(self, t: np.ndarray, theta: np.ndarray, wrench: np.ndarray,
+                    **optional: np.ndarray) -> None:
+        """Many samples at once (vectorised formatting, for the simulator and the decoder)."""
+        n = len(t)
+        cols = [np.asarray(t, float)[:, None], _block(theta, n), _block(wrench, n)]
+        for name in self.columns[len(CORE_COLUMNS):]:
+            value = optional.get(name)
+            cols.append(np.full((n, 1), np.nan) if value is None
+                        else np.asarray(value, float).reshape(n, 1))
+        table = np.hstack(cols)
+        buf = io.StringIO()
+        np.savetxt(buf, table, fmt=_FLOAT_FORMAT, delimiter=",")
+        text = buf.getvalue().replace("nan", "")
+        self._file.write(text)
+        self.rows += n
+        self._pending += n
+        if self._pending >= self.flush_every:
+            self.flush()
+        else:
+            self._file.flush()     # to the OS: a crash of this process loses none of it
+
+    def flush(self) -> None:
+        """Everything written so far to the OS and on to the disk (fsync)."""
+        self._file.flush()
+        os.fsync(self._file.fileno())
+        self._pending = 0
+
+    def close(self, complete: bool = True) -> Path:
+        """Flush and close. A complete log is renamed to its final name; an incomplete one
+        keeps the ``.partial`` suffix. Returns the path of the file on disk."""
+        if self._file.closed:
+            return self.path if complete else self.partial
+        self.flush()
+        self._file.close()
+        if complete:
+            os.replace(self.partial, self.path)
+            return self.path
+        return self.partial
+
+    def __enter__(self) -> "LogWriter":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close(complete=exc_type is None or not self.keep_partial_on_error)
+
+
+def _six(values) -> list:
+    if values is None:
+        return [None] * 6
+    values = list(values)
+    if len(values) != 6:
+        raise ValueError("theta and wrench take six values")
+    return values
+
+
+def _block(values, n: int) -> np.ndarray:
+    if values is None:
+        return np.full((n, 6), np.nan)
+    values = np.asarray(values, dtype=float)
+    if values.shape != (n, 6):
+        raise ValueError(f"expected ({n}, 6) values, got {values.shape}")
+    return values
+
+
+def _cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    value = float(value)
+    return "" if math.isnan(value) else _FLOAT_FORMAT % value
+
+
+# --- reading ------------------------------------------------------------------------------
+
+def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData:
+    """Read a log. Raises :class:`LogError` naming the problem: no file, wrong header,
+    missing columns, unparsable or missing values (NaN), non-monotonic time.
+
+    With ``require_complete_rows=False`` empty angle/wrench fields read as NaN (a stream that
+    carried wrench only, or flagged samples) instead of being an error.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="ascii")
+    except FileNotFoundError:
+        raise LogError(f"{path}: no such file") from None
+    except UnicodeDecodeError:
+        raise LogError(f"{path}: not a text CSV log (non-ASCII bytes)") from None
+    except OSError as exc:
+        raise LogError(f"{path}: cannot be read ({exc.strerror})") from None
+
+    lines = text.splitlines()
+    meta: dict[str, str] = {}
+    body_start = 0
+    for body_start, line in enumerate(lines):
+        if not line.startswith("#"):
+            break
+        content = line[1:].strip()
+        if content.startswith(MAGIC):
+            for part in content.split()[1:]:
+                if part.startswith("schema="):
+                    meta["schema"] = part[len("schema="):]
+        elif "=" in content and not content.startswith("units:"):
+            key, _, value = content.partition("=")
+            meta[key.strip()] = value.strip()
+    else:
+        raise LogError(f"{path}: no column header line")
+    if "schema" in meta and meta["schema"] != str(SCHEMA_VERSION):
+        raise LogError(f"{path}: log schema {meta['schema']} is not supported "
+                       f"(this version reads schema {SCHEMA_VERSION})")
+
+    columns = [c.strip() for c in lines[body_start].split(",")]
+    missing = [c for c in CORE_COLUMNS if c not in columns]
+    if missing:
+        raise LogError(f"{path}: missing column(s) {', '.join(missing)}")
+    if len(set(columns)) != len(columns):
+        raise LogError(f"{path}: duplicate column names")
+    rows = [ln for ln in lines[body_start + 1:] if ln.strip()]
+    if not rows:
+        raise LogError(f"{path}: no samples")
+    table = _parse_rows(path, rows, len(columns), body_start + 2)
+    col = {name: table[:, i] for i, name in enumerate(columns)}
+
+    t = col["t"]
+    theta = np.stack([col[c] for c in THETA_COLUMNS], axis=1)
+    wrench = np.stack([col[c] for c in WRENCH_COLUMNS], axis=1)
+    if np.isnan(t).any():
+        raise LogError(f"{path}: missing time value on line {_first_nan_line(t, body_start)}")
+    if require_complete_rows:
+        for name, values in (("theta_e", theta), ("wrench", wrench)):
+            bad = np.isnan(values).any(axis=1)
+            if bad.any():
+                raise LogError(f"{path}: missing or NaN {name} value on line "
+                               f"{_first_nan_line(bad, body_start)}")
+    if not np.all(np.isfinite(t)):
+        raise LogError(f"{path}: non-finite time value")
+    steps = np.diff(t)
+    if (steps <= 0).any():
+        line = int(np.argmax(steps <= 0)) + body_start + 3
+        raise LogError(f"{path}: time is not strictly increasing at line {line}")
+
+    def optional(name):
+        return col.get(name)
+
+    return LogData(t=t, theta=theta, wrench=wrench, seq=_as_int(optional("seq")),
+                   status=_as_int(optional("status")), host_t=optional("host_t"),
+                   temp_c=optional("temp_c"), meta=meta)
+
+
+def _as_int(values: np.ndarray | None) -> np.ndarray | None:
+    """Integer columns as int64 when complete; left as float (with NaN gaps) otherwise."""
+    if values is None or np.isnan(values).any():
+        return values
+    return values.astype(np.int64)
+
+
+def _parse_rows(path: Path, rows: list[str], ncols: int, first_line: int) -> np.ndarray:
+    for i, row in enumerate(rows):
+        if row.count(",") != ncols - 1:
+            raise LogError(f"{path}: line {first_line + i} has {row.count(',') + 1} fields, "
+                           f"expected {ncols}")
+    text = "\n".join(rows)
+    try:  # fast path: every field present
+        return np.loadtxt(io.StringIO(text), delimiter=",", dtype=float, ndmin=2)
+    except ValueError:
+        pass
+    # Empty fields (wrench-only streams, flagged samples) read as NaN; text that is not a
+    # number is an error that names its line.
+    table = np.genfromtxt(io.StringIO(text), delimiter=",", dtype=float, ndmin=2,
+                          missing_values="", filling_values=np.nan)
+    for i, row in enumerate(rows):
+        for cell in row.split(","):
+            cell = cell.strip()
+            if cell:
+                try:
+                    float(cell)
+                except ValueError:
+                    raise LogError(f"{path}: line {first_line + i}: {cell[:20]!r} is not a "
+                                   "number") from None
+    return table
+
+
+def _first_nan_line(mask_or_values: np.ndarray, body_start: int) -> int:
+    mask = np.isnan(mask_or_values) if mask_or_values.dtype != bool else mask_or_values
+    return int(np.argmax(mask)) + body_start + 2
+
+

@@ -1,0 +1,101 @@
+"""``delta6 simulate``: the happy paths, the summary, and one-line errors with exit status 2."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from delta6.cli import main
+from delta6.link.logfile import read_log
+
+from conftest import ROOT
+
+
+def simulate(tmp_path, *args):
+    return main(["simulate", "--duration", "10", "-o", str(tmp_path / "run.csv"), *args])
+
+
+def test_scenario_run_writes_log_truth_and_summary(tmp_path, capsys):
+    assert simulate(tmp_path, "--scenario", "paper", "--seed", "3") == 0
+    out = capsys.readouterr().out
+    assert "run.truth.json" in out and "p99 % FS" in out and "backlash (dead_zone" in out
+    log = read_log(tmp_path / "run.csv")
+    truth = json.loads((tmp_path / "run.truth.json").read_text())
+    assert len(log) == 500 and truth["seed"] == 3 and truth["scenario"] == "paper"
+    assert not list(tmp_path.glob("*.partial"))
+
+
+def test_effects_from_the_command_line(tmp_path, capsys):
+    assert simulate(tmp_path, "--effect", "backlash", "--effect",
+                    "joint_friction:coulomb_nm=0.01,formulation=lugre", "--magnitude", "0.7",
+                    "--effect", "stiffness_mismatch:deviation=0.05,joints=4") == 0
+    truth = json.loads((tmp_path / "run.truth.json").read_text())
+    by_name = {e["name"]: e for e in truth["effects"]}
+    assert by_name["backlash"]["magnitude"] == 0.7
+    friction = by_name["joint_friction"]
+    assert friction["formulation"] == "lugre" and friction["parameters"]["coulomb_nm"] == [0.01] * 6
+    assert by_name["stiffness_mismatch"]["parameters"]["deviation"] == [0, 0, 0, 0.05, 0, 0]
+    assert truth["scenario"] is None
+
+
+def test_random_draws_are_recorded(tmp_path, capsys):
+    assert simulate(tmp_path, "--random", "--effect", "spring_hysteresis", "--effect",
+                    "joint_friction", "--seed", "123", "--record-temp") == 0
+    truth = json.loads((tmp_path / "run.truth.json").read_text())
+    for e in truth["effects"]:
+        assert 0 <= e["magnitude"] <= 1 and e["formulation"]
+    assert truth["temperature"]["recorded"] and read_log(tmp_path / "run.csv").temp_c is not None
+
+
+def test_list_needs_no_output(capsys):
+    assert main(["simulate", "--list"]) == 0
+    out = capsys.readouterr().out
+    assert "spring_hysteresis" in out and "play_sum" in out and "paper" in out
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--scenario", "perfect"], "unknown scenario 'perfect'"),
+    (["--effect", "gravity"], "unknown effect 'gravity'"),
+    (["--effect", "backlash:slack=1"], "unknown parameter 'slack'"),
+    (["--effect", "backlash:play_rad=wide"], "play_rad takes numbers"),
+    (["--effect", "backlash:play_rad"], "expected key=value"),
+    (["--effect", "backlash:play_rad=-0.1"], "must lie in"),
+    (["--effect", "backlash:formulation=gear"], "unknown formulation 'gear'"),
+    (["--effect", "backlash", "--effect", "backlash"], "requested twice"),
+    (["--magnitude", "1.5", "--effect", "backlash"], "--magnitude must be in [0, 1]"),
+    (["--scenario", "paper", "--magnitude", "0.3"], "parameters are fixed"),
+    (["--seed", "-3"], "--seed must be >= 0"),
+    (["--seed", "x"], "--seed takes a whole number"),
+    (["--duration", "0"], "fewer than 2 samples"),
+    (["--rate", "nan"], "--rate must be"),
+    (["--random"], "give at least one --effect"),
+    (["--design", "nowhere.toml"], "no such file"),
+])
+def test_bad_arguments_get_one_line_and_status_2(tmp_path, capsys, args, message):
+    assert simulate(tmp_path, *args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("delta6 simulate: error:")
+    assert message in err[0]
+    assert not (tmp_path / "run.csv").exists()
+
+
+def test_missing_output_and_bad_directory(tmp_path, capsys):
+    assert main(["simulate", "--duration", "5"]) == 2
+    assert "missing -o" in capsys.readouterr().err
+    assert main(["simulate", "--duration", "5", "-o", str(tmp_path / "no" / "x.csv")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_command_runs_as_a_program(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "delta6", "simulate", "--scenario", "nope",
+                          "-o", str(tmp_path / "a.csv")], capture_output=True, text=True,
+                         cwd=ROOT)
+    assert out.returncode == 2 and out.stderr.count("\n") == 1
+    ok = subprocess.run([sys.executable, "-m", "delta6", "simulate", "--scenario",
+                         "joint_friction", "--duration", "4", "-o", str(tmp_path / "b.csv")],
+                        capture_output=True, text=True, cwd=ROOT)
+    assert ok.returncode == 0, ok.stderr
+    assert np.isfinite(read_log(tmp_path / "b.csv").wrench).all()

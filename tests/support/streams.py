@@ -1,0 +1,39 @@
+"""Streams of valid frames for decoder tests and benchmarks (Python encoders)."""
+from __future__ import annotations
+
+import random
+
+from delta6.link import protocol as P
+
+
+def make_frames(n: int, seed: int = 0, data_only: bool = False) -> tuple[list[bytes], list]:
+    """n frames (each ending in 0x00) and the record each carries. Data records get consecutive
+    sequence numbers; a sprinkling of answers, telemetry and events lies between them."""
+    rnd = random.Random(seed)
+    frames, records = [], []
+    seq = rnd.randrange(65536)
+    t = rnd.randrange(2**32)
+    for _ in range(n):
+        kind = rnd.random()
+        if data_only or kind < 0.85:
+            wrench = tuple(rnd.randrange(-32768, 32768) if rnd.random() < 0.3 else
+                           rnd.randrange(-300, 300) for _ in range(6))
+            counts = (tuple(rnd.randrange(16384) for _ in range(6))
+                      if rnd.random() < 0.2 else None)
+            status = rnd.choice([0, 0, 0, 0x1000, 0x0201, 0x0040])
+            record = P.WrenchRecord(seq, t, status, wrench, counts)
+            frame = P.encode_wrench(seq, t, status, wrench, counts)
+            seq = (seq + 1) & 0xFFFF
+            t = (t + 1000) & 0xFFFFFFFF
+        elif kind < 0.9:
+            record = P.Ack(rnd.randrange(1, 256), 0x81, rnd.randrange(2**32))
+            frame = P.encode_ack(*record)
+        elif kind < 0.95:
+            record = P.Nack(rnd.randrange(1, 256), 0x82, 4, 2000)
+            frame = P.encode_nack(*record)
+        else:
+            record = P.Event(P.EventCode.BOOT, rnd.randrange(256))
+            frame = P.encode_event(*record)
+        frames.append(frame)
+        records.append(record)
+    return frames, records
