@@ -22,7 +22,8 @@ BLOCK_ROWS = 100_000
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("capture", metavar="CAPTURE.bin", help="raw bytes as received")
-    parser.add_argument("-o", "--output", required=True, metavar="FILE", help="log file: CSV, or MCAP (ROS 2) when it ends in .mcap")
+    parser.add_argument("-o", "--output", required=True, metavar="FILE",
+                        help="log file: CSV, or MCAP (ROS 2) when it ends in .mcap")
     parser.add_argument("--design", metavar="DESIGN.toml",
                         help="the device's design file: gives the wrench scale when the capture "
                              "holds no device-info record, and is checked against it otherwise")

@@ -177,8 +177,8 @@ def _cell(value) -> str:
 # --- reading ------------------------------------------------------------------------------
 
 def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData:
-    """Read a log, CSV or MCAP (told apart by the file's first bytes). Raises :class:`LogError` naming the problem: no file, wrong header,
-    missing columns, unparsable or missing values (NaN), non-monotonic time.
+    """Read a log, CSV or MCAP (told apart by the file's first bytes). Raises :class:`LogError`
+    naming the problem: no file, wrong header, missing columns, unparsable or missing values (NaN), non-monotonic time.
 
     With ``require_complete_rows=False`` empty angle/wrench fields read as NaN (a stream that
     carried wrench only, or flagged samples) instead of being an error.

@@ -35,16 +35,11 @@ from delta6.link.logdata import (
     LogData,
     LogError,
 )
-from delta6.link.protocol import ENCODER_MASK, Status
 
 MAGIC = b"\x89MCAP0\r\n"
 METADATA_NAME = "delta6-log"
 #: Seconds of log time each DiagnosticArray summarises.
 DIAGNOSTICS_PERIOD = 1.0
-#: Status bits that make the diagnostic level ERROR (no wrench or no angle) or WARN.
-ERROR_BITS = ENCODER_MASK | Status.SOLVER_ERROR | Status.WRENCH_INVALID
-WARN_BITS = Status.OVERRANGE | Status.JOINT_LIMIT | Status.LOOP_OVERRUN | Status.TX_OVERFLOW
-_ANNOUNCED = [R.WRENCH_STAMPED, R.JOINT_STATE, R.FLOAT64_MULTI_ARRAY, R.DIAGNOSTIC_ARRAY]
 
 
 def is_mcap(path: str | Path) -> bool:
@@ -56,16 +51,14 @@ def is_mcap(path: str | Path) -> bool:
         return False
 
 
-def status_level(status: int) -> int:
-    """The diagnostic level of a status word (the OR of a window's samples)."""
-    if status & ERROR_BITS:
-        return R.ERROR
-    return R.WARN if status & WARN_BITS else R.OK
-
-
-def status_text(status: int) -> str:
-    names = [f.name.lower() for f in Status if f & status]
-    return ",".join(names) if names else "ok"
+def log_times(t: np.ndarray, host_t, clock_offset: float | None) -> np.ndarray:
+    """Message log times (ns): the host's receive time as UNIX time, ``host_t`` +
+    ``clock_offset``, where both are known; the sample time ``t`` otherwise."""
+    ns = np.round(np.asarray(t, dtype=float) * 1e9)
+    if host_t is not None and clock_offset is not None:
+        host = np.asarray(host_t, dtype=float)
+        ns = np.where(np.isfinite(host), np.round((host + clock_offset) * 1e9), ns)
+    return np.maximum(ns, 0).astype(np.int64)
 
 
 class McapLogWriter:
@@ -95,14 +88,13 @@ class McapLogWriter:
         self.keep_partial_on_error = keep_partial_on_error
         self.rows = 0
         self._pending = 0
-        self.frame_id = meta.get("frame_id", R.DEFAULT_FRAME_ID)
+        self._last_stamp = -1
+        frame_id = meta.get("frame_id", R.DEFAULT_FRAME_ID)
         offset = meta.get("host_clock_offset")
         self.clock_offset = float(offset) if offset not in (None, "") else None
-        self.hardware_id = " ".join(meta[k] for k in ("design", "serial_number") if k in meta)
-        self._wrench = R.wrench_stamped(self.frame_id)
-        self._joints = R.joint_state(self.frame_id)
-        self._sample = R.float64_array(",".join(self.extra), len(self.extra))
-        self._window: tuple[float, int, int, int, int] | None = None   # start, or, n, flagged, last
+        self._messages = R.SampleMessages(frame_id, self.extra)
+        self._diagnostics = (R.DiagnosticsWindow(frame_id, _hardware_id(meta), DIAGNOSTICS_PERIOD)
+                             if "status" in self.extra else None)
         try:
             self._file = open(self.partial, "wb")
         except OSError as exc:
@@ -110,9 +102,7 @@ class McapLogWriter:
         self._mcap = Writer(self._file, compression=CompressionType.ZSTD)
         self._mcap.start(profile="ros2", library=f"delta6 {__version__}")
         self._channels = {}
-        for topic, datatype in ((R.TOPIC_WRENCH, R.WRENCH_STAMPED), (R.TOPIC_JOINTS, R.JOINT_STATE),
-                                (R.TOPIC_SAMPLE, R.FLOAT64_MULTI_ARRAY),
-                                (R.TOPIC_STATUS, R.DIAGNOSTIC_ARRAY)):
+        for topic, datatype in R.TOPICS.items():
             schema = self._mcap.register_schema(datatype, "ros2msg",
                                                 R.definition(datatype).encode())
             self._channels[topic] = self._mcap.register_channel(topic, "cdr", schema)
@@ -135,87 +125,33 @@ class McapLogWriter:
         n = len(t)
         if n == 0:
             return
-        theta, wrench = _block(theta, n), _block(wrench, n)
-        extra = np.stack([t] + [_column(optional.get(c), n) for c in self.extra[1:]], axis=1)
         sec, nanosec = R.stamp(t)
         stamps = sec * 1_000_000_000 + nanosec
-        steps = np.diff(np.concatenate(([self._last_stamp], stamps)) if self.rows else stamps)
+        steps = np.diff(np.concatenate(([self._last_stamp], stamps)))
         if (steps <= 0).any():
             raise LogError(f"{self.path}: time must increase by at least 1 ns from sample to "
                            f"sample (ROS stamps count nanoseconds); sample "
-                           f"{self.rows + int(np.argmax(steps <= 0)) + (1 if self.rows else 2)} "
-                           "does not")
+                           f"{self.rows + int(np.argmax(steps <= 0)) + 1} does not")
         self._last_stamp = int(stamps[-1])
-        log_time = self._log_times(t, optional.get("host_t"))
+        extra = np.stack([t] + [_column(optional.get(c), n) for c in self.extra[1:]], axis=1)
+        log_time = log_times(t, optional.get("host_t"), self.clock_offset)
         seq = optional.get("seq")
         sequence = (np.arange(self.rows, self.rows + n) if seq is None
                     else np.nan_to_num(np.asarray(seq, float), nan=0)).astype(np.int64) & 0xFFFFFFFF
         add = self._mcap.add_message
-        wrench_id, joints_id, sample_id = (self._channels[k] for k in
-                                           (R.TOPIC_WRENCH, R.TOPIC_JOINTS, R.TOPIC_SAMPLE))
-        wrench_msgs = self._wrench.encode(sec=sec, nanosec=nanosec, wrench=wrench)
-        sample_msgs = self._sample.encode(data=extra)
-        has_theta = np.isfinite(theta).any(axis=1)
-        joint_msgs = iter(self._joints.encode(sec=sec[has_theta], nanosec=nanosec[has_theta],
-                                              position=theta[has_theta]))
-        for i in range(n):
-            lt, sq = int(log_time[i]), int(sequence[i])
-            add(wrench_id, lt, wrench_msgs[i], lt, sq)
-            if has_theta[i]:
-                add(joints_id, lt, next(joint_msgs), lt, sq)
-            add(sample_id, lt, sample_msgs[i], lt, sq)
-        status = optional.get("status")
-        if status is not None and "status" in self.extra:
-            self._diagnostics(t, np.asarray(status, float), log_time)
-        self._last_t, self._last_log_time = float(t[-1]), int(log_time[-1])
+        for row, topic, data in self._messages.encode(t, _block(theta, n), _block(wrench, n),
+                                                      extra):
+            lt = int(log_time[row])
+            add(self._channels[topic], lt, data, lt, int(sequence[row]))
+        if self._diagnostics is not None:
+            for lt, data in self._diagnostics.add(t, extra[:, self.extra.index("status")],
+                                                  log_time):
+                add(self._channels[R.TOPIC_STATUS], lt, data, lt, 0)
         self.rows += n
         self._pending += n
         self._mcap.flush()       # the chunk to the OS: a crash of this process loses none of it
         if self._pending >= self.flush_every:
             self.flush()
-
-    def _log_times(self, t: np.ndarray, host_t) -> np.ndarray:
-        ns = np.round(t * 1e9)
-        if host_t is not None and self.clock_offset is not None:
-            host = np.asarray(host_t, dtype=float)
-            ns = np.where(np.isfinite(host), np.round((host + self.clock_offset) * 1e9), ns)
-        return np.maximum(ns, 0).astype(np.int64)
-
-    def _diagnostics(self, t: np.ndarray, status: np.ndarray, log_time: np.ndarray) -> None:
-        """One DiagnosticArray per DIAGNOSTICS_PERIOD of log time: the OR of its status words."""
-        words = np.nan_to_num(status, nan=0).astype(np.int64)
-        start = self._window[0] if self._window else t[0]
-        cut = np.flatnonzero(t >= start + DIAGNOSTICS_PERIOD)
-        begin = 0
-        while True:
-            end = int(cut[0]) if cut.size else len(t)
-            if end > begin:
-                part = words[begin:end]
-                flagged = int(np.count_nonzero(part & (ERROR_BITS | WARN_BITS)))
-                if self._window:
-                    _, bits, count, seen, _ = self._window
-                    self._window = (start, bits | int(np.bitwise_or.reduce(part)),
-                                    count + len(part), seen + flagged, int(part[-1]))
-                else:
-                    self._window = (start, int(np.bitwise_or.reduce(part)), len(part), flagged,
-                                    int(part[-1]))
-            if not cut.size:
-                return
-            self._emit(float(t[end]), int(log_time[end]))
-            start = float(t[end])
-            begin = end
-            cut = np.flatnonzero(t >= start + DIAGNOSTICS_PERIOD)
-
-    def _emit(self, t: float, log_time: int) -> None:
-        if not self._window:
-            return
-        _, bits, count, flagged, last = self._window
-        data = R.diagnostic_array(t, self.frame_id, status_level(bits), "delta6",
-                                  status_text(bits), self.hardware_id,
-                                  {"status": f"0x{bits:04x}", "samples": str(count),
-                                   "flagged": str(flagged), "last_status": f"0x{last:04x}"})
-        self._mcap.add_message(self._channels[R.TOPIC_STATUS], log_time, data, log_time, 0)
-        self._window = None
 
     def flush(self) -> None:
         """Everything written so far to the OS and on to the disk (fsync)."""
@@ -229,8 +165,9 @@ class McapLogWriter:
         an incomplete one keeps the ``.partial`` suffix. Returns the path on disk."""
         if self._file.closed:
             return self.path if complete else self.partial
-        if self._window:
-            self._emit(self._last_t, self._last_log_time)
+        if self._diagnostics is not None:
+            for lt, data in self._diagnostics.finish():
+                self._mcap.add_message(self._channels[R.TOPIC_STATUS], lt, data, lt, 0)
         self._mcap.finish()
         self._file.flush()
         os.fsync(self._file.fileno())
@@ -245,6 +182,10 @@ class McapLogWriter:
 
     def __exit__(self, exc_type, exc, tb) -> None:
         self.close(complete=exc_type is None or not self.keep_partial_on_error)
+
+
+def _hardware_id(meta: dict) -> str:
+    return " ".join(meta[k] for k in ("design", "serial_number") if k in meta)
 
 
 def _block(values, n: int) -> np.ndarray:

@@ -22,6 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from delta6.link.protocol import ENCODER_MASK, Status
+
 TOPIC_WRENCH = "/delta6/wrench"
 TOPIC_JOINTS = "/delta6/joints"
 TOPIC_SAMPLE = "/delta6/sample"
@@ -33,6 +35,9 @@ WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 FLOAT64_MULTI_ARRAY = "std_msgs/msg/Float64MultiArray"
 DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
+#: Every topic and its message type.
+TOPICS = {TOPIC_WRENCH: WRENCH_STAMPED, TOPIC_JOINTS: JOINT_STATE,
+          TOPIC_SAMPLE: FLOAT64_MULTI_ARRAY, TOPIC_STATUS: DIAGNOSTIC_ARRAY}
 
 # --- message definitions (the ``ros2msg`` schema text: the type, then each dependency) ------
 
@@ -241,3 +246,102 @@ def diagnostic_array(t: float, frame_id: str, level: int, name: str, message: st
         b.string(key)
         b.string(value)
     return ENCAPSULATION + bytes(b.buf)
+
+
+# --- what one block of log rows becomes ---------------------------------------------------
+
+class SampleMessages:
+    """The per-row messages of a block of samples: a WrenchStamped for every row, a JointState
+    for every row with an angle, and a Float64MultiArray of ``t`` and the ``extra`` columns
+    (their labels; the first is ``t``)."""
+
+    def __init__(self, frame_id: str, extra: tuple[str, ...]):
+        if not extra or extra[0] != "t":
+            raise ValueError("the sample array starts with t")
+        self.extra = tuple(extra)
+        self._wrench = wrench_stamped(frame_id)
+        self._joints = joint_state(frame_id)
+        self._sample = float64_array(",".join(self.extra), len(self.extra))
+
+    def encode(self, t: np.ndarray, theta: np.ndarray, wrench: np.ndarray,
+               extra: np.ndarray) -> list[tuple[int, str, bytes]]:
+        """(row, topic, CDR message) in row order; ``extra`` is (n, len(self.extra))."""
+        sec, nanosec = stamp(t)
+        has_theta = np.isfinite(theta).any(axis=1)
+        wrenches = self._wrench.encode(sec=sec, nanosec=nanosec, wrench=wrench)
+        samples = self._sample.encode(data=extra)
+        joints = iter(self._joints.encode(sec=sec[has_theta], nanosec=nanosec[has_theta],
+                                          position=theta[has_theta]))
+        out = []
+        for i in range(len(t)):
+            out.append((i, TOPIC_WRENCH, wrenches[i]))
+            if has_theta[i]:
+                out.append((i, TOPIC_JOINTS, next(joints)))
+            out.append((i, TOPIC_SAMPLE, samples[i]))
+        return out
+
+
+#: Status bits that make the diagnostic level ERROR (no wrench or no angle) or WARN.
+ERROR_BITS = ENCODER_MASK | Status.SOLVER_ERROR | Status.WRENCH_INVALID
+WARN_BITS = Status.OVERRANGE | Status.JOINT_LIMIT | Status.LOOP_OVERRUN | Status.TX_OVERFLOW
+
+
+def status_level(status: int) -> int:
+    """The diagnostic level of a status word (the OR of a window's samples)."""
+    if status & ERROR_BITS:
+        return ERROR
+    return WARN if status & WARN_BITS else OK
+
+
+def status_text(status: int) -> str:
+    names = [f.name.lower() for f in Status if f & status]
+    return ",".join(names) if names else "ok"
+
+
+class DiagnosticsWindow:
+    """One DiagnosticArray per ``period`` seconds of sample time, with the OR of the status words
+    of its samples (a flag raised by one sample is not lost between reports), the number of
+    samples, how many were flagged, and the last status word."""
+
+    def __init__(self, frame_id: str, hardware_id: str = "", period: float = 1.0):
+        self.frame_id, self.hardware_id, self.period = frame_id, hardware_id, period
+        self._start: float | None = None
+        self._bits = self._count = self._flagged = self._last = 0
+        self._last_t = self._last_log_time = None
+
+    def add(self, t: np.ndarray, status: np.ndarray, log_time: np.ndarray) -> list[tuple[int, bytes]]:
+        """(log time, message) of every window the block completes."""
+        words = np.nan_to_num(np.asarray(status, dtype=float), nan=0).astype(np.int64)
+        out = []
+        begin = 0
+        if self._start is None:
+            self._start = float(t[0])
+        while begin < len(t):
+            cut = np.flatnonzero(t[begin:] >= self._start + self.period)
+            end = begin + int(cut[0]) if cut.size else len(t)
+            part = words[begin:end]
+            if part.size:
+                self._bits |= int(np.bitwise_or.reduce(part))
+                self._count += part.size
+                self._flagged += int(np.count_nonzero(part & (ERROR_BITS | WARN_BITS)))
+                self._last = int(part[-1])
+            if not cut.size:
+                break
+            out.append((int(log_time[end]), self._message(float(t[end]))))
+            self._start, begin = float(t[end]), end
+        self._last_t, self._last_log_time = float(t[-1]), int(log_time[-1])
+        return out
+
+    def finish(self) -> list[tuple[int, bytes]]:
+        """The report of the window in progress, if it has samples."""
+        if not self._count:
+            return []
+        return [(self._last_log_time, self._message(self._last_t))]
+
+    def _message(self, t: float) -> bytes:
+        data = diagnostic_array(t, self.frame_id, status_level(self._bits), "delta6",
+                                status_text(self._bits), self.hardware_id,
+                                {"status": f"0x{self._bits:04x}", "samples": str(self._count),
+                                 "flagged": str(self._flagged), "last_status": f"0x{self._last:04x}"})
+        self._bits = self._count = self._flagged = 0
+        return data
