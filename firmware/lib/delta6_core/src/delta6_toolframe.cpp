@@ -1,7 +1,5 @@
 #include "delta6_toolframe.h"
 
-#include <math.h>
-
 #include "delta6_fastmath.h"
 
 namespace delta6 {
@@ -10,9 +8,11 @@ bool makeToolFrame(const float translation[3], const float rpy[3], ToolFrame* ou
   for (uint8_t i = 0; i < 3; ++i) {
     if (!fastmath::is_finite(translation[i]) || !fastmath::is_finite(rpy[i])) return false;
   }
-  const float cr = cosf(rpy[0]), sr = sinf(rpy[0]);
-  const float cp = cosf(rpy[1]), sp = sinf(rpy[1]);
-  const float cy = cosf(rpy[2]), sy = sinf(rpy[2]);
+  using fastmath::cos32;
+  using fastmath::sin32;
+  const float cr = cos32(rpy[0]), sr = sin32(rpy[0]);
+  const float cp = cos32(rpy[1]), sp = sin32(rpy[1]);
+  const float cy = cos32(rpy[2]), sy = sin32(rpy[2]);
   // R = Rz(yaw) Ry(pitch) Rx(roll); rt holds its transpose.
   const float r[9] = {cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr,
                       sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr,
