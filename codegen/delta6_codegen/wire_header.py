@@ -80,7 +80,7 @@ def _commands() -> list[str]:
 
 
 def _status() -> list[str]:
-    lines = ["// --- status word bits (docs/protocol.md section 5); bit 15 is reserved ---"]
+    lines = ["// --- status word bits (docs/protocol.md section 5) ---"]
     for flag in P.Status:
         lines.append(f"const uint16_t kStatus{camel(flag.name)} = 1u << {int(flag).bit_length() - 1};")
     return lines + [f"const uint16_t kStatusEncoderMask = 0x{P.ENCODER_MASK:04X};", ""]
@@ -93,6 +93,11 @@ def _config_blob() -> list[str]:
             f"const uint16_t kConfigMagic = 0x{P.CONFIG_MAGIC:04X};",
             f"const uint8_t kConfigLayoutVersion = {P.CONFIG_LAYOUT_VERSION};",
             f"const uint16_t kConfigBlobSize = {P.CONFIG_BLOB_SIZE};",
+            "// Older layouts the device still loads: each is a prefix of the newest (same",
+            "// offsets), its blob shorter; the fields it lacks take the defaults.",
+            *[line for v in sorted(P.CONFIG_LAYOUTS) if v != P.CONFIG_LAYOUT_VERSION
+              for line in (f"const uint8_t kConfigLayoutV{v} = {v};",
+                           f"const uint16_t kConfigBlobSizeV{v} = {P.CONFIG_BLOB_SIZES[v]};")],
             *_offsets("kConfig", layout), ""]
 
 

@@ -192,9 +192,20 @@ uint32_t d6_parse_commands(const uint8_t* data, uint32_t n, uint8_t* out, uint32
   return rows;
 }
 
+// pipeline: cutoff Hz, tool translation (3), tool rpy (3); null for none (and no limits).
 void d6_encode_config(const uint16_t* rate_mode_active, const float* tare, const uint16_t* zero,
-                      uint32_t design_hash, uint8_t* blob) {
+                      const float* pipeline, const uint16_t* limits, uint32_t design_hash,
+                      uint8_t* blob) {
   Config c;
+  memset(&c, 0, sizeof(c));
+  if (pipeline) {
+    c.filter_hz = pipeline[0];
+    for (int i = 0; i < 3; ++i) {
+      c.tool_translation[i] = pipeline[1 + i];
+      c.tool_rpy[i] = pipeline[4 + i];
+    }
+  }
+  if (limits) memcpy(c.limits, limits, sizeof(c.limits));
   c.rate_hz = rate_mode_active[0];
   c.mode = static_cast<uint8_t>(rate_mode_active[1]);
   c.tare_active = rate_mode_active[2] != 0;

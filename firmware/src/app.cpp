@@ -80,9 +80,10 @@ delta6::Identity identity = {
     kEepromAddress,
 };
 // Zero counts 0 until the assembly is calibrated (ZERO_HERE, then SAVE_CONFIG).
+// No filter, the identity tool frame, no overload limits.
 const delta6::Config defaults = {
     DELTA6_DEFAULT_RATE_HZ, delta6::proto::kModeWrench, false, {0, 0, 0, 0, 0, 0},
-    {0, 0, 0, 0, 0, 0}};
+    {0, 0, 0, 0, 0, 0}, 0.0f, {0, 0, 0}, {0, 0, 0}, {0, 0, 0, 0, 0, 0}};
 delta6::Device device(hardware, identity, defaults);
 
 bool workPending() { return queue_tail != queue_head || board::rxAvailable(); }

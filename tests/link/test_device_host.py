@@ -131,10 +131,12 @@ def test_a_vanishing_port_ends_iteration_with_a_clear_error_after_the_last_sampl
 
 
 def test_sequence_gaps_match_what_the_device_dropped():
-    with Device("delta6sim://?tx_capacity=140") as dev:
+    # A transmit queue just larger than the INFO frame, as small as the device allows.
+    capacity = P.wire_bytes(P.RecordType.INFO) + 8
+    with Device(f"delta6sim://?tx_capacity={capacity}") as dev:
         dev.start(1600)
         for _ in range(15):
-            dev.info(refresh=True)       # 132-byte answers push data records out of the way
+            dev.info(refresh=True)       # INFO answers push data records out of the way
         first = take(dev, 1)[0].seq
         time.sleep(0.05)
         dropped = dev.telemetry().tx_dropped

@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass
 
 from delta6.link import cobs
 from delta6.link.protocol import (
+    ENCODED_LENGTHS,
     ENCODED_SIZES,
     MAX_RECORD_SIZE,
     ProtocolError,
@@ -22,7 +23,7 @@ from delta6.link.protocol import (
 
 #: Frames longer than this are discarded without decoding (largest record + slack).
 MAX_FRAME = MAX_RECORD_SIZE + 64
-_TAIL_LENGTHS = sorted(set(ENCODED_SIZES.values()))
+_TAIL_LENGTHS = sorted(set().union(*ENCODED_LENGTHS.values()))
 
 
 @dataclass
@@ -101,7 +102,7 @@ def _recover_tail(encoded: bytes):
         if length >= len(encoded):
             break
         payload = unframe(encoded[-length:])
-        if payload is None or ENCODED_SIZES.get(payload[0]) != length:
+        if payload is None or length not in ENCODED_LENGTHS.get(payload[0], ()):
             continue
         return parse_payload(payload), length
     return None, 0

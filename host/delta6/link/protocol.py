@@ -1,4 +1,4 @@
-"""The Delta6 wire protocol, version 1.0: every number and layout of ``docs/protocol.md``.
+"""The Delta6 wire protocol, version 1.1: every number and layout of ``docs/protocol.md``.
 
 The tables here (record types, commands, modes, status bits, NACK reasons, event codes,
 configuration problems, the field layouts of every record, command and the EEPROM blob) are
@@ -20,7 +20,7 @@ from delta6.link import cobs
 from delta6.link.crc import crc16
 from delta6.link.layout import Field, Layout
 
-VERSION = (1, 0)
+VERSION = (1, 1)
 
 #: The recommended UART rate (docs/protocol.md, "Baud rate"): exact on 16 MHz AVRs, carries
 #: 1 kHz of wrench records at half load.
@@ -46,6 +46,7 @@ FIRST_COMMAND_TYPE = 0x80
 COMMAND_BUFFER = 32
 
 
+@enum.unique
 class RecordType(enum.IntEnum):
     WRENCH = 0x01
     WRENCH_RAW = 0x02
@@ -56,6 +57,9 @@ class RecordType(enum.IntEnum):
     EVENT = 0x07
 
 
+# Every table is @enum.unique: two branches taking the same code or bit fail at import,
+# never alias silently.
+@enum.unique
 class Command(enum.IntEnum):
     GET_INFO = 0x80
     PING = 0x81
@@ -69,13 +73,24 @@ class Command(enum.IntEnum):
     SET_ZERO = 0x89
     ZERO_HERE = 0x8A
     GET_TELEMETRY = 0x8B
+    SET_FILTER = 0x8C           # protocol 1.1
+    SET_TOOL = 0x8D             # protocol 1.1
+    SET_LIMITS = 0x8E           # protocol 1.1
 
 
+#: The protocol minor version that introduced each command newer than 1.0: a host sends it
+#: only to a device of that minor version or later.
+COMMAND_SINCE = {Command.SET_FILTER: (1, 1), Command.SET_TOOL: (1, 1),
+                 Command.SET_LIMITS: (1, 1)}
+
+
+@enum.unique
 class Mode(enum.IntEnum):
     WRENCH = 1
     WRENCH_RAW = 2
 
 
+@enum.unique
 class Status(enum.IntFlag):
     ENCODER1 = 1 << 0
     ENCODER2 = 1 << 1
@@ -92,11 +107,13 @@ class Status(enum.IntFlag):
     TARE_ACTIVE = 1 << 12
     TARE_BUSY = 1 << 13
     CONFIG_DEFAULTS = 1 << 14
+    OVERLOAD = 1 << 15          # protocol 1.1: an axis exceeded its SET_LIMITS threshold
 
 
 ENCODER_MASK = 0x3F
 
 
+@enum.unique
 class NackReason(enum.IntEnum):
     UNKNOWN_COMMAND = 1
     BAD_LENGTH = 2
@@ -106,6 +123,7 @@ class NackReason(enum.IntEnum):
     BUSY = 6
     FAULT_DURING_AVERAGING = 7
     EEPROM_FAILED = 8
+    FILTER_RANGE = 9            # protocol 1.1
 
 
 NACK_TEXT = {
@@ -119,14 +137,18 @@ NACK_TEXT = {
     NackReason.FAULT_DURING_AVERAGING: "a sample was flagged while averaging "
                                        "(status {detail:#06x}); nothing was changed",
     NackReason.EEPROM_FAILED: "the EEPROM did not read back what was written (byte {detail})",
+    NackReason.FILTER_RANGE: "the low-pass cutoff must lie within 0.001 .. 0.45 x the sample "
+                             "rate of {detail} Hz (0 turns the filter off)",
 }
 
 
+@enum.unique
 class EventCode(enum.IntEnum):
     BOOT = 1
     CONFIG_DEFAULTS = 2
 
 
+@enum.unique
 class ConfigProblem(enum.IntEnum):
     """Why a stored configuration was rejected at boot (the CONFIG_DEFAULTS event's argument)."""
 
@@ -159,19 +181,24 @@ _REQUEST = Field("request_id", "B")
 _DATA = [_TYPE, Field("seq", "H"), Field("time_us", "I"), Field("status", "H"),
          Field("wrench", "h", 6)]
 
+_INFO_1_0 = [
+    _TYPE, _REQUEST, Field("protocol", "B", 2), Field("firmware", "B", 3),
+    Field("mode", "B"), Field("design_hash", "I"), Field("design_name", "s", 24),
+    Field("full_scale", "f", 6), Field("lsb_mantissa", "B", 6),
+    Field("lsb_exponent", "b", 6), Field("rate_hz", "H"), Field("max_rate_hz", "H"),
+    Field("status", "H"), Field("streaming", "B"), Field("reserved", "B"),
+    Field("baud", "I"), Field("serial_number", "I"), Field("zero_counts", "H", 6),
+    Field("tare", "f", 6), Field("joint_limit_rad", "f")]
+#: Appended in 1.1: the wrench pipeline's configuration (SET_FILTER, SET_TOOL, SET_LIMITS).
+_INFO_1_1 = [Field("filter_hz", "f"), Field("tool_translation", "f", 3),
+             Field("tool_rpy", "f", 3), Field("limits", "H", 6)]
+
 #: The payload of each record (type byte included, CRC excluded). Field names are those of
 #: the record's tuple below; a minor version only appends fields.
 RECORD_LAYOUTS = {
     RecordType.WRENCH: Layout("WRENCH", _DATA),
     RecordType.WRENCH_RAW: Layout("WRENCH_RAW", _DATA + [Field("counts", "H", 6)]),
-    RecordType.INFO: Layout("INFO", [
-        _TYPE, _REQUEST, Field("protocol", "B", 2), Field("firmware", "B", 3),
-        Field("mode", "B"), Field("design_hash", "I"), Field("design_name", "s", 24),
-        Field("full_scale", "f", 6), Field("lsb_mantissa", "B", 6),
-        Field("lsb_exponent", "b", 6), Field("rate_hz", "H"), Field("max_rate_hz", "H"),
-        Field("status", "H"), Field("streaming", "B"), Field("reserved", "B"),
-        Field("baud", "I"), Field("serial_number", "I"), Field("zero_counts", "H", 6),
-        Field("tare", "f", 6), Field("joint_limit_rad", "f")]),
+    RecordType.INFO: Layout("INFO", _INFO_1_0 + _INFO_1_1),
     RecordType.ACK: Layout("ACK", [_TYPE, _REQUEST, Field("command", "B"), Field("value", "I")]),
     RecordType.NACK: Layout("NACK", [_TYPE, _REQUEST, Field("command", "B"),
                                      Field("reason", "B"), Field("detail", "I")]),
@@ -185,6 +212,13 @@ RECORD_LAYOUTS = {
     RecordType.EVENT: Layout("EVENT", [_TYPE, Field("code", "B"), Field("arg", "I")]),
 }
 RECORD_SIZES = {t: layout.size for t, layout in RECORD_LAYOUTS.items()}
+#: The shortest record of each type a host accepts: its size in protocol 1.0. A shorter INFO
+#: comes from an older device; the fields appended since read as APPENDED_DEFAULTS.
+RECORD_MIN_SIZES = {**RECORD_SIZES, RecordType.INFO: Layout("INFO 1.0", _INFO_1_0).size}
+#: What an older device's INFO record means by the fields it does not carry: no filter,
+#: the identity tool frame, no overload limits.
+APPENDED_DEFAULTS = {RecordType.INFO: {"filter_hz": 0.0, "tool_translation": (0.0,) * 3,
+                                       "tool_rpy": (0.0,) * 3, "limits": (0,) * 6}}
 _WRENCH = RECORD_LAYOUTS[RecordType.WRENCH].struct
 _WRENCH_RAW = RECORD_LAYOUTS[RecordType.WRENCH_RAW].struct
 
@@ -200,6 +234,9 @@ COMMAND_LAYOUTS = {c: Layout(c.name, [_TYPE, _REQUEST, *args]) for c, args in {
     Command.TARE: [Field("samples", "H")], Command.CLEAR_TARE: [], Command.SAVE_CONFIG: [],
     Command.LOAD_DEFAULTS: [], Command.SET_ZERO: [Field("zero_counts", "H", 6)],
     Command.ZERO_HERE: [Field("samples", "H")], Command.GET_TELEMETRY: [],
+    Command.SET_FILTER: [Field("cutoff_hz", "f")],
+    Command.SET_TOOL: [Field("translation", "f", 3), Field("rpy", "f", 3)],
+    Command.SET_LIMITS: [Field("limits", "H", 6)],
 }.items()}
 #: Argument format of each command (``struct``, after type and request id).
 COMMAND_ARGS = {c: "".join(f.fmt for f in layout.fields[2:])
@@ -209,15 +246,29 @@ MAX_RECORD_SIZE = max(RECORD_SIZES.values())
 
 #: The configuration blob in the device's EEPROM (docs/protocol.md section 9), followed by
 #: its CRC (most significant byte first, like frames).
-CONFIG_LAYOUT = Layout("CONFIG", [
+_CONFIG_1 = [
     Field("magic", "H"), Field("layout", "B"), Field("size", "B"), Field("design_hash", "I"),
     Field("rate_hz", "H"), Field("mode", "B"), Field("tare_active", "B"), Field("tare", "f", 6),
-    Field("zero_counts", "H", 6)])
+    Field("zero_counts", "H", 6)]
+#: Every layout a device loads, by layout version: each is the previous one with fields
+#: appended (checked below), so the fields they share sit at one offset and the device
+#: decodes an older blob with the newest offsets, its missing fields at their defaults.
+CONFIG_LAYOUTS = {
+    1: Layout("CONFIG", _CONFIG_1),
+    2: Layout("CONFIG", _CONFIG_1 + [Field("filter_hz", "f"), Field("tool_translation", "f", 3),
+                                     Field("tool_rpy", "f", 3), Field("limits", "H", 6)]),
+}
+CONFIG_LAYOUT_VERSION = max(CONFIG_LAYOUTS)
+CONFIG_LAYOUT = CONFIG_LAYOUTS[CONFIG_LAYOUT_VERSION]
 CONFIG_MAGIC = 0x3644           # "D6" little-endian
-CONFIG_LAYOUT_VERSION = 1
 CONFIG_BLOB_SIZE = CONFIG_LAYOUT.size + CRC_SIZE
+CONFIG_BLOB_SIZES = {v: layout.size + CRC_SIZE for v, layout in CONFIG_LAYOUTS.items()}
+if any(not CONFIG_LAYOUTS[v + 1].starts_with(CONFIG_LAYOUTS[v]) for v in range(1, CONFIG_LAYOUT_VERSION)):
+    raise AssertionError("each EEPROM layout is the previous one with fields appended")
 #: Encoded length (no delimiter) of each record type: payload + CRC + one COBS code byte.
 ENCODED_SIZES = {t: s + 3 for t, s in RECORD_SIZES.items()}
+#: Every encoded length a record of each type may have (this version's, or protocol 1.0's).
+ENCODED_LENGTHS = {t: frozenset({s + 3, RECORD_MIN_SIZES[t] + 3}) for t, s in RECORD_SIZES.items()}
 
 
 def wire_bytes(record_type: RecordType) -> int:
@@ -273,6 +324,17 @@ class Info(NamedTuple):
     zero_counts: tuple
     tare: tuple
     joint_limit_rad: float
+    # 1.1: the wrench pipeline (defaults: what a 1.0 device does)
+    filter_hz: float = 0.0          # low-pass cutoff, Hz; 0: off
+    tool_translation: tuple = (0.0, 0.0, 0.0)   # tool point in {E}, m
+    tool_rpy: tuple = (0.0, 0.0, 0.0)           # tool axes: roll, pitch, yaw about {E}, rad
+    limits: tuple = (0,) * 6        # overload thresholds, counts of each axis's LSB; 0: none
+
+    @property
+    def limit_values(self) -> np.ndarray:
+        """The overload thresholds in N and N*m (NaN where an axis has none)."""
+        counts = np.asarray(self.limits, dtype=float)
+        return np.where(counts > 0, counts * self.lsb, np.nan)
 
     @property
     def lsb(self) -> np.ndarray:
@@ -360,11 +422,16 @@ def parse_payload(payload: bytes):
     if not payload:
         raise ProtocolError("empty frame")
     kind = payload[0]
-    size = RECORD_SIZES.get(kind)
+    size = RECORD_MIN_SIZES.get(kind)
     if size is None:
         raise ProtocolError(f"unknown record type 0x{kind:02x}")
     if len(payload) < size:
         raise ProtocolError(f"record type 0x{kind:02x} has {len(payload)} bytes, needs {size}")
+    if len(payload) < RECORD_SIZES[kind]:
+        # An older device: its version's fields, the appended ones at their defaults. A
+        # length between two versions' sizes is no record at all.
+        fields = _older_record(kind, payload)
+        return _RECORD_TUPLES[kind](**fields)
     # Data records by position, twice as fast as by name (the order is checked at import):
     # type, seq, time_us, status, wrench[6], counts[6].
     if kind == RecordType.WRENCH:
@@ -374,13 +441,28 @@ def parse_payload(payload: bytes):
         v = _WRENCH_RAW.unpack_from(payload)
         return WrenchRecord(v[1], v[2], v[3], v[4:10], v[10:16])
     fields = RECORD_LAYOUTS[kind].unpack(payload)
+    return _RECORD_TUPLES[kind](**_clean(kind, fields))
+
+
+def _older_record(kind: int, payload: bytes) -> dict:
+    layout = RECORD_LAYOUTS[kind]
+    defaults = APPENDED_DEFAULTS[kind]
+    known = [f for f in layout.fields if f.name not in defaults]
+    prefix = Layout(layout.name, known)
+    if len(payload) != prefix.size:
+        raise ProtocolError(f"record type 0x{kind:02x} has {len(payload)} bytes: neither "
+                            f"{prefix.size} (protocol 1.0) nor {layout.size} or more")
+    return _clean(kind, {**prefix.unpack(payload), **defaults})
+
+
+def _clean(kind: int, fields: dict) -> dict:
     del fields["type"]
     if kind == RecordType.INFO:
         del fields["reserved"]
         fields["design_name"] = fields["design_name"].split(b"\x00", 1)[0].decode("ascii",
                                                                                    "replace")
         fields["streaming"] = bool(fields["streaming"])
-    return _RECORD_TUPLES[kind](**fields)
+    return fields
 
 
 def frame(payload: bytes) -> bytes:

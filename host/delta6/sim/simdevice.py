@@ -76,8 +76,8 @@ def native_library() -> ctypes.CDLL:
         "d6_scale": (None, [c.c_float, c.c_void_p, c.c_void_p]),
         "d6_quantize": (c.c_int16, [c.c_float, c.c_float, c.c_void_p]),
         "d6_parse_commands": (c.c_uint32, [c.c_char_p, c.c_uint32, c.c_void_p, c.c_uint32]),
-        "d6_encode_config": (None, [c.c_void_p, c.c_void_p, c.c_void_p, c.c_uint32,
-                                    c.c_void_p]),
+        "d6_encode_config": (None, [c.c_void_p, c.c_void_p, c.c_void_p, c.c_void_p,
+                                    c.c_void_p, c.c_uint32, c.c_void_p]),
     }
     for name, (restype, argtypes) in sig.items():
         fn = getattr(lib, name)

@@ -14,12 +14,33 @@ namespace {
 
 using fastmath::is_finite;
 
+// Whether the low-pass cutoff (0: off) can be designed at rate_hz.
+bool filterFits(float cutoff_hz, uint16_t rate_hz) {
+  if (cutoff_hz == 0.0f) return true;
+  LowPassCoefficients unused;
+  return designLowPass(cutoff_hz, static_cast<float>(rate_hz), &unused);
+}
+
+bool withinMagnitude(float v, float bound) { return is_finite(v) && v <= bound && v >= -bound; }
+
+// The index (0..5) of the first translation or angle the device does not accept, or 6.
+uint8_t badToolValue(const float translation[3], const float rpy[3]) {
+  for (uint8_t i = 0; i < 3; ++i) {
+    if (!withinMagnitude(translation[i], kMaxToolTranslation)) return i;
+  }
+  for (uint8_t i = 0; i < 3; ++i) {
+    if (!withinMagnitude(rpy[i], kMaxToolAngle)) return static_cast<uint8_t>(3 + i);
+  }
+  return 6;
+}
+
 }  // namespace
 
 Device::Device(Hardware& hardware, const Identity& identity, const Config& defaults)
     : hw_(hardware),
       id_(identity),
       defaults_(defaults),
+      filter_on_(false),
       queue_head_(0),
       queue_count_(0),
       streaming_(false),
@@ -41,6 +62,7 @@ Device::Device(Hardware& hardware, const Identity& identity, const Config& defau
     scale_[i] = scaleForFullScale(id_.full_scale[i]);
     inverse_lsb_[i] = 1.0f / scaleValue(scale_[i]);
   }
+  configurePipeline();
 }
 
 // --- configuration ------------------------------------------------------------------------
@@ -57,6 +79,12 @@ void Device::encodeConfig(const Config& c, uint32_t design_hash, uint8_t* blob) 
   for (uint8_t i = 0; i < 6; ++i) {
     putF32(blob + kConfigOffTare + 4 * i, c.tare[i]);
     putU16(blob + kConfigOffZeroCounts + 2 * i, c.zero_counts[i]);
+    putU16(blob + kConfigOffLimits + 2 * i, c.limits[i]);
+  }
+  putF32(blob + kConfigOffFilterHz, c.filter_hz);
+  for (uint8_t i = 0; i < 3; ++i) {
+    putF32(blob + kConfigOffToolTranslation + 4 * i, c.tool_translation[i]);
+    putF32(blob + kConfigOffToolRpy + 4 * i, c.tool_rpy[i]);
   }
   const uint16_t crc = crc16(blob, kConfigBlobSize - 2);
   blob[kConfigBlobSize - 2] = static_cast<uint8_t>(crc >> 8);
@@ -65,29 +93,47 @@ void Device::encodeConfig(const Config& c, uint32_t design_hash, uint8_t* blob) 
 
 uint8_t Device::decodeConfig(const uint8_t* blob, Config* out) const {
   if (getU16(blob + kConfigOffMagic) != kConfigMagic) return kConfigErased;
-  if (blob[kConfigOffLayout] != kConfigLayoutVersion || blob[kConfigOffSize] != kConfigBlobSize) {
+  // The previous layout is a prefix of this one (same offsets), without the pipeline fields.
+  const bool v1 = blob[kConfigOffLayout] == kConfigLayoutV1 && blob[kConfigOffSize] == kConfigBlobSizeV1;
+  if (!v1 && (blob[kConfigOffLayout] != kConfigLayoutVersion ||
+              blob[kConfigOffSize] != kConfigBlobSize)) {
     return kConfigBadVersion;
   }
-  if (crc16(blob, kConfigBlobSize) != 0) return kConfigBadCrc;
+  if (crc16(blob, blob[kConfigOffSize]) != 0) return kConfigBadCrc;
   Config c;
+  memset(&c, 0, sizeof(c));  // a layout-1 blob: no filter, identity tool, no limits
+  if (!v1) {
+    c.filter_hz = getF32(blob + kConfigOffFilterHz);
+    for (uint8_t i = 0; i < 3; ++i) {
+      c.tool_translation[i] = getF32(blob + kConfigOffToolTranslation + 4 * i);
+      c.tool_rpy[i] = getF32(blob + kConfigOffToolRpy + 4 * i);
+    }
+    for (uint8_t i = 0; i < 6; ++i) {
+      c.limits[i] = getU16(blob + kConfigOffLimits + 2 * i);
+      if (c.limits[i] > static_cast<uint16_t>(kMaxValue)) return kConfigOutOfRange;
+    }
+    if (badToolValue(c.tool_translation, c.tool_rpy) < 6) return kConfigOutOfRange;
+  }
   c.rate_hz = getU16(blob + kConfigOffRateHz);
   c.mode = blob[kConfigOffMode];
   c.tare_active = blob[kConfigOffTareActive] == 1;
   if (c.rate_hz == 0 || c.rate_hz > id_.max_rate_hz) return kConfigOutOfRange;
   if (c.mode != kModeWrench && c.mode != kModeWrenchRaw) return kConfigOutOfRange;
   if (blob[kConfigOffTareActive] > 1) return kConfigOutOfRange;
+  if (!filterFits(c.filter_hz, c.rate_hz)) return kConfigOutOfRange;
   for (uint8_t i = 0; i < 6; ++i) {
-    const uint32_t bits = getU32(blob + kConfigOffTare + 4 * i);
-    memcpy(&c.tare[i], &bits, 4);
+    c.tare[i] = getF32(blob + kConfigOffTare + 4 * i);
     // Any finite offset: the loader accepts every configuration the device can hold.
     if (!is_finite(c.tare[i])) return kConfigOutOfRange;
     c.zero_counts[i] = getU16(blob + kConfigOffZeroCounts + 2 * i);
     if (c.zero_counts[i] >= kCountsPerTurn) return kConfigOutOfRange;
   }
-  // Offsets belong to the model they were measured with; zero counts are mechanical.
+  // Offsets belong to the model they were measured with, limits to its wire scaling; zero
+  // counts, the filter and the tool frame are mechanical.
   if (getU32(blob + kConfigOffDesignHash) != id_.design_hash) {
     c.tare_active = false;
     for (uint8_t i = 0; i < 6; ++i) c.tare[i] = 0.0f;
+    for (uint8_t i = 0; i < 6; ++i) c.limits[i] = 0;
   }
   *out = c;
   return 0;
@@ -96,13 +142,28 @@ uint8_t Device::decodeConfig(const uint8_t* blob, Config* out) const {
 void Device::setRate(uint16_t rate_hz) {
   if (rate_hz == config_.rate_hz) return;
   config_.rate_hz = rate_hz;
+  configurePipeline();  // the filter's coefficients depend on the rate
   hw_.sampleRateChanged(rate_hz);
 }
 
 void Device::applyConfig(const Config& c) {
   const uint16_t old_rate = config_.rate_hz;
   config_ = c;
+  configurePipeline();
   if (c.rate_hz != old_rate) hw_.sampleRateChanged(c.rate_hz);
+}
+
+void Device::configurePipeline() {
+  LowPassCoefficients k;
+  filter_on_ = config_.filter_hz != 0.0f &&
+               designLowPass(config_.filter_hz, static_cast<float>(config_.rate_hz), &k);
+  if (filter_on_) filter_.configure(k);
+  filter_.reset();
+  // Checked where it is set or loaded: a frame that does not make is the identity.
+  const float zero[3] = {0.0f, 0.0f, 0.0f};
+  if (!makeToolFrame(config_.tool_translation, config_.tool_rpy, &tool_)) {
+    makeToolFrame(zero, zero, &tool_);
+  }
 }
 
 void Device::begin(uint8_t reset_cause) {
@@ -112,6 +173,7 @@ void Device::begin(uint8_t reset_cause) {
   const uint8_t problem = decodeConfig(blob, &loaded);
   config_defaults_ = problem != 0;
   config_ = problem ? defaults_ : loaded;
+  configurePipeline();
   hw_.sampleRateChanged(config_.rate_hz);
   answer(kEvent, 0, kEventBoot, 0, reset_cause);
   if (problem) answer(kEvent, 0, kEventConfigDefaults, 0, problem);
@@ -239,6 +301,10 @@ void Device::execute(const Command& c) {
         nack(c, reason, limit);
         break;
       }
+      if (!filterFits(config_.filter_hz, rate)) {
+        nack(c, kNackFilterRange, rate);
+        break;
+      }
       setRate(rate);
       if (!streaming_) last_telemetry_us_ = hw_.micros();
       streaming_ = true;
@@ -307,6 +373,7 @@ void Device::execute(const Command& c) {
         config_.zero_counts[i] = counts[i];
         config_.tare[i] = 0.0f;
       }
+      filter_.reset();  // the wrench jumps: start from the new level, no step response
       ack(c, 0);
       break;
     }
@@ -325,10 +392,73 @@ void Device::execute(const Command& c) {
       applyConfig(defaults_);
       ack(c, 0);
       break;
+    case kCmdSetFilter:
+    case kCmdSetTool:
+      if (busy) {
+        nack(c, kNackBusy);  // a tare averages the pipeline's output: keep it fixed meanwhile
+      } else if (c.type == kCmdSetFilter) {
+        setFilter(c);
+      } else {
+        setTool(c);
+      }
+      break;
+    case kCmdSetLimits:
+      setLimits(c);
+      break;
     default:
       nack(c, kNackUnknownCommand);
       break;
   }
+}
+
+void Device::setFilter(const Command& c) {
+  const float cutoff = getF32(c.args);
+  if (!filterFits(cutoff, config_.rate_hz)) {
+    nack(c, kNackFilterRange, config_.rate_hz);
+    return;
+  }
+  config_.filter_hz = cutoff;
+  configurePipeline();
+  ack(c, 0);
+}
+
+void Device::setTool(const Command& c) {
+  float translation[3], rpy[3];
+  for (uint8_t i = 0; i < 3; ++i) {
+    translation[i] = getF32(c.args + 4 * i);
+    rpy[i] = getF32(c.args + 12 + 4 * i);
+  }
+  const uint8_t bad = badToolValue(translation, rpy);
+  if (bad < 6) {
+    nack(c, kNackBadArgument, bad);
+    return;
+  }
+  ToolFrame next;
+  makeToolFrame(translation, rpy, &next);
+  if (config_.tare_active) {
+    // The tare is a wrench in the reporting frame: the same physical offset, re-expressed.
+    unapplyToolFrame(tool_, config_.tare);
+    applyToolFrame(next, config_.tare);
+  }
+  for (uint8_t i = 0; i < 3; ++i) {
+    config_.tool_translation[i] = translation[i];
+    config_.tool_rpy[i] = rpy[i];
+  }
+  tool_ = next;
+  ack(c, 0);
+}
+
+void Device::setLimits(const Command& c) {
+  uint16_t limits[6];
+  for (uint8_t i = 0; i < 6; ++i) {
+    limits[i] = getU16(c.args + 2 * i);
+    if (limits[i] > static_cast<uint16_t>(kMaxValue)) {
+      nack(c, kNackBadArgument, limits[i]);
+      return;
+    }
+  }
+  for (uint8_t i = 0; i < 6; ++i) config_.limits[i] = limits[i];
+  ack(c, 0);
 }
 
 void Device::startAveraging(const Command& c, uint16_t samples) {
@@ -339,7 +469,7 @@ void Device::startAveraging(const Command& c, uint16_t samples) {
   memset(&sums_, 0, sizeof(sums_));
 }
 
-void Device::accumulate(const Sample& s, uint16_t status) {
+void Device::accumulate(const float* wrench, const Sample& s, uint16_t status) {
   const uint16_t bad = averaging_ == kCmdTare ? kStatusWrenchInvalid : kStatusEncoderMask;
   if (status & bad) {
     // An average over flagged samples would be a made-up offset: give up and say why.
@@ -350,7 +480,7 @@ void Device::accumulate(const Sample& s, uint16_t status) {
   }
   for (uint8_t i = 0; i < 6; ++i) {
     if (averaging_ == kCmdTare) {
-      sums_.wrench[i] += s.wrench[i];
+      sums_.wrench[i] += wrench[i];
     } else {
       sums_.counts[i] += wrap_count_delta(s.counts[i], config_.zero_counts[i]);
     }
@@ -474,6 +604,12 @@ uint16_t Device::buildInfo(uint8_t request_id) {
   putU32(p + kInfoOffBaud, id_.baud);
   putU32(p + kInfoOffSerialNumber, id_.serial_number);
   putF32(p + kInfoOffJointLimitRad, id_.joint_limit_rad);
+  putF32(p + kInfoOffFilterHz, filter_on_ ? config_.filter_hz : 0.0f);
+  for (uint8_t i = 0; i < 3; ++i) {
+    putF32(p + kInfoOffToolTranslation + 4 * i, config_.tool_translation[i]);
+    putF32(p + kInfoOffToolRpy + 4 * i, config_.tool_rpy[i]);
+  }
+  for (uint8_t i = 0; i < 6; ++i) putU16(p + kInfoOffLimits + 2 * i, config_.limits[i]);
   return finishFrame(tx_, kInfoSize);
 }
 
@@ -542,7 +678,16 @@ void Device::onSample(const Sample& s) {
   }
   if (!valid) status |= kStatusWrenchInvalid;
 
-  if (averaging_) accumulate(s, status);
+  // The pipeline: low-pass, tool frame (tare and quantisation below). Every valid sample
+  // goes through the filter, streaming or not, so its state is current when a stream or a
+  // tare starts; a sample without a wrench leaves the filter as it was.
+  float w[6];
+  for (uint8_t i = 0; i < 6; ++i) w[i] = s.wrench[i];
+  if (valid) {
+    if (filter_on_) filter_.apply(w);
+    applyToolFrame(tool_, w);
+  }
+  if (averaging_) accumulate(w, s, status);
   last_status_ = status;
 
   service();
@@ -550,11 +695,23 @@ void Device::onSample(const Sample& s) {
     // Quantised only when sent: about 400 AVR cycles per axis saved while stopped.
     int16_t wrench[6];
     bool clipped = false;
+    bool overload = false;
     for (uint8_t i = 0; i < 6; ++i) {
-      const float w = config_.tare_active ? s.wrench[i] - config_.tare[i] : s.wrench[i];
-      wrench[i] = valid ? quantize(w, inverse_lsb_[i], &clipped) : kInvalidValue;
+      if (!valid) {
+        wrench[i] = kInvalidValue;
+        continue;
+      }
+      const float v = config_.tare_active ? w[i] - config_.tare[i] : w[i];
+      const int16_t q = quantize(v, inverse_lsb_[i], &clipped);
+      wrench[i] = q;
+      // Over the threshold: |q| > limit, in counts, so exact at the threshold.
+      const uint16_t limit = config_.limits[i];
+      if (limit != 0 && (q > static_cast<int16_t>(limit) || q < -static_cast<int16_t>(limit))) {
+        overload = true;
+      }
     }
     if (clipped) status |= kStatusOverrange;
+    if (overload) status |= kStatusOverload;
     last_status_ = status;
     sendData(s, static_cast<uint16_t>(status | persistentStatus()), wrench);
     if (s.time_us - last_telemetry_us_ >= kTelemetryPeriodUs) {

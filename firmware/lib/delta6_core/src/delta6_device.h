@@ -15,7 +15,9 @@
 
 #include <stdint.h>
 
+#include "delta6_filter.h"
 #include "delta6_protocol.h"
+#include "delta6_toolframe.h"
 
 namespace delta6 {
 
@@ -55,14 +57,24 @@ struct Identity {
   uint16_t eeprom_address;   // where the configuration blob lives
 };
 
-// The persistent configuration (saved to EEPROM only by the save command).
+// The persistent configuration (saved to EEPROM only by the save command). The wrench
+// pipeline per sample: low-pass (filter_hz) -> tool frame -> tare -> quantise -> limits.
 struct Config {
   uint16_t rate_hz;
   uint8_t mode;              // proto::kModeWrench or proto::kModeWrenchRaw
   bool tare_active;
-  float tare[6];             // subtracted from the solver's wrench when tare_active
+  float tare[6];             // subtracted from the tool-frame wrench when tare_active
   uint16_t zero_counts[6];   // encoder count at zero deflection, joints 1..6 (0..16383)
+  float filter_hz;           // low-pass cutoff, 0: off (kMinCutoffRatio..kMaxCutoffRatio x rate)
+  float tool_translation[3]; // the tool point in {E}, m (|value| <= kMaxToolTranslation)
+  float tool_rpy[3];         // the tool's axes: roll, pitch, yaw about {E}, rad (<= kMaxToolAngle)
+  uint16_t limits[6];        // overload thresholds, counts of each axis's LSB; 0: none
 };
+
+// The tool frames the device accepts: a tool point within 1 m of {E}'s origin per axis (a
+// longer lever has no use on this sensor), angles within one turn either way.
+const float kMaxToolTranslation = 1.0f;
+const float kMaxToolAngle = 6.2831853f;
 
 // One sample from the application.
 struct Sample {
@@ -114,6 +126,7 @@ class Device {
   void service();
 
   const uint16_t* zeroCounts() const { return config_.zero_counts; }
+  bool filterOn() const { return filter_on_; }
   uint16_t sampleRateHz() const { return config_.rate_hz; }
   bool streaming() const { return streaming_; }
   uint8_t mode() const { return config_.mode; }
@@ -149,12 +162,17 @@ class Device {
   uint16_t buildInfo(uint8_t request_id);
   uint16_t buildTelemetry(uint8_t request_id);
   void startAveraging(const proto::Command& c, uint16_t samples);
-  void accumulate(const Sample& sample, uint16_t status);
+  void accumulate(const float* wrench, const Sample& sample, uint16_t status);
   void finishAveraging();
   void saveConfig(const proto::Command& c);
   void applyConfig(const Config& config);
   void setRate(uint16_t rate_hz);
   uint16_t checkRate(uint16_t rate_hz, uint8_t mode, uint8_t* reason) const;
+  // The filter's coefficients and the tool transform from config_ (the filter restarts).
+  void configurePipeline();
+  void setFilter(const proto::Command& c);
+  void setTool(const proto::Command& c);
+  void setLimits(const proto::Command& c);
   void sendData(const Sample& sample, uint16_t status, const int16_t* wrench);
 
   Hardware& hw_;
@@ -163,6 +181,9 @@ class Device {
   Config config_;
   proto::Scale scale_[6];
   float inverse_lsb_[6];
+  LowPass6 filter_;
+  bool filter_on_;
+  ToolFrame tool_;
 
   proto::CommandParser parser_;
   Response queue_[kQueueLength];

@@ -35,6 +35,9 @@ uint8_t commandSize(uint8_t type) {
     case kCmdSetZero: return kCmdSetZeroSize;
     case kCmdZeroHere: return kCmdZeroHereSize;
     case kCmdGetTelemetry: return kCmdGetTelemetrySize;
+    case kCmdSetFilter: return kCmdSetFilterSize;
+    case kCmdSetTool: return kCmdSetToolSize;
+    case kCmdSetLimits: return kCmdSetLimitsSize;
     default: return 0;
   }
 }
@@ -115,6 +118,13 @@ uint16_t getU16(const uint8_t* p) {
 uint32_t getU32(const uint8_t* p) {
   return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8) |
          (static_cast<uint32_t>(p[2]) << 16) | (static_cast<uint32_t>(p[3]) << 24);
+}
+
+float getF32(const uint8_t* p) {
+  const uint32_t bits = getU32(p);
+  float v;
+  memcpy(&v, &bits, 4);
+  return v;
 }
 
 uint16_t finishFrame(uint8_t* buf, uint16_t n) {

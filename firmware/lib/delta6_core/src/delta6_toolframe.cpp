@@ -41,4 +41,20 @@ void applyToolFrame(const ToolFrame& t, float w[6]) {
   }
 }
 
+void unapplyToolFrame(const ToolFrame& t, float w[6]) {
+  if (t.identity) return;
+  float f[3], m[3];
+  for (uint8_t i = 0; i < 3; ++i) {  // R = (R^T)^T: column i of rt
+    f[i] = t.rt[i] * w[0] + t.rt[3 + i] * w[1] + t.rt[6 + i] * w[2];
+    m[i] = t.rt[i] * w[3] + t.rt[3 + i] * w[4] + t.rt[6 + i] * w[5];
+  }
+  const float* p = t.p;
+  w[0] = f[0];
+  w[1] = f[1];
+  w[2] = f[2];
+  w[3] = m[0] + (p[1] * f[2] - p[2] * f[1]);
+  w[4] = m[1] + (p[2] * f[0] - p[0] * f[2]);
+  w[5] = m[2] + (p[0] * f[1] - p[1] * f[0]);
+}
+
 }  // namespace delta6

@@ -23,6 +23,10 @@ struct ToolFrame {
 bool makeToolFrame(const float translation[3], const float rpy[3], ToolFrame* out);
 // The wrench w (Fx Fy Fz Mx My Mz) moved into the tool frame, in place.
 void applyToolFrame(const ToolFrame& t, float w[6]);
+// The inverse: a wrench given in the tool frame back at {E}'s origin in {E}'s axes
+// (F = R F_tool, M = R M_tool + p x F). The device re-expresses its tare with it when the
+// tool frame changes.
+void unapplyToolFrame(const ToolFrame& t, float w[6]);
 
 }  // namespace delta6
 

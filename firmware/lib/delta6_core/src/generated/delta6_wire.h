@@ -11,7 +11,7 @@ namespace delta6 {
 namespace proto {
 
 const uint8_t kVersionMajor = 1;
-const uint8_t kVersionMinor = 0;
+const uint8_t kVersionMinor = 1;
 
 // --- records (device -> host): type, payload size (type byte included, CRC
 // excluded) and the offset of every field (docs/protocol.md section 3) ---
@@ -34,7 +34,7 @@ const uint8_t kWrenchRawOffWrench = 9;  // 6 x i16
 const uint8_t kWrenchRawOffCounts = 21;  // 6 x u16
 
 const uint8_t kInfo = 0x03;
-const uint8_t kInfoSize = 128;
+const uint8_t kInfoSize = 168;
 const uint8_t kInfoOffType = 0;  // u8
 const uint8_t kInfoOffRequestId = 1;  // u8
 const uint8_t kInfoOffProtocol = 2;  // 2 x u8
@@ -56,6 +56,10 @@ const uint8_t kInfoOffSerialNumber = 84;  // u32
 const uint8_t kInfoOffZeroCounts = 88;  // 6 x u16
 const uint8_t kInfoOffTare = 100;  // 6 x f32
 const uint8_t kInfoOffJointLimitRad = 124;  // f32
+const uint8_t kInfoOffFilterHz = 128;  // f32
+const uint8_t kInfoOffToolTranslation = 132;  // 3 x f32
+const uint8_t kInfoOffToolRpy = 144;  // 3 x f32
+const uint8_t kInfoOffLimits = 156;  // 6 x u16
 
 const uint8_t kAck = 0x04;
 const uint8_t kAckSize = 7;
@@ -99,10 +103,10 @@ const uint8_t kEventOffType = 0;  // u8
 const uint8_t kEventOffCode = 1;  // u8
 const uint8_t kEventOffArg = 2;  // u32
 
-const uint8_t kMaxRecordSize = 128;
+const uint8_t kMaxRecordSize = 168;
 // Bytes on the wire beyond the payload: CRC, one COBS code byte, the delimiter.
 const uint8_t kFrameOverhead = 4;
-const uint8_t kMaxFrameBytes = 132;
+const uint8_t kMaxFrameBytes = 172;
 
 // --- commands (host -> device): type, request id, arguments; each command's
 // exact payload size (docs/protocol.md section 4) ---
@@ -130,11 +134,17 @@ const uint8_t kCmdZeroHere = 0x8A;
 const uint8_t kCmdZeroHereSize = 4;  // u16 samples
 const uint8_t kCmdGetTelemetry = 0x8B;
 const uint8_t kCmdGetTelemetrySize = 2;
+const uint8_t kCmdSetFilter = 0x8C;
+const uint8_t kCmdSetFilterSize = 6;  // f32 cutoff_hz
+const uint8_t kCmdSetTool = 0x8D;
+const uint8_t kCmdSetToolSize = 26;  // 3 x f32 translation, 3 x f32 rpy
+const uint8_t kCmdSetLimits = 0x8E;
+const uint8_t kCmdSetLimitsSize = 14;  // 6 x u16 limits
 // Types below this are records: a device never answers them (its own output looped
 // back must not start an endless exchange).
 const uint8_t kFirstCommand = 0x80;
-const uint8_t kLastCommand = 0x8B;
-const uint8_t kMaxCommandSize = 14;
+const uint8_t kLastCommand = 0x8E;
+const uint8_t kMaxCommandSize = 26;
 // Receive buffer (encoded bytes): longer command frames are discarded and counted.
 const uint8_t kCommandBuffer = 32;
 
@@ -142,7 +152,7 @@ const uint8_t kCommandBuffer = 32;
 const uint8_t kModeWrench = 1;
 const uint8_t kModeWrenchRaw = 2;
 
-// --- status word bits (docs/protocol.md section 5); bit 15 is reserved ---
+// --- status word bits (docs/protocol.md section 5) ---
 const uint16_t kStatusEncoder1 = 1u << 0;
 const uint16_t kStatusEncoder2 = 1u << 1;
 const uint16_t kStatusEncoder3 = 1u << 2;
@@ -158,6 +168,7 @@ const uint16_t kStatusTxOverflow = 1u << 11;
 const uint16_t kStatusTareActive = 1u << 12;
 const uint16_t kStatusTareBusy = 1u << 13;
 const uint16_t kStatusConfigDefaults = 1u << 14;
+const uint16_t kStatusOverload = 1u << 15;
 const uint16_t kStatusEncoderMask = 0x003F;
 
 // --- NACK reasons (docs/protocol.md section 3) ---
@@ -169,6 +180,7 @@ const uint8_t kNackLinkTooSlow = 5;
 const uint8_t kNackBusy = 6;
 const uint8_t kNackFaultDuringAveraging = 7;
 const uint8_t kNackEepromFailed = 8;
+const uint8_t kNackFilterRange = 9;
 
 // --- event codes (EVENT record) ---
 const uint8_t kEventBoot = 1;
@@ -183,8 +195,12 @@ const uint8_t kConfigOutOfRange = 4;
 // --- the configuration blob in EEPROM (docs/protocol.md section 9), followed by its CRC,
 // most significant byte first ---
 const uint16_t kConfigMagic = 0x3644;
-const uint8_t kConfigLayoutVersion = 1;
-const uint16_t kConfigBlobSize = 50;
+const uint8_t kConfigLayoutVersion = 2;
+const uint16_t kConfigBlobSize = 90;
+// Older layouts the device still loads: each is a prefix of the newest (same
+// offsets), its blob shorter; the fields it lacks take the defaults.
+const uint8_t kConfigLayoutV1 = 1;
+const uint16_t kConfigBlobSizeV1 = 50;
 const uint8_t kConfigOffMagic = 0;  // u16
 const uint8_t kConfigOffLayout = 2;  // u8
 const uint8_t kConfigOffSize = 3;  // u8
@@ -194,6 +210,10 @@ const uint8_t kConfigOffMode = 10;  // u8
 const uint8_t kConfigOffTareActive = 11;  // u8
 const uint8_t kConfigOffTare = 12;  // 6 x f32
 const uint8_t kConfigOffZeroCounts = 36;  // 6 x u16
+const uint8_t kConfigOffFilterHz = 48;  // f32
+const uint8_t kConfigOffToolTranslation = 52;  // 3 x f32
+const uint8_t kConfigOffToolRpy = 64;  // 3 x f32
+const uint8_t kConfigOffLimits = 76;  // 6 x u16
 
 // --- telemetry ---
 const int16_t kTemperatureUnknown = 0x7FFF;  // no temperature sensor
