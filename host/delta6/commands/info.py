@@ -5,6 +5,7 @@ import argparse
 import json
 
 from delta6.commands._port import AXES, add_port_arguments, flag_names, open_device
+from delta6.commands.config import pipeline_lines
 from delta6.link.protocol import Mode, Status, link_rate_limit
 
 NAME = "info"
@@ -22,7 +23,8 @@ def run(args: argparse.Namespace) -> int:
         rtt, _ = dev.ping()
         telemetry = dev.telemetry()
     if args.json:
-        out = {**info._asdict(), "lsb": list(info.lsb), "ping_s": rtt,
+        out = {**info._asdict(), "lsb": list(info.lsb),
+               "limit_values": [None if v != v else v for v in info.limit_values], "ping_s": rtt,
                "telemetry": telemetry._asdict()}
         print(json.dumps(out, indent=2))
         return 0
@@ -43,6 +45,7 @@ def run(args: argparse.Namespace) -> int:
                      f"{info.tare[i]:>+11.5g}")
     lines.append("  zero counts " + " ".join(str(c) for c in info.zero_counts)
                  + f"; joint limit {info.joint_limit_rad:.4f} rad")
+    lines += pipeline_lines(info)
     t = telemetry
     lines.append(f"  health: {t.samples} samples, {t.overruns} overruns, "
                  f"encoder errors {list(t.encoder_errors)}, {t.solver_errors} solver errors, "
