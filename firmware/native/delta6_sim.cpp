@@ -41,6 +41,7 @@ struct Setup {
     identity.max_rate_hz = max_rate;
     identity.serial_number = serial;
     identity.eeprom_address = 0;
+    identity.max_rate_pipeline_hz = 0;
     memset(&defaults, 0, sizeof(defaults));
     defaults.rate_hz = default_rate;
     defaults.mode = delta6::proto::kModeWrench;
@@ -132,6 +133,9 @@ void d6sim_break_eeprom(void* p, int broken) {
 }
 uint16_t d6sim_link_limit(void* p, uint8_t mode) {
   return static_cast<Sim*>(p)->device.linkRateLimit(mode);
+}
+void d6sim_set_max_rate_pipeline(void* p, uint16_t hz) {
+  static_cast<Sim*>(p)->identity.max_rate_pipeline_hz = hz;
 }
 uint32_t d6sim_sizeof_device() { return sizeof(Device); }
 

@@ -14,6 +14,12 @@
 #ifndef DELTA6_MAX_RATE_HZ
 #define DELTA6_MAX_RATE_HZ (350UL * (F_CPU / 1000000UL) / 16UL)
 #endif
+// With the wrench pipeline on (a low-pass filter or a tool frame: about 19,000 more cycles
+// per sample), 250 Hz at 16 MHz in both modes (tools/bench_virtual_board.py --pipeline on:
+// 300 Hz overruns), scaled with the clock.
+#ifndef DELTA6_MAX_RATE_PIPELINE_HZ
+#define DELTA6_MAX_RATE_PIPELINE_HZ (250UL * (F_CPU / 1000000UL) / 16UL)
+#endif
 #ifndef DELTA6_DEFAULT_RATE_HZ
 #define DELTA6_DEFAULT_RATE_HZ 250
 #endif
@@ -78,6 +84,7 @@ delta6::Identity identity = {
     DELTA6_MAX_RATE_HZ,
     0,   // serial number: set in setup()
     kEepromAddress,
+    DELTA6_MAX_RATE_PIPELINE_HZ,
 };
 // Zero counts 0 until the assembly is calibrated (ZERO_HERE, then SAVE_CONFIG).
 // No filter, the identity tool frame, no overload limits.

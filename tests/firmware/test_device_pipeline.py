@@ -338,3 +338,20 @@ def test_out_of_range_pipeline_values_in_a_blob_are_rejected_and_another_design_
         other.close()
     assert info.filter_hz == 100.0 and np.allclose(info.tool_translation, (0, 0, 0.05))
     assert info.limits == (0,) * 6 and not info.status & P.Status.CONFIG_DEFAULTS
+
+
+def test_the_pipeline_is_refused_at_rates_the_board_cannot_run_it_at(core):
+    """A board that filters and transforms at most 250 Hz (its identity says so): the filter
+    and a tool frame are refused above that rate, and that rate above them."""
+    core.core.set_max_rate_pipeline(250)
+    assert core.info().max_rate_pipeline_hz == 250
+    for command, args in [(C.SET_FILTER, (20.0,)), (C.SET_TOOL, (0.0, 0.0, 0.01, 0.0, 0.0, 0.0))]:
+        nack = core.command(command, *args)
+        assert (nack.reason, nack.detail) == (P.NackReason.RATE_TOO_HIGH, 250)
+    assert isinstance(core.command(C.SET_TOOL, *[0.0] * 6), P.Ack)    # the identity costs nothing
+    assert core.command(C.START, 250).value == 250
+    assert isinstance(core.command(C.SET_FILTER, 20.0), P.Ack)
+    nack = core.command(C.START, 300)
+    assert (nack.reason, nack.detail) == (P.NackReason.RATE_TOO_HIGH, 250)
+    core.command(C.SET_FILTER, 0.0)
+    assert core.command(C.START, 300).value == 300

@@ -33,7 +33,10 @@ def run(args: argparse.Namespace) -> int:
         f"Delta6 on {args.port}: design '{info.design_name}' (hash 0x{info.design_hash:08x}), "
         f"firmware {info.firmware_version}, protocol {info.protocol_version}, "
         f"serial 0x{info.serial_number:08x}",
-        f"  rate {info.rate_hz} Hz (board max {info.max_rate_hz} Hz; link at {info.baud} baud "
+        f"  rate {info.rate_hz} Hz (board max {info.max_rate_hz} Hz"
+        + (f", {info.max_rate_pipeline_hz} Hz with the filter or tool frame on"
+           if info.max_rate_pipeline_hz and info.max_rate_pipeline_hz < info.max_rate_hz else "")
+        + f"; link at {info.baud} baud "
         f"carries {link_rate_limit(info.baud, Mode.WRENCH)} Hz wrench, "
         f"{link_rate_limit(info.baud, Mode.WRENCH_RAW)} Hz wrench+raw)",
         f"  mode {Mode(info.mode).name.lower()}, {'streaming' if info.streaming else 'stopped'}, "

@@ -191,7 +191,8 @@ _INFO_1_0 = [
     Field("tare", "f", 6), Field("joint_limit_rad", "f")]
 #: Appended in 1.1: the wrench pipeline's configuration (SET_FILTER, SET_TOOL, SET_LIMITS).
 _INFO_1_1 = [Field("filter_hz", "f"), Field("tool_translation", "f", 3),
-             Field("tool_rpy", "f", 3), Field("limits", "H", 6)]
+             Field("tool_rpy", "f", 3), Field("limits", "H", 6),
+             Field("max_rate_pipeline_hz", "H")]
 
 #: The payload of each record (type byte included, CRC excluded). Field names are those of
 #: the record's tuple below; a minor version only appends fields.
@@ -218,7 +219,8 @@ RECORD_MIN_SIZES = {**RECORD_SIZES, RecordType.INFO: Layout("INFO 1.0", _INFO_1_
 #: What an older device's INFO record means by the fields it does not carry: no filter,
 #: the identity tool frame, no overload limits.
 APPENDED_DEFAULTS = {RecordType.INFO: {"filter_hz": 0.0, "tool_translation": (0.0,) * 3,
-                                       "tool_rpy": (0.0,) * 3, "limits": (0,) * 6}}
+                                       "tool_rpy": (0.0,) * 3, "limits": (0,) * 6,
+                                       "max_rate_pipeline_hz": 0}}
 _WRENCH = RECORD_LAYOUTS[RecordType.WRENCH].struct
 _WRENCH_RAW = RECORD_LAYOUTS[RecordType.WRENCH_RAW].struct
 
@@ -329,6 +331,8 @@ class Info(NamedTuple):
     tool_translation: tuple = (0.0, 0.0, 0.0)   # tool point in {E}, m
     tool_rpy: tuple = (0.0, 0.0, 0.0)           # tool axes: roll, pitch, yaw about {E}, rad
     limits: tuple = (0,) * 6        # overload thresholds, counts of each axis's LSB; 0: none
+    max_rate_pipeline_hz: int = 0   # the board's highest rate with the filter or tool frame
+                                    # on (0: from a 1.0 device, which has neither)
 
     @property
     def limit_values(self) -> np.ndarray:

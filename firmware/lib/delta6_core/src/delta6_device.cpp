@@ -117,7 +117,10 @@ uint8_t Device::decodeConfig(const uint8_t* blob, Config* out) const {
   c.rate_hz = getU16(blob + kConfigOffRateHz);
   c.mode = blob[kConfigOffMode];
   c.tare_active = blob[kConfigOffTareActive] == 1;
-  if (c.rate_hz == 0 || c.rate_hz > id_.max_rate_hz) return kConfigOutOfRange;
+  const bool pipeline = c.filter_hz != 0.0f || c.tool_translation[0] != 0.0f ||
+                        c.tool_translation[1] != 0.0f || c.tool_translation[2] != 0.0f ||
+                        c.tool_rpy[0] != 0.0f || c.tool_rpy[1] != 0.0f || c.tool_rpy[2] != 0.0f;
+  if (c.rate_hz == 0 || c.rate_hz > maxRate(pipeline)) return kConfigOutOfRange;
   if (c.mode != kModeWrench && c.mode != kModeWrenchRaw) return kConfigOutOfRange;
   if (blob[kConfigOffTareActive] > 1) return kConfigOutOfRange;
   if (!filterFits(c.filter_hz, c.rate_hz)) return kConfigOutOfRange;
@@ -237,10 +240,16 @@ uint16_t Device::linkRateLimit(uint8_t mode) const {
   return limit > 0xFFFF ? 0xFFFF : static_cast<uint16_t>(limit);
 }
 
-uint16_t Device::checkRate(uint16_t rate_hz, uint8_t mode, uint8_t* reason) const {
-  if (rate_hz > id_.max_rate_hz) {
+uint16_t Device::maxRate(bool pipeline) const {
+  const uint16_t slower = id_.max_rate_pipeline_hz;
+  return pipeline && slower != 0 && slower < id_.max_rate_hz ? slower : id_.max_rate_hz;
+}
+
+uint16_t Device::checkRate(uint16_t rate_hz, uint8_t mode, bool pipeline, uint8_t* reason) const {
+  const uint16_t board = maxRate(pipeline);
+  if (rate_hz > board) {
     *reason = kNackRateTooHigh;
-    return id_.max_rate_hz;
+    return board;
   }
   const uint16_t link = linkRateLimit(mode);
   if (rate_hz > link) {
@@ -296,7 +305,7 @@ void Device::execute(const Command& c) {
       uint16_t rate = getU16(c.args);
       if (rate == 0) rate = config_.rate_hz;
       uint8_t reason;
-      const uint16_t limit = checkRate(rate, config_.mode, &reason);
+      const uint16_t limit = checkRate(rate, config_.mode, pipelineOn(), &reason);
       if (reason) {
         nack(c, reason, limit);
         break;
@@ -322,7 +331,7 @@ void Device::execute(const Command& c) {
         break;
       }
       uint8_t reason;
-      const uint16_t limit = checkRate(config_.rate_hz, mode, &reason);
+      const uint16_t limit = checkRate(config_.rate_hz, mode, pipelineOn(), &reason);
       if (streaming_ && reason) {
         nack(c, reason, limit);
         break;
@@ -417,6 +426,10 @@ void Device::setFilter(const Command& c) {
     nack(c, kNackFilterRange, config_.rate_hz);
     return;
   }
+  if (cutoff != 0.0f && config_.rate_hz > maxRate(true)) {
+    nack(c, kNackRateTooHigh, maxRate(true));  // the board cannot filter at this rate
+    return;
+  }
   config_.filter_hz = cutoff;
   configurePipeline();
   ack(c, 0);
@@ -433,18 +446,21 @@ void Device::setTool(const Command& c) {
     nack(c, kNackBadArgument, bad);
     return;
   }
-  ToolFrame next;
-  makeToolFrame(translation, rpy, &next);
-  if (config_.tare_active) {
-    // The tare is a wrench in the reporting frame: the same physical offset, re-expressed.
-    unapplyToolFrame(tool_, config_.tare);
-    applyToolFrame(next, config_.tare);
+  bool identity = true;
+  for (uint8_t i = 0; i < 3; ++i) identity = identity && translation[i] == 0.0f && rpy[i] == 0.0f;
+  if (!identity && config_.rate_hz > maxRate(true)) {
+    nack(c, kNackRateTooHigh, maxRate(true));  // the board cannot transform at this rate
+    return;
   }
+  // The tare is a wrench in the reporting frame: the same physical offset, re-expressed
+  // (back to {E} with the old frame, into the new one). No second ToolFrame on the stack.
+  if (config_.tare_active) unapplyToolFrame(tool_, config_.tare);
+  makeToolFrame(translation, rpy, &tool_);
+  if (config_.tare_active) applyToolFrame(tool_, config_.tare);
   for (uint8_t i = 0; i < 3; ++i) {
     config_.tool_translation[i] = translation[i];
     config_.tool_rpy[i] = rpy[i];
   }
-  tool_ = next;
   ack(c, 0);
 }
 
@@ -610,6 +626,7 @@ uint16_t Device::buildInfo(uint8_t request_id) {
     putF32(p + kInfoOffToolRpy + 4 * i, config_.tool_rpy[i]);
   }
   for (uint8_t i = 0; i < 6; ++i) putU16(p + kInfoOffLimits + 2 * i, config_.limits[i]);
+  putU16(p + kInfoOffMaxRatePipelineHz, maxRate(true));
   return finishFrame(tx_, kInfoSize);
 }
 

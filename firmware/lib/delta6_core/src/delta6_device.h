@@ -55,6 +55,8 @@ struct Identity {
   uint16_t max_rate_hz;      // the fastest loop the board sustains
   uint32_t serial_number;    // board-specific identifier, 0 if none
   uint16_t eeprom_address;   // where the configuration blob lives
+  uint16_t max_rate_pipeline_hz;  // the fastest loop with the filter or the tool frame on
+                                  // (they cost cycles per sample); 0: max_rate_hz
 };
 
 // The persistent configuration (saved to EEPROM only by the save command). The wrench
@@ -167,7 +169,10 @@ class Device {
   void saveConfig(const proto::Command& c);
   void applyConfig(const Config& config);
   void setRate(uint16_t rate_hz);
-  uint16_t checkRate(uint16_t rate_hz, uint8_t mode, uint8_t* reason) const;
+  uint16_t checkRate(uint16_t rate_hz, uint8_t mode, bool pipeline, uint8_t* reason) const;
+  // The highest rate the board sustains with or without the filter / tool frame on.
+  uint16_t maxRate(bool pipeline) const;
+  bool pipelineOn() const { return filter_on_ || !tool_.identity; }
   // The filter's coefficients and the tool transform from config_ (the filter restarts).
   void configurePipeline();
   void setFilter(const proto::Command& c);
