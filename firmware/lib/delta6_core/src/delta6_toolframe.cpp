@@ -8,6 +8,13 @@ bool makeToolFrame(const float translation[3], const float rpy[3], ToolFrame* ou
   for (uint8_t i = 0; i < 3; ++i) {
     if (!fastmath::is_finite(translation[i]) || !fastmath::is_finite(rpy[i])) return false;
   }
+  out->identity = translation[0] == 0.0f && translation[1] == 0.0f && translation[2] == 0.0f &&
+                  rpy[0] == 0.0f && rpy[1] == 0.0f && rpy[2] == 0.0f;
+  if (out->identity) {  // no trig: the device builds this one at start-up, before its clock runs
+    for (uint8_t i = 0; i < 9; ++i) out->rt[i] = i % 4 == 0 ? 1.0f : 0.0f;
+    for (uint8_t i = 0; i < 3; ++i) out->p[i] = 0.0f;
+    return true;
+  }
   using fastmath::cos32;
   using fastmath::sin32;
   const float cr = cos32(rpy[0]), sr = sin32(rpy[0]);
@@ -21,8 +28,6 @@ bool makeToolFrame(const float translation[3], const float rpy[3], ToolFrame* ou
     for (uint8_t j = 0; j < 3; ++j) out->rt[3 * i + j] = r[3 * j + i];
     out->p[i] = translation[i];
   }
-  out->identity = translation[0] == 0.0f && translation[1] == 0.0f && translation[2] == 0.0f &&
-                  rpy[0] == 0.0f && rpy[1] == 0.0f && rpy[2] == 0.0f;
   return true;
 }
 
