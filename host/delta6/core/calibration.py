@@ -409,3 +409,30 @@ def load(path: str | Path) -> Calibration:
 
 __all__ = ["Calibration", "CalibrationError", "CORRECTED", "NOT_APPLIED", "SCHEMA", "dumps",
            "loads", "load", "save", "neutral", "validate"]
+
+
+def check_log_meta(meta: dict, design, calibration: Calibration | None = None,
+                   source: str = "the log") -> None:
+    """Refuse to mix a log with another design or calibration than the one it names in its
+    header (``design_hash``, ``calibration_hash``: written by the logger from the device
+    info). A log that names none (a rig's or the twin's) is taken as it is."""
+    named = meta.get("design_hash")
+    if named is not None:
+        try:
+            value = int(str(named), 16)
+        except ValueError:
+            value = None
+        if value is not None and value != design.hash32():
+            raise CalibrationError(f"{source} was recorded with design {meta.get('design', '?')}"
+                                   f" ({named}), not '{design.name}' (0x{design.hash32():08x})")
+    named = meta.get("calibration_hash")
+    if named is not None and calibration is not None:
+        try:
+            value = int(str(named), 16)
+        except ValueError:
+            value = None
+        if value is not None and value != calibration.hash32():
+            raise CalibrationError(
+                f"{source} was recorded by a board with calibration "
+                f"{meta.get('calibration', '?')} ({named}), not '{calibration.name}' "
+                f"(0x{calibration.hash32():08x})")
