@@ -23,12 +23,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from delta6 import __version__
+from delta6.calibration.families import Context, families
 from delta6.core import accuracy
 from delta6.core.calibrated import CalibratedModel, counts_from_angles, sample_period
 from delta6.core.calibration import CORRECTED, NOT_APPLIED, Calibration, neutral
 from delta6.core.design import Design
 from delta6.core.errors import UserError
-from delta6.calibration.families import Context, families
 from delta6.diagnosis import selection
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.run import diagnose_data
