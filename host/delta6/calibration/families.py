@@ -74,7 +74,7 @@ def _hysteresis(ctx):
 def _friction(ctx):
     t = ctx.terms
     speeds = ctx.cal.friction_speeds_rad_s
-    feats = [t.speed / (np.abs(t.speed) + v) for v in speeds] + [t.speed, t.direction]
+    feats = [np.clip(t.speed / v, -1.0, 1.0) for v in speeds] + [t.speed, t.direction]
     return _torque(ctx, np.stack(feats, axis=-1))
 
 

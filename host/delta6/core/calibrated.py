@@ -14,7 +14,7 @@ through a few numbers of state per joint (:class:`ModelState`), in one pass per 
 2. **angle side**: theta = x * count - offset + backlash_play / 2 * d (the link leads its
    encoder by half the play in the direction of motion).
 3. **torque**: tau = k * rate_ratio * theta + sum_r w_r h_r
-   + sum_s c_s v / (|v| + V_s) + viscous * v + presliding * d.
+   + sum_s c_s clamp(v / V_s, -1, 1) + viscous * v + presliding * d.
 4. **geometry**: each branch has its own a, b, la, lb, azimuth and rest angle; the elbow turns
    by ``elbow_rad_per_nm * tau_i`` (load-dependent compliance, kinematics only).
 5. **statics** (eqs. 2-11) with those torques in that geometry, then the gimbal: the force
@@ -126,7 +126,7 @@ class CalibratedModel:
         step = np.diff(x, axis=0, prepend=state.last[None, :])
         speed = affine_scan(np.full(x.shape, a), g * step, state.speed)
         theta = x * ENCODER_COUNT_RAD - c.offset_rad + 0.5 * c.backlash_play_rad * direction
-        signs = sum(c.friction_sign_nm[:, s] * speed / (np.abs(speed) + v)
+        signs = sum(c.friction_sign_nm[:, s] * np.clip(speed / v, -1.0, 1.0)
                     for s, v in enumerate(c.friction_speeds_rad_s))
         torque = (self.design.k * c.rate_ratio * theta
                   + np.einsum("njr,jr->nj", hysteresis, c.hysteresis_nm)

@@ -36,7 +36,7 @@ NOT_APPLIED = {
 }
 #: Play radii of the hysteresis operators, encoder counts (0.006, 0.025, 0.098 rad).
 DEFAULT_HYSTERESIS_RADII = (16, 64, 256)
-#: Speeds of the smooth Coulomb signs v / (|v| + V), rad/s.
+#: Speeds V of the saturated Coulomb signs clamp(v / V, -1, 1), rad/s.
 DEFAULT_FRICTION_SPEEDS = (0.005, 0.02)
 #: Time constant of the joint-speed filter, s.
 DEFAULT_SPEED_FILTER_S = 0.02
@@ -76,7 +76,7 @@ class Calibration:
     hysteresis_radii_counts: tuple[int, ...] = DEFAULT_HYSTERESIS_RADII
     hysteresis_nm: np.ndarray = field(
         default_factory=lambda: np.zeros((6, len(DEFAULT_HYSTERESIS_RADII))))
-    # friction from the filtered joint speed v: sum_s c_s v / (|v| + V_s) + b v + m direction
+    # friction from the filtered joint speed v: sum_s c_s clamp(v / V_s, -1, 1) + b v + m direction
     speed_filter_s: float = DEFAULT_SPEED_FILTER_S
     friction_speeds_rad_s: tuple[float, ...] = DEFAULT_FRICTION_SPEEDS
     friction_sign_nm: np.ndarray = field(
@@ -213,10 +213,10 @@ def validate(cal: Calibration, source: str | None = None) -> Calibration:
             _fail(source, "effects", f"unknown or uncorrectable effect {effect!r} (one of "
                                      f"{', '.join(CORRECTED)})")
     radii = cal.hysteresis_radii_counts
-    if not (isinstance(radii, tuple) and 1 <= len(radii) <= 8
+    if not (isinstance(radii, tuple) and 1 <= len(radii) <= 4
             and all(isinstance(r, int) and not isinstance(r, bool) and 1 <= r <= 4096
                     for r in radii) and len(set(radii)) == len(radii)):
-        _fail(source, "hysteresis.play_radii_counts", "must be 1..8 distinct whole counts in "
+        _fail(source, "hysteresis.play_radii_counts", "must be 1..4 distinct whole counts in "
                                                       "1..4096")
     speeds = cal.friction_speeds_rad_s
     if not (isinstance(speeds, tuple) and 1 <= len(speeds) <= 4

@@ -1,0 +1,202 @@
+// The calibrated model; see delta6_calibrated.h. Constants live in flash on the AVR, so every
+// read goes through the fastmath flash helpers.
+#include "delta6_calibrated.h"
+
+#include "delta6_fastmath.h"
+
+#if defined(__AVR__)
+#include <avr/pgmspace.h>
+#endif
+
+namespace delta6 {
+namespace {
+
+using fastmath::absf;
+using fastmath::flash_float;
+
+// One encoder count, rad (2 pi / 2^14).
+constexpr float kCountRad = 3.83495197e-4f;
+
+inline int16_t flash_i16(const int16_t* p) {
+#if defined(__AVR__)
+    return static_cast<int16_t>(pgm_read_word(p));
+#else
+    return *p;
+#endif
+}
+
+inline uint8_t flash_u8(const uint8_t* p) {
+#if defined(__AVR__)
+    return pgm_read_byte(p);
+#else
+    return *p;
+#endif
+}
+
+inline int16_t clamp_play(int16_t y, int16_t x, int16_t r) {
+    const int16_t lo = static_cast<int16_t>(x - r), hi = static_cast<int16_t>(x + r);
+    return y < lo ? lo : (y > hi ? hi : y);
+}
+
+inline float clamp_unit(float u) { return u < -1.0f ? -1.0f : (u > 1.0f ? 1.0f : u); }
+
+uint8_t fail(uint8_t status, float wrench[6]) {
+    for (uint8_t i = 0; i < 6; ++i) wrench[i] = 0.0f;
+    return status;
+}
+
+// (a, b) <- (c a + s b, c b - s a): a plane rotation by -angle (as in the solver).
+inline void rotate_back(float c, float s, float& a, float& b) {
+    const float a1 = c * a + s * b;
+    b = c * b - s * a;
+    a = a1;
+}
+
+}  // namespace
+
+void calibration_reset(CalibrationState& s) { s.started = 0; }
+
+void calibration_set_period(const CalibrationConstants& c, float period_s,
+                            CalibrationState& s) {
+    const float tau = flash_float(&c.speed_tau);
+    if (!(period_s > 0.0f)) {
+        s.speed_a = 1.0f;
+        s.speed_g = 0.0f;
+        return;
+    }
+    s.speed_a = tau / (tau + period_s);
+    s.speed_g = (1.0f - s.speed_a) * kCountRad / period_s;
+}
+
+uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& cc,
+                         CalibrationState& st, const int16_t delta[6], float wrench[6]) {
+    const uint8_t radii = flash_u8(&cc.radii);
+    const uint8_t speeds = flash_u8(&cc.speeds);
+    const int16_t half = flash_i16(&cc.direction_half);
+    if (!st.started) {
+        for (uint8_t j = 0; j < 6; ++j) {
+            st.last[j] = delta[j];
+            st.direction2[j] = static_cast<int16_t>(2 * delta[j]);
+            for (uint8_t r = 0; r < kMaxPlayRadii; ++r) st.play[j][r] = delta[j];
+            st.speed[j] = 0.0f;
+        }
+        st.started = 1;
+    }
+    // 1-3: history, corrected angles (as the deviation e from the count's angle), torques.
+    float e[6], tau[6];
+    for (uint8_t j = 0; j < 6; ++j) {
+        const int16_t x = delta[j];
+        const int16_t x2 = static_cast<int16_t>(2 * x);
+        const int16_t y2 = clamp_play(st.direction2[j], x2, half);
+        st.direction2[j] = y2;
+        const float d = static_cast<float>(x2 - y2) * flash_float(&cc.direction_scale);
+        float extra = 0.0f;
+        for (uint8_t r = 0; r < radii; ++r) {
+            const int16_t y = clamp_play(st.play[j][r], x, flash_i16(&cc.radius[r]));
+            st.play[j][r] = y;
+            extra += flash_float(&cc.hysteresis[j][r]) * static_cast<float>(x - y);
+        }
+        const float v = st.speed_a * st.speed[j]
+                        + st.speed_g * static_cast<float>(x - st.last[j]);
+        st.speed[j] = v;
+        st.last[j] = x;
+        for (uint8_t s = 0; s < speeds; ++s) {
+            extra += flash_float(&cc.sign[j][s]) * clamp_unit(v * flash_float(&cc.inv_speed[s]));
+        }
+        extra += flash_float(&cc.viscous[j]) * v + flash_float(&cc.presliding[j]) * d;
+        e[j] = flash_float(&cc.half_play[j]) * d - flash_float(&cc.offset[j]);
+        const float theta = static_cast<float>(x) * kCountRad + e[j];
+        tau[j] = flash_float(&cc.rate[j]) * theta + extra;
+    }
+    // The joint box, on the counts as the analytical solver has it.
+    for (uint8_t i = 0; i < 6; ++i) {
+        if (delta[i] > k.limit_counts || delta[i] < -k.limit_counts) {
+            return fail(kSolveOutOfBox, wrench);
+        }
+    }
+    // 4: trig from the tables at the count, turned by e (4th-order small-angle rotation).
+    float cs[6], sn[6];
+    for (uint8_t j = 0; j < 6; ++j) {
+        const uint16_t biased = static_cast<uint16_t>(delta[j] + k.table_origin);
+        fastmath::table_cos_sin(j < 3 ? k.branch_table : k.joint_table, k.fine_table, biased,
+                                &cs[j], &sn[j]);
+        float a = e[j];
+        if (j < 3) a += flash_float(&cc.rest[j]) + flash_float(&cc.elbow[j]) * tau[j];
+        const float a2 = a * a;
+        const float ca = 1.0f - a2 * (0.5f - a2 * (1.0f / 24.0f));
+        const float sa = a * (1.0f - a2 * (1.0f / 6.0f));
+        float c1 = cs[j] * ca - sn[j] * sa;
+        float s1 = sn[j] * ca + cs[j] * sa;
+        if (j < 3) {
+            const float scale = flash_float(&cc.la_scale[j]);
+            c1 *= scale;
+            s1 *= scale;
+        }
+        cs[j] = c1;
+        sn[j] = s1;
+    }
+    // 5: sphere centres c_i = r_i u_i + h_i z and the general trilateration.
+    float cx[3], cy[3], r[3];
+    for (uint8_t i = 0; i < 3; ++i) {
+        r[i] = flash_float(&cc.d[i]) + cs[i];
+        cx[i] = r[i] * flash_float(&cc.ux[i]);
+        cy[i] = r[i] * flash_float(&cc.uy[i]);
+    }
+    const float h1 = sn[0];
+    // P . A_j = e_j with A_j = c_j - c_1, e_j = A_j . (c_j + c_1) / 2 - (lb_j^2 - lb_1^2) / 2.
+    const float a2x = cx[1] - cx[0], a2y = cy[1] - cy[0], a2z = sn[1] - h1;
+    const float a3x = cx[2] - cx[0], a3y = cy[2] - cy[0], a3z = sn[2] - h1;
+    const float e2 = 0.5f * (a2x * (cx[1] + cx[0]) + a2y * (cy[1] + cy[0]) + a2z * (sn[1] + h1))
+                     - flash_float(&cc.half_dlb_sq[1]);
+    const float e3 = 0.5f * (a3x * (cx[2] + cx[0]) + a3y * (cy[2] + cy[0]) + a3z * (sn[2] + h1))
+                     - flash_float(&cc.half_dlb_sq[2]);
+    const float det = a2x * a3y - a2y * a3x;
+    if (!fastmath::at_least(det, flash_float(&cc.min_det))) return fail(kSolveSingular, wrench);
+    const float inv = 1.0f / det;
+    const float ax = (a2y * a3z - a3y * a2z) * inv, bx = (a3y * e2 - a2y * e3) * inv;
+    const float ay = (a3x * a2z - a2x * a3z) * inv, by = (a2x * e3 - a3x * e2) * inv;
+    const float ex = bx - cx[0], ey = by - cy[0];
+    const float qa = ax * ax + ay * ay + 1.0f;
+    const float qb = ax * ex + ay * ey - h1;
+    const float qc = ex * ex + ey * ey + h1 * h1 - flash_float(&cc.lb_sq[0]);
+    const float disc = qb * qb - qa * qc;
+    if (!fastmath::at_least(disc, k.min_height_sq * qa)) return fail(kSolveNoSolution, wrench);
+    const float z = (fastmath::sqrt32(disc) - qb) / qa;
+    const float x = ax * z + bx, y = ay * z + by;
+    // Statics: link i carries tau_i v_i / G_i, G_i = (u_i . v_i) h_i - v_iz rho_i.
+    float f[3] = {0.0f, 0.0f, 0.0f};
+    for (uint8_t i = 0; i < 3; ++i) {
+        const float vx = x - cx[i], vy = y - cy[i], vz = z - sn[i];
+        const float uv = flash_float(&cc.ux[i]) * vx + flash_float(&cc.uy[i]) * vy;
+        const float g = uv * sn[i] - vz * cs[i];
+        if (!fastmath::at_least(absf(g), k.min_lever)) return fail(kSolveSingular, wrench);
+        const float s = tau[i] / g;
+        f[0] -= s * vx;
+        f[1] -= s * vy;
+        f[2] -= s * vz;
+    }
+    // The gimbal: F_E0 = F - w x F, w = gimbal + tilt * (M + c z x F).
+    const float c = flash_float(&cc.c), tilt = flash_float(&cc.tilt);
+    const float wx = flash_float(&cc.gimbal[0]) + tilt * (tau[3] - c * f[1]);
+    const float wy = flash_float(&cc.gimbal[1]) + tilt * (tau[4] + c * f[0]);
+    const float wz = flash_float(&cc.gimbal[2]) + tilt * tau[5];
+    float w[6] = {
+        f[0] - (wy * f[2] - wz * f[1]),
+        f[1] - (wz * f[0] - wx * f[2]),
+        f[2] - (wx * f[1] - wy * f[0]),
+        tau[3], tau[4], tau[5],
+    };
+    // Eq. (12) with the corrected gimbal angles: R^T = Ry^T Rx^T Rz^T.
+    for (uint8_t v = 0; v < 6; v += 3) {
+        rotate_back(cs[5], sn[5], w[v], w[v + 1]);
+        rotate_back(cs[3], sn[3], w[v + 1], w[v + 2]);
+        rotate_back(cs[4], sn[4], w[v + 2], w[v]);
+    }
+    for (uint8_t i = 0; i < 6; ++i) {
+        if (!fastmath::is_finite(w[i])) return fail(kSolveNonFinite, wrench);
+    }
+    for (uint8_t i = 0; i < 6; ++i) wrench[i] = w[i];
+    return kSolveOk;
+}
+
+}  // namespace delta6

@@ -1,0 +1,86 @@
+"""The firmware's calibrated model compiled natively, driven through ctypes
+(firmware/native/calibrated_shim.cpp): the cross-check against ``delta6.core.calibrated``.
+
+One library per design (its generated header); calibrations are passed at run time as a
+ctypes mirror of ``delta6::CalibrationConstants`` (its size is checked against the C++ one).
+"""
+from __future__ import annotations
+
+import ctypes
+from pathlib import Path
+
+import numpy as np
+
+from delta6.build.nativebuild import FIRMWARE_CORE, FIRMWARE_NATIVE, load_library
+from delta6.build.nativesolver import header_dir
+from delta6.core.calibration import Calibration
+from delta6.core.design import Design
+from delta6_codegen import calibration_constants
+from delta6_codegen.calibration_header import FIELDS, MAX_RADII, MAX_SPEEDS
+
+SOURCES = [FIRMWARE_CORE / "delta6_calibrated.cpp", FIRMWARE_CORE / "delta6_solver.cpp",
+           FIRMWARE_NATIVE / "calibrated_shim.cpp"]
+
+_F = ctypes.c_float
+_TYPES = {
+    "offset": _F * 6, "half_play": _F * 6, "direction_half": ctypes.c_int16,
+    "direction_scale": _F, "rate": _F * 6, "radii": ctypes.c_uint8,
+    "radius": ctypes.c_int16 * MAX_RADII, "hysteresis": (_F * MAX_RADII) * 6, "speed_tau": _F,
+    "speeds": ctypes.c_uint8, "inv_speed": _F * MAX_SPEEDS, "sign": (_F * MAX_SPEEDS) * 6,
+    "viscous": _F * 6, "presliding": _F * 6, "ux": _F * 3, "uy": _F * 3, "d": _F * 3,
+    "la_scale": _F * 3, "rest": _F * 3, "lb_sq": _F * 3, "half_dlb_sq": _F * 3,
+    "elbow": _F * 3, "gimbal": _F * 3, "tilt": _F, "c": _F, "min_det": _F,
+}
+
+
+class CCalibration(ctypes.Structure):
+    """Mirror of delta6::CalibrationConstants."""
+
+    _fields_ = [(name, _TYPES[name]) for name in FIELDS]
+
+
+def _fill(ctype, value):
+    if isinstance(value, tuple):
+        return ctype(*(_fill(ctype._type_, v) for v in value))
+    return value
+
+
+def c_calibration(design: Design, cal: Calibration) -> CCalibration:
+    k = calibration_constants(design, cal)
+    out = CCalibration()
+    for name in FIELDS:
+        setattr(out, name, _fill(_TYPES[name], getattr(k, name)))
+    return out
+
+
+class NativeCalibrated:
+    """The C++ calibrated model of one design; ``run`` keeps the history between calls."""
+
+    def __init__(self, lib: ctypes.CDLL, design: Design, cal: Calibration, period_s: float):
+        self.lib = lib
+        lib.d6c_constants_size.restype = ctypes.c_size_t
+        lib.d6c_state_size.restype = ctypes.c_size_t
+        if lib.d6c_constants_size() != ctypes.sizeof(CCalibration):
+            raise RuntimeError("CalibrationConstants layout differs between C++ and Python")
+        lib.d6c_set_period.argtypes = [ctypes.c_void_p, ctypes.c_float, ctypes.c_void_p]
+        lib.d6c_run.argtypes = [ctypes.c_void_p] * 2 + [ctypes.c_size_t] + [ctypes.c_void_p] * 3
+        self.constants = c_calibration(design, cal)
+        self.state = ctypes.create_string_buffer(lib.d6c_state_size())
+        lib.d6c_reset(self.state)
+        lib.d6c_set_period(ctypes.byref(self.constants), period_s, self.state)
+
+    def run(self, delta) -> tuple[np.ndarray, np.ndarray]:
+        delta = np.ascontiguousarray(delta, dtype=np.int16).reshape(-1, 6)
+        n = len(delta)
+        wrench = np.full((n, 6), np.nan, dtype=np.float32)
+        status = np.full(n, 0xEE, dtype=np.uint8)
+        self.lib.d6c_run(ctypes.byref(self.constants), self.state, n, delta.ctypes.data,
+                         wrench.ctypes.data, status.ctypes.data)
+        return wrench, status
+
+
+def native_calibrated(design: Design, cal: Calibration, period_s: float, base: Path,
+                      label: str = "test") -> NativeCalibrated:
+    include = header_dir(design, base, label)
+    lib = load_library(f"calibrated-{design.name}", SOURCES, [include, FIRMWARE_CORE])
+    return NativeCalibrated(lib, design, cal, period_s)
