@@ -22,14 +22,17 @@ SOURCES = [FIRMWARE_CORE / "delta6_calibrated.cpp", FIRMWARE_CORE / "delta6_solv
            FIRMWARE_NATIVE / "calibrated_shim.cpp"]
 
 _F = ctypes.c_float
+_I = ctypes.c_int32
+_FP = ctypes.POINTER(ctypes.c_float)
 _TYPES = {
-    "offset": _F * 6, "half_play": _F * 6, "direction_half": ctypes.c_int16,
-    "direction_scale": _F, "rate": _F * 6, "radii": ctypes.c_uint8,
-    "radius": ctypes.c_int16 * MAX_RADII, "hysteresis": (_F * MAX_RADII) * 6, "speed_tau": _F,
-    "speeds": ctypes.c_uint8, "inv_speed": _F * MAX_SPEEDS, "sign": (_F * MAX_SPEEDS) * 6,
-    "viscous": _F * 6, "presliding": _F * 6, "ux": _F * 3, "uy": _F * 3, "d": _F * 3,
-    "la_scale": _F * 3, "rest": _F * 3, "lb_sq": _F * 3, "half_dlb_sq": _F * 3,
-    "elbow": _F * 3, "gimbal": _F * 3, "tilt": _F, "c": _F, "min_det": _F,
+    "kx": _I * 6, "kw": (_I * MAX_RADII) * 6, "kd": _I * 6, "k0": _F * 6,
+    "direction_half": ctypes.c_int16, "radii": ctypes.c_uint8,
+    "radius": ctypes.c_int16 * MAX_RADII, "speed_tau": _F, "speeds": ctypes.c_uint8,
+    "breakpoint": _F * MAX_SPEEDS, "slope": (_F * (MAX_SPEEDS + 1)) * 6,
+    "offset": (_F * (MAX_SPEEDS + 1)) * 6,
+    "table": _FP * 6, "ed": _F * 6, "elbow": _F * 3, "ux": _F * 3, "uy": _F * 3, "d": _F * 3,
+    "lb_sq": _F * 3, "half_dlb_sq": _F * 3, "gimbal": _F * 3, "tilt": _F, "c": _F,
+    "min_det": _F,
 }
 
 
@@ -46,10 +49,14 @@ def _fill(ctype, value):
 
 
 def c_calibration(design: Design, cal: Calibration) -> CCalibration:
+    """A ctypes struct for ``cal``; it keeps its tables alive as an attribute."""
     k = calibration_constants(design, cal)
     out = CCalibration()
     for name in FIELDS:
-        setattr(out, name, _fill(_TYPES[name], getattr(k, name)))
+        if name != "table":
+            setattr(out, name, _fill(_TYPES[name], getattr(k, name)))
+    out._tables = [np.ascontiguousarray(t, dtype=np.float32).reshape(-1) for t in k.tables]
+    out.table = (_FP * 6)(*(t.ctypes.data_as(_FP) for t in out._tables))
     return out
 
 

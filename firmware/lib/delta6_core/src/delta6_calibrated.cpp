@@ -25,6 +25,22 @@ inline int16_t flash_i16(const int16_t* p) {
 #endif
 }
 
+inline int32_t flash_i32(const int32_t* p) {
+#if defined(__AVR__)
+    return static_cast<int32_t>(pgm_read_dword(p));
+#else
+    return *p;
+#endif
+}
+
+inline const float* flash_table(const float* const* p) {
+#if defined(__AVR__)
+    return reinterpret_cast<const float*>(pgm_read_word(p));
+#else
+    return *p;
+#endif
+}
+
 inline uint8_t flash_u8(const uint8_t* p) {
 #if defined(__AVR__)
     return pgm_read_byte(p);
@@ -38,7 +54,14 @@ inline int16_t clamp_play(int16_t y, int16_t x, int16_t r) {
     return y < lo ? lo : (y > hi ? hi : y);
 }
 
-inline float clamp_unit(float u) { return u < -1.0f ? -1.0f : (u > 1.0f ? 1.0f : u); }
+// x * 2^-k for a float converted from a non-zero int32 (normal, exponent >= 127): subtracts k
+// from the exponent field instead of calling the float multiply.
+inline float scale_down(float x, uint8_t k) {
+    if (fastmath::bits_of(x) == 0) return x;
+    return fastmath::float_of(fastmath::bits_of(x) - (static_cast<uint32_t>(k) << 23));
+}
+
+inline bool negative(float x) { return (fastmath::bits_of(x) & 0x80000000ul) != 0; }
 
 uint8_t fail(uint8_t status, float wrench[6]) {
     for (uint8_t i = 0; i < 6; ++i) wrench[i] = 0.0f;
@@ -82,31 +105,34 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
         }
         st.started = 1;
     }
-    // 1-3: history, corrected angles (as the deviation e from the count's angle), torques.
-    float e[6], tau[6];
+    // 1-3: the history, the joint torques (count terms in int32) and the varying part of
+    // each angle's correction (dir2: 2x - y2, the direction of motion in half counts).
+    float tau[6];
+    int16_t dir2[6];
     for (uint8_t j = 0; j < 6; ++j) {
         const int16_t x = delta[j];
         const int16_t x2 = static_cast<int16_t>(2 * x);
         const int16_t y2 = clamp_play(st.direction2[j], x2, half);
         st.direction2[j] = y2;
-        const float d = static_cast<float>(x2 - y2) * flash_float(&cc.direction_scale);
-        float extra = 0.0f;
+        dir2[j] = static_cast<int16_t>(x2 - y2);
+        int32_t sum = flash_i32(&cc.kx[j]) * x + flash_i32(&cc.kd[j]) * dir2[j];
         for (uint8_t r = 0; r < radii; ++r) {
             const int16_t y = clamp_play(st.play[j][r], x, flash_i16(&cc.radius[r]));
             st.play[j][r] = y;
-            extra += flash_float(&cc.hysteresis[j][r]) * static_cast<float>(x - y);
+            sum += flash_i32(&cc.kw[j][r]) * static_cast<int16_t>(x - y);
         }
         const float v = st.speed_a * st.speed[j]
                         + st.speed_g * static_cast<float>(x - st.last[j]);
         st.speed[j] = v;
         st.last[j] = x;
-        for (uint8_t s = 0; s < speeds; ++s) {
-            extra += flash_float(&cc.sign[j][s]) * clamp_unit(v * flash_float(&cc.inv_speed[s]));
-        }
-        extra += flash_float(&cc.viscous[j]) * v + flash_float(&cc.presliding[j]) * d;
-        e[j] = flash_float(&cc.half_play[j]) * d - flash_float(&cc.offset[j]);
-        const float theta = static_cast<float>(x) * kCountRad + e[j];
-        tau[j] = flash_float(&cc.rate[j]) * theta + extra;
+        // Friction: the segment of |v| among the breakpoints, then one multiply.
+        const float av = absf(v);
+        uint8_t seg = 0;
+        while (seg < speeds && fastmath::at_least(av, flash_float(&cc.breakpoint[seg]))) ++seg;
+        const float off = flash_float(&cc.offset[j][seg]);
+        const float t = scale_down(static_cast<float>(sum), kTorqueShift) + flash_float(&cc.k0[j])
+                        + flash_float(&cc.slope[j][seg]) * v + (negative(v) ? -off : off);
+        tau[j] = t;
     }
     // The joint box, on the counts as the analytical solver has it.
     for (uint8_t i = 0; i < 6; ++i) {
@@ -114,26 +140,25 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
             return fail(kSolveOutOfBox, wrench);
         }
     }
-    // 4: trig from the tables at the count, turned by e (4th-order small-angle rotation).
+    // 4: trig from each joint's table (constant corrections included), turned by the varying
+    // part e: on the branches (backlash and the elbow's turn, |e| < 0.05 rad) to second
+    // order, cos e = 1 - e^2/2, sin e = e; on the gimbal (backlash alone, |e| < 0.01 rad) to
+    // first order; within 2e-6 of the amplitude either way.
     float cs[6], sn[6];
     for (uint8_t j = 0; j < 6; ++j) {
         const uint16_t biased = static_cast<uint16_t>(delta[j] + k.table_origin);
-        fastmath::table_cos_sin(j < 3 ? k.branch_table : k.joint_table, k.fine_table, biased,
-                                &cs[j], &sn[j]);
-        float a = e[j];
-        if (j < 3) a += flash_float(&cc.rest[j]) + flash_float(&cc.elbow[j]) * tau[j];
-        const float a2 = a * a;
-        const float ca = 1.0f - a2 * (0.5f - a2 * (1.0f / 24.0f));
-        const float sa = a * (1.0f - a2 * (1.0f / 6.0f));
-        float c1 = cs[j] * ca - sn[j] * sa;
-        float s1 = sn[j] * ca + cs[j] * sa;
-        if (j < 3) {
-            const float scale = flash_float(&cc.la_scale[j]);
-            c1 *= scale;
-            s1 *= scale;
+        float c0, s0;
+        fastmath::table_cos_sin(flash_table(&cc.table[j]), k.fine_table, biased, &c0, &s0);
+        float e = flash_float(&cc.ed[j]) * static_cast<float>(dir2[j]);
+        if (j < 3) e += flash_float(&cc.elbow[j]) * tau[j];
+        if ((fastmath::bits_of(e) & 0x7FFFFFFFul) != 0) {
+            const float ce = j < 3 ? 1.0f - fastmath::scale2(e * e, -1) : 1.0f;
+            const float c1 = c0 * ce - s0 * e;
+            s0 = s0 * ce + c0 * e;
+            c0 = c1;
         }
-        cs[j] = c1;
-        sn[j] = s1;
+        cs[j] = c0;
+        sn[j] = s0;
     }
     // 5: sphere centres c_i = r_i u_i + h_i z and the general trilateration.
     float cx[3], cy[3], r[3];
@@ -143,12 +168,15 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
         cy[i] = r[i] * flash_float(&cc.uy[i]);
     }
     const float h1 = sn[0];
-    // P . A_j = e_j with A_j = c_j - c_1, e_j = A_j . (c_j + c_1) / 2 - (lb_j^2 - lb_1^2) / 2.
+    // P . A_j = e_j with A_j = c_j - c_1, e_j = (|c_j|^2 - |c_1|^2 - lb_j^2 + lb_1^2) / 2,
+    // and |c_i|^2 = r_i^2 + h_i^2 (u_i is a unit vector).
     const float a2x = cx[1] - cx[0], a2y = cy[1] - cy[0], a2z = sn[1] - h1;
     const float a3x = cx[2] - cx[0], a3y = cy[2] - cy[0], a3z = sn[2] - h1;
-    const float e2 = 0.5f * (a2x * (cx[1] + cx[0]) + a2y * (cy[1] + cy[0]) + a2z * (sn[1] + h1))
+    const float h1_sq = h1 * h1;
+    const float c1_sq = r[0] * r[0] + h1_sq;
+    const float e2 = fastmath::scale2(r[1] * r[1] + sn[1] * sn[1] - c1_sq, -1)
                      - flash_float(&cc.half_dlb_sq[1]);
-    const float e3 = 0.5f * (a3x * (cx[2] + cx[0]) + a3y * (cy[2] + cy[0]) + a3z * (sn[2] + h1))
+    const float e3 = fastmath::scale2(r[2] * r[2] + sn[2] * sn[2] - c1_sq, -1)
                      - flash_float(&cc.half_dlb_sq[2]);
     const float det = a2x * a3y - a2y * a3x;
     if (!fastmath::at_least(det, flash_float(&cc.min_det))) return fail(kSolveSingular, wrench);
@@ -158,7 +186,7 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
     const float ex = bx - cx[0], ey = by - cy[0];
     const float qa = ax * ax + ay * ay + 1.0f;
     const float qb = ax * ex + ay * ey - h1;
-    const float qc = ex * ex + ey * ey + h1 * h1 - flash_float(&cc.lb_sq[0]);
+    const float qc = ex * ex + ey * ey + h1_sq - flash_float(&cc.lb_sq[0]);
     const float disc = qb * qb - qa * qc;
     if (!fastmath::at_least(disc, k.min_height_sq * qa)) return fail(kSolveNoSolution, wrench);
     const float z = (fastmath::sqrt32(disc) - qb) / qa;

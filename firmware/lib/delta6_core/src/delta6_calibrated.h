@@ -26,34 +26,41 @@ namespace delta6 {
 
 constexpr uint8_t kMaxPlayRadii = 4;
 constexpr uint8_t kMaxSignSpeeds = 4;
+// The torque's count terms are summed in int32, in units of 2^-kTorqueShift N*m.
+constexpr uint8_t kTorqueShift = 28;
 // Bumped whenever CalibrationConstants changes shape; the generated header checks it.
-constexpr uint16_t kCalibrationConstantsVersion = 1;
+constexpr uint16_t kCalibrationConstantsVersion = 3;
 
 struct CalibrationConstants {
-    // Angle side, joints 1..6.
-    float offset[6];                   // rad: encoder reading minus true angle
-    float half_play[6];                // rad: half the backlash
+    // Torque of joint j, with x its count, y_r its plays and y2 its direction play (half
+    // counts): tau = (kx x + sum_r kw_r (x - y_r) + kd (2x - y2)) 2^-kTorqueShift + k0
+    // + friction(v).
+    int32_t kx[6];                     // k * ratio * count
+    int32_t kw[6][kMaxPlayRadii];      // hysteresis weight / radius
+    int32_t kd[6];                     // (k * ratio * half_play + presliding) / H
+    float k0[6];                       // -k * ratio * offset, N*m
     int16_t direction_half;            // H, half counts: the direction play's radius
-    float direction_scale;             // 1 / H
-    // Torque, joints 1..6.
-    float rate[6];                     // k * rate ratio, N*m/rad
     uint8_t radii;                     // hysteresis plays in use (<= kMaxPlayRadii)
     int16_t radius[kMaxPlayRadii];     // counts
-    float hysteresis[6][kMaxPlayRadii];  // weight / radius: N*m per count of (x - play)
     float speed_tau;                   // s: the speed filter's time constant
-    uint8_t speeds;                    // saturated signs in use (<= kMaxSignSpeeds)
-    float inv_speed[kMaxSignSpeeds];   // 1 / V_s, s/rad
-    float sign[6][kMaxSignSpeeds];     // N*m
-    float viscous[6];                  // N*m*s/rad
-    float presliding[6];               // N*m
+    // Friction, a piecewise-linear odd function of the speed v (the sum of the saturated signs
+    // and the viscous term): on the segment k of |v| (k breakpoints at or below it),
+    // slope[k] v + offset[k] sign(v).
+    uint8_t speeds;                    // breakpoints in use (<= kMaxSignSpeeds)
+    float breakpoint[kMaxSignSpeeds];  // the sign speeds V_s, ascending, rad/s
+    float slope[6][kMaxSignSpeeds + 1];   // N*m*s/rad
+    float offset[6][kMaxSignSpeeds + 1];  // N*m
+    // The angles: the coarse tables (flash, as the solver's) hold each joint's constant
+    // correction (branches: la_i and the rest angle; all: minus the encoder offset); the part
+    // that varies is ed (2x - y2) (backlash), plus elbow * tau on the branches (compliance).
+    const float* table[6];
+    float ed[6];                       // half_play / H, rad per half count
+    float elbow[3];                    // rad per N*m of the joint's torque
     // Geometry, branches 1..3.
     float ux[3], uy[3];                // cos, sin of each branch's azimuth
     float d[3];                        // a_i - b_i, m
-    float la_scale[3];                 // la_i / la: the branch table holds la cos, la sin
-    float rest[3];                     // rad added to the branch angle (rest-angle error)
     float lb_sq[3];                    // lb_i^2, m^2
     float half_dlb_sq[3];              // (lb_i^2 - lb_1^2) / 2, m^2
-    float elbow[3];                    // rad per N*m of the joint's torque
     float gimbal[3];                   // rad: rotation vector of {E0} in {B}
     float tilt;                        // rad per N*m about the platform centre
     float c;                           // m: {E} below the platform centre
