@@ -6,11 +6,31 @@
 #include "delta6_calibrated.h"
 #include "delta6_solver.h"
 #include "generated/delta6_design.h"
+#if __has_include("generated/delta6_calibration.h")
+#include "generated/delta6_calibration.h"
+#define D6C_HAS_GENERATED 1
+#endif
 
 using delta6::CalibrationConstants;
 using delta6::CalibrationState;
 
 extern "C" {
+
+// The generated header's constants (NULL when the build has none), its hash and name.
+const CalibrationConstants* d6c_generated() {
+#ifdef D6C_HAS_GENERATED
+    return &delta6::calibration::kCalibrationConstants;
+#else
+    return nullptr;
+#endif
+}
+uint32_t d6c_generated_hash() {
+#ifdef D6C_HAS_GENERATED
+    return delta6::calibration::kHash;
+#else
+    return 0;
+#endif
+}
 
 size_t d6c_constants_size() { return sizeof(CalibrationConstants); }
 size_t d6c_state_size() { return sizeof(CalibrationState); }

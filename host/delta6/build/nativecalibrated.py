@@ -15,7 +15,7 @@ from delta6.build.nativebuild import FIRMWARE_CORE, FIRMWARE_NATIVE, load_librar
 from delta6.build.nativesolver import header_dir
 from delta6.core.calibration import Calibration
 from delta6.core.design import Design
-from delta6_codegen import calibration_constants
+from delta6_codegen import calibration_constants, render_calibration
 from delta6_codegen.calibration_header import FIELDS, MAX_RADII, MAX_SPEEDS
 
 SOURCES = [FIRMWARE_CORE / "delta6_calibrated.cpp", FIRMWARE_CORE / "delta6_solver.cpp",
@@ -63,8 +63,11 @@ def c_calibration(design: Design, cal: Calibration) -> CCalibration:
 class NativeCalibrated:
     """The C++ calibrated model of one design; ``run`` keeps the history between calls."""
 
-    def __init__(self, lib: ctypes.CDLL, design: Design, cal: Calibration, period_s: float):
+    def __init__(self, lib: ctypes.CDLL, design: Design, cal: Calibration, period_s: float,
+                 use_generated: bool = False):
         self.lib = lib
+        lib.d6c_generated.restype = ctypes.c_void_p
+        lib.d6c_generated_hash.restype = ctypes.c_uint32
         lib.d6c_constants_size.restype = ctypes.c_size_t
         lib.d6c_state_size.restype = ctypes.c_size_t
         if lib.d6c_constants_size() != ctypes.sizeof(CCalibration):
@@ -72,22 +75,34 @@ class NativeCalibrated:
         lib.d6c_set_period.argtypes = [ctypes.c_void_p, ctypes.c_float, ctypes.c_void_p]
         lib.d6c_run.argtypes = [ctypes.c_void_p] * 2 + [ctypes.c_size_t] + [ctypes.c_void_p] * 3
         self.constants = c_calibration(design, cal)
+        self._pointer = ctypes.byref(self.constants)
+        if use_generated:    # the constants compiled from the generated header instead
+            if not lib.d6c_generated():
+                raise RuntimeError("this build has no generated calibration header")
+            self._pointer = ctypes.c_void_p(lib.d6c_generated())
         self.state = ctypes.create_string_buffer(lib.d6c_state_size())
         lib.d6c_reset(self.state)
-        lib.d6c_set_period(ctypes.byref(self.constants), period_s, self.state)
+        lib.d6c_set_period(self._pointer, period_s, self.state)
 
     def run(self, delta) -> tuple[np.ndarray, np.ndarray]:
         delta = np.ascontiguousarray(delta, dtype=np.int16).reshape(-1, 6)
         n = len(delta)
         wrench = np.full((n, 6), np.nan, dtype=np.float32)
         status = np.full(n, 0xEE, dtype=np.uint8)
-        self.lib.d6c_run(ctypes.byref(self.constants), self.state, n, delta.ctypes.data,
+        self.lib.d6c_run(self._pointer, self.state, n, delta.ctypes.data,
                          wrench.ctypes.data, status.ctypes.data)
         return wrench, status
 
 
 def native_calibrated(design: Design, cal: Calibration, period_s: float, base: Path,
-                      label: str = "test") -> NativeCalibrated:
+                      label: str = "test", *, generated: bool = False) -> NativeCalibrated:
+    """The C++ model with ``cal`` passed at run time; ``generated``: also compile ``cal``'s
+    generated header into the library and run from its constants."""
     include = header_dir(design, base, label)
+    header = include / "generated" / "delta6_calibration.h"
+    if generated:
+        header.write_text(render_calibration(design, cal, label, "test.toml"))
+    elif header.exists():
+        header.unlink()
     lib = load_library(f"calibrated-{design.name}", SOURCES, [include, FIRMWARE_CORE])
-    return NativeCalibrated(lib, design, cal, period_s)
+    return NativeCalibrated(lib, design, cal, period_s, use_generated=generated)
