@@ -8,6 +8,14 @@
 #include <avr/pgmspace.h>
 #endif
 
+// Stage markers for a cycle profile (as in delta6_solver.cpp): only a profile build defines
+// DELTA6_SOLVER_PROFILE and provides the hook header; elsewhere they vanish.
+#ifdef DELTA6_SOLVER_PROFILE
+#include "delta6_solver_profile_hooks.h"
+#else
+#define DELTA6_PROFILE_MARK(stage) ((void)0)
+#endif
+
 namespace delta6 {
 namespace {
 
@@ -134,6 +142,7 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
                         + flash_float(&cc.slope[j][seg]) * v + (negative(v) ? -off : off);
         tau[j] = t;
     }
+    DELTA6_PROFILE_MARK(21);
     // The joint box, on the counts as the analytical solver has it.
     for (uint8_t i = 0; i < 6; ++i) {
         if (delta[i] > k.limit_counts || delta[i] < -k.limit_counts) {
@@ -152,14 +161,20 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
         float e = flash_float(&cc.ed[j]) * static_cast<float>(dir2[j]);
         if (j < 3) e += flash_float(&cc.elbow[j]) * tau[j];
         if ((fastmath::bits_of(e) & 0x7FFFFFFFul) != 0) {
-            const float ce = j < 3 ? 1.0f - fastmath::scale2(e * e, -1) : 1.0f;
-            const float c1 = c0 * ce - s0 * e;
-            s0 = s0 * ce + c0 * e;
+            // c' = c (1 - e^2/2) - s e, s' = s (1 - e^2/2) + c e; the e^2 term on the branches.
+            float c1 = c0 - s0 * e, s1 = s0 + c0 * e;
+            if (j < 3) {
+                const float h = fastmath::scale2(e * e, -1);
+                c1 -= c0 * h;
+                s1 -= s0 * h;
+            }
             c0 = c1;
+            s0 = s1;
         }
         cs[j] = c0;
         sn[j] = s0;
     }
+    DELTA6_PROFILE_MARK(22);
     // 5: sphere centres c_i = r_i u_i + h_i z and the general trilateration.
     float cx[3], cy[3], r[3];
     for (uint8_t i = 0; i < 3; ++i) {
@@ -191,6 +206,7 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
     if (!fastmath::at_least(disc, k.min_height_sq * qa)) return fail(kSolveNoSolution, wrench);
     const float z = (fastmath::sqrt32(disc) - qb) / qa;
     const float x = ax * z + bx, y = ay * z + by;
+    DELTA6_PROFILE_MARK(23);
     // Statics: link i carries tau_i v_i / G_i, G_i = (u_i . v_i) h_i - v_iz rho_i.
     float f[3] = {0.0f, 0.0f, 0.0f};
     for (uint8_t i = 0; i < 3; ++i) {
@@ -203,6 +219,7 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
         f[1] -= s * vy;
         f[2] -= s * vz;
     }
+    DELTA6_PROFILE_MARK(24);
     // The gimbal: F_E0 = F - w x F, w = gimbal + tilt * (M + c z x F).
     const float c = flash_float(&cc.c), tilt = flash_float(&cc.tilt);
     const float wx = flash_float(&cc.gimbal[0]) + tilt * (tau[3] - c * f[1]);
@@ -214,6 +231,7 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
         f[2] - (wx * f[1] - wy * f[0]),
         tau[3], tau[4], tau[5],
     };
+    DELTA6_PROFILE_MARK(25);
     // Eq. (12) with the corrected gimbal angles: R^T = Ry^T Rx^T Rz^T.
     for (uint8_t v = 0; v < 6; v += 3) {
         rotate_back(cs[5], sn[5], w[v], w[v + 1]);
