@@ -95,3 +95,20 @@ def test_a_calibration_for_another_design_is_refused(runs, tmp_path, capsys, bas
     assert main(["evaluate", str(check_log), "--design", DESIGN, "--calibration",
                  str(path)]) == 2
     assert "fitted for design" in capsys.readouterr().err
+
+
+def test_codegen_writes_and_removes_the_calibration_header(tmp_path, baseline, capsys):
+    cal = C.save(C.neutral(baseline, "unit-x").with_(offset_rad=np.full(6, 1e-3)),
+                 tmp_path / "unit.toml")
+    out = tmp_path / "generated" / "delta6_design.h"
+    header = out.with_name("delta6_calibration.h")
+    assert main(["codegen", DESIGN, "-o", str(out), "--calibration", str(cal)]) == 0
+    text = header.read_text()
+    assert "GENERATED FILE" in text and '"unit-x"' in text
+    assert f"0x{C.load(cal).hash32():08X}UL" in text
+    assert main(["codegen", DESIGN, "-o", str(out), "--calibration", str(cal), "--check"]) == 0
+    assert main(["codegen", DESIGN, "-o", str(out), "--check"]) == 1    # it is still there
+    assert main(["codegen", DESIGN, "-o", str(out)]) == 0
+    assert not header.exists() and "removed" in capsys.readouterr().out
+    other = C.save(C.neutral(baseline.replace(lb_mm=121.0), "other"), tmp_path / "o.toml")
+    assert main(["codegen", DESIGN, "-o", str(out), "--calibration", str(other)]) == 2
