@@ -98,6 +98,13 @@ delta6::Identity identity = {
     DELTA6_MAX_RATE_HZ,
     0,   // serial number: set in setup()
     kEepromAddress,
+#if DELTA6_CALIBRATED
+    delta6::calibration::kName,
+    delta6::calibration::kHash,
+#else
+    nullptr,   // no calibration: the analytical model
+    0,
+#endif
 };
 // Zero counts 0 until the assembly is calibrated (ZERO_HERE, then SAVE_CONFIG).
 const delta6::Config defaults = {

@@ -33,6 +33,7 @@ class BoardRun:
     matched: float           # share of motion records whose counts equal their row's
     stats: dict              # the virtual board's timing statistics
     rate_hz: int
+    info: object             # the board's INFO record (design, calibration, scaling)
 
 
 def _pair(t_dev, counts, t_replay, served) -> tuple[np.ndarray, float]:
@@ -66,6 +67,7 @@ def stream_log(image, log, *, rate_hz: int = 250, zero=0, hold_s: float = 3.0,
                 if np.any(np.asarray(zero) != 0):
                     dev.set_zero(np.broadcast_to(zero, (6,)))
                 dev.set_mode("raw")
+                info = dev.info(refresh=True)
                 dev.start(rate_hz)
                 samples, end = [], hold_s + duration
                 last_note = time.monotonic()
@@ -89,4 +91,4 @@ def stream_log(image, log, *, rate_hz: int = 250, zero=0, hold_s: float = 3.0,
     matched = float(np.mean(np.all(served[rows[moving]] == counts[moving], axis=1)))
     return BoardRun(t=t_dev, counts=counts, delta=P.count_delta(counts, zero), wrench=wrench,
                     status=status, rows=rows - 1, matched=matched, stats=stats,
-                    rate_hz=rate_hz)
+                    rate_hz=rate_hz, info=info)
