@@ -18,9 +18,9 @@ def unit(baseline):
     effects = [twin.make_effect("stiffness_mismatch", 4, magnitude=0.9),
                twin.make_effect("encoder_offset", 4, magnitude=0.8),
                twin.make_effect("joint_friction", 4, magnitude=0.8)]
-    fit_run = twin.simulate(baseline, effects, duration_s=240, rate_hz=50, seed=4)
+    fit_run = twin.simulate(baseline, effects, duration_s=120, rate_hz=50, seed=4)
     truth = fit_run.truth
-    check_run = twin.simulate(duration_s=120, rate_hz=50, **twin.same_unit(truth, 5))
+    check_run = twin.simulate(duration_s=60, rate_hz=50, **twin.same_unit(truth, 5))
     return effects, fit_run, check_run
 
 
@@ -35,7 +35,8 @@ def test_named_effects_are_recovered_and_the_unseen_run_shrinks(baseline, unit):
     np.testing.assert_allclose(cal.offset_rad, truth["encoder_offset"]["offset_rad"],
                                atol=4e-4)
     assert fit.chosen_by == "--effect" and fit.latency_s is None
-    assert max(fit.heldout_after["p99_pct"]) < 0.4 * min(fit.heldout_before["p99_pct"])
+    assert np.all(np.array(fit.heldout_after["p99_pct"])
+                  < 0.4 * np.array(fit.heldout_before["p99_pct"]))
     fs = full_scale(baseline)
     before = np.percentile(np.abs(check_run.model_wrench() - check_run.wrench) / fs, 99, 0)
     after = np.percentile(np.abs(CalibratedModel(baseline, cal).predict(check_run)

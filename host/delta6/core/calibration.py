@@ -54,7 +54,7 @@ def _zeros(*shape):
     return field(default_factory=lambda: np.zeros(shape))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)   # arrays inside: compare hash32() instead
 class Calibration:
     """A unit's calibration. Arrays are numpy float arrays; joints 1..6, branches 1..3.
 
