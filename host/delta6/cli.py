@@ -12,8 +12,8 @@ from delta6.core.design import DesignError
 from delta6.core.errors import UserError
 
 #: Subcommand modules, in the order ``delta6 --help`` lists them.
-COMMAND_MODULES = ("design", "codegen", "virtual", "info", "config", "stream", "log", "tare", "decode",
-                   "convert", "simulate", "diagnose", "flash")
+COMMAND_MODULES = ("design", "codegen", "virtual", "info", "config", "stream", "log", "tare",
+                   "decode", "convert", "simulate", "diagnose", "calibrate", "evaluate", "flash")
 
 
 def build_parser() -> argparse.ArgumentParser:

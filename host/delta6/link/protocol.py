@@ -189,8 +189,10 @@ _INFO_1_0 = [
     Field("status", "H"), Field("streaming", "B"), Field("reserved", "B"),
     Field("baud", "I"), Field("serial_number", "I"), Field("zero_counts", "H", 6),
     Field("tare", "f", 6), Field("joint_limit_rad", "f")]
-#: Appended in 1.1: the wrench pipeline's configuration (SET_FILTER, SET_TOOL, SET_LIMITS).
-_INFO_1_1 = [Field("filter_hz", "f"), Field("tool_translation", "f", 3),
+#: Appended in 1.1: the calibration the firmware applies (hash 0 and no name: none), then the
+#: wrench pipeline's configuration (SET_FILTER, SET_TOOL, SET_LIMITS).
+_INFO_1_1 = [Field("calibration_hash", "I"), Field("calibration_name", "s", 24),
+             Field("filter_hz", "f"), Field("tool_translation", "f", 3),
              Field("tool_rpy", "f", 3), Field("limits", "H", 6),
              Field("max_rate_pipeline_hz", "H")]
 
@@ -216,9 +218,12 @@ RECORD_SIZES = {t: layout.size for t, layout in RECORD_LAYOUTS.items()}
 #: The shortest record of each type a host accepts: its size in protocol 1.0. A shorter INFO
 #: comes from an older device; the fields appended since read as APPENDED_DEFAULTS.
 RECORD_MIN_SIZES = {**RECORD_SIZES, RecordType.INFO: Layout("INFO 1.0", _INFO_1_0).size}
-#: What an older device's INFO record means by the fields it does not carry: no filter,
-#: the identity tool frame, no overload limits.
-APPENDED_DEFAULTS = {RecordType.INFO: {"filter_hz": 0.0, "tool_translation": (0.0,) * 3,
+#: INFO as protocol 1.0 sent it (without the calibration and the pipeline fields).
+INFO_SIZE_1_0 = RECORD_MIN_SIZES[RecordType.INFO]
+#: What an older device's INFO record means by the fields it does not carry: no calibration
+#: (the analytical model), no filter, the identity tool frame, no overload limits.
+APPENDED_DEFAULTS = {RecordType.INFO: {"calibration_hash": 0, "calibration_name": "",
+                                       "filter_hz": 0.0, "tool_translation": (0.0,) * 3,
                                        "tool_rpy": (0.0,) * 3, "limits": (0,) * 6,
                                        "max_rate_pipeline_hz": 0}}
 _WRENCH = RECORD_LAYOUTS[RecordType.WRENCH].struct
@@ -326,6 +331,8 @@ class Info(NamedTuple):
     zero_counts: tuple
     tare: tuple
     joint_limit_rad: float
+    calibration_hash: int = 0      # 1.1; 0: the analytical model, no calibration
+    calibration_name: str = ""
     # 1.1: the wrench pipeline (defaults: what a 1.0 device does)
     filter_hz: float = 0.0          # low-pass cutoff, Hz; 0: off
     tool_translation: tuple = (0.0, 0.0, 0.0)   # tool point in {E}, m
@@ -456,15 +463,16 @@ def _older_record(kind: int, payload: bytes) -> dict:
     if len(payload) != prefix.size:
         raise ProtocolError(f"record type 0x{kind:02x} has {len(payload)} bytes: neither "
                             f"{prefix.size} (protocol 1.0) nor {layout.size} or more")
-    return _clean(kind, {**prefix.unpack(payload), **defaults})
+    return {**_clean(kind, prefix.unpack(payload)), **defaults}
 
 
 def _clean(kind: int, fields: dict) -> dict:
     del fields["type"]
     if kind == RecordType.INFO:
         del fields["reserved"]
-        fields["design_name"] = fields["design_name"].split(b"\x00", 1)[0].decode("ascii",
-                                                                                   "replace")
+        for key in ("design_name", "calibration_name"):
+            if key in fields:       # an older record may lack the latter
+                fields[key] = fields[key].split(b"\x00", 1)[0].decode("ascii", "replace")
         fields["streaming"] = bool(fields["streaming"])
     return fields
 
@@ -507,6 +515,8 @@ def encode_record(record) -> bytes:
     if kind == RecordType.INFO:
         name_field = RECORD_LAYOUTS[kind].field("design_name")
         fields.update(design_name=record.design_name.encode("ascii")[:name_field.count - 1],
+                      calibration_name=record.calibration_name.encode("ascii")[
+                          :name_field.count - 1],
                       streaming=int(record.streaming), reserved=0)
     return frame(RECORD_LAYOUTS[kind].pack(type=kind, **fields))
 

@@ -620,6 +620,11 @@ uint16_t Device::buildInfo(uint8_t request_id) {
   putU32(p + kInfoOffBaud, id_.baud);
   putU32(p + kInfoOffSerialNumber, id_.serial_number);
   putF32(p + kInfoOffJointLimitRad, id_.joint_limit_rad);
+  putU32(p + kInfoOffCalibrationHash, id_.calibration_hash);
+  for (uint8_t i = 0; i < kInfoCalibrationNameBytes - 1 && id_.calibration_name &&
+                      id_.calibration_name[i]; ++i) {
+    p[kInfoOffCalibrationName + i] = static_cast<uint8_t>(id_.calibration_name[i]);
+  }
   putF32(p + kInfoOffFilterHz, filter_on_ ? config_.filter_hz : 0.0f);
   for (uint8_t i = 0; i < 3; ++i) {
     putF32(p + kInfoOffToolTranslation + 4 * i, config_.tool_translation[i]);

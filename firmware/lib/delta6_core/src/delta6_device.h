@@ -55,6 +55,8 @@ struct Identity {
   uint16_t max_rate_hz;      // the fastest loop the board sustains
   uint32_t serial_number;    // board-specific identifier, 0 if none
   uint16_t eeprom_address;   // where the configuration blob lives
+  const char* calibration_name;  // the calibration compiled in (ASCII, <= 23 characters), or
+  uint32_t calibration_hash;     // nullptr and 0: the analytical model (INFO, protocol 1.1)
   uint16_t max_rate_pipeline_hz;  // the fastest loop with the filter or the tool frame on
                                   // (they cost cycles per sample); 0: max_rate_hz
 };
