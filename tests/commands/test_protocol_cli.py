@@ -15,6 +15,9 @@ from support.streams import make_frames
 
 
 def capture_from_sim(seconds=0.5, raw=True, **kwargs) -> tuple[bytes, SimulatedDevice]:
+    # Room for the boot records (222 bytes with INFO) and the first data record at once: the
+    # stream starts at the device's first sample, before the boot records drained.
+    kwargs.setdefault("tx_capacity", 512)
     sim = SimulatedDevice(**kwargs)
     sim.write(P.encode_command(P.Command.SET_MODE, 1, P.Mode.WRENCH_RAW if raw else P.Mode.WRENCH))
     sim.write(P.encode_command(P.Command.START, 2, 500))
