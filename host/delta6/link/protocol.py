@@ -169,7 +169,7 @@ RECORD_LAYOUTS = {
         Field("mode", "B"), Field("design_hash", "I"), Field("design_name", "s", 24),
         Field("full_scale", "f", 6), Field("lsb_mantissa", "B", 6),
         Field("lsb_exponent", "b", 6), Field("rate_hz", "H"), Field("max_rate_hz", "H"),
-        Field("status", "H"), Field("streaming", "B"), Field("reserved", "B"),
+        Field("status", "H"), Field("streaming", "B"), Field("config_problem", "B"),
         Field("baud", "I"), Field("serial_number", "I"), Field("zero_counts", "H", 6),
         Field("tare", "f", 6), Field("joint_limit_rad", "f")]),
     RecordType.ACK: Layout("ACK", [_TYPE, _REQUEST, Field("command", "B"), Field("value", "I")]),
@@ -268,6 +268,7 @@ class Info(NamedTuple):
     max_rate_hz: int
     status: int
     streaming: bool
+    config_problem: int    # a ConfigProblem while CONFIG_DEFAULTS is set (0: none)
     baud: int
     serial_number: int
     zero_counts: tuple
@@ -376,7 +377,6 @@ def parse_payload(payload: bytes):
     fields = RECORD_LAYOUTS[kind].unpack(payload)
     del fields["type"]
     if kind == RecordType.INFO:
-        del fields["reserved"]
         fields["design_name"] = fields["design_name"].split(b"\x00", 1)[0].decode("ascii",
                                                                                    "replace")
         fields["streaming"] = bool(fields["streaming"])
@@ -421,7 +421,7 @@ def encode_record(record) -> bytes:
     if kind == RecordType.INFO:
         name_field = RECORD_LAYOUTS[kind].field("design_name")
         fields.update(design_name=record.design_name.encode("ascii")[:name_field.count - 1],
-                      streaming=int(record.streaming), reserved=0)
+                      streaming=int(record.streaming))
     return frame(RECORD_LAYOUTS[kind].pack(type=kind, **fields))
 
 
