@@ -22,7 +22,7 @@ from delta6.link.layout import Field, Layout
 
 VERSION = (1, 0)
 
-#: The recommended UART rate (docs/protocol.md, "Baud rate"): exact on 16 MHz AVRs, carries
+#: The recommended UART rate (docs/protocol.md section 1, "Link"): exact on 16 MHz AVRs, carries
 #: 1 kHz of wrench records at half load.
 DEFAULT_BAUD = 500_000
 #: Frame bytes on the wire beyond the payload: CRC (2), COBS code (1), delimiter (1).
