@@ -30,7 +30,9 @@ class SimulatorError(UserError):
 
 
 @dataclass
-class SimResult:
+class AvrRun:
+    """One firmware run in simavr: its cycle markers and everything it sent on the UART."""
+
     markers: list[tuple[int, int]]   # (cycle, value) of every GPIOR0 write, in order
     uart: bytes                      # everything UART0 transmitted
     stderr: str
@@ -70,7 +72,7 @@ def harness() -> Path:
 
 def run(elf: Path, *, mcu: str = "atmega328p", freq: int = 16_000_000,
         max_cycles: int = 200_000_000, stop_marker: int = 0xFF,
-        timeout_s: float | None = 300.0) -> SimResult:
+        timeout_s: float | None = 300.0) -> AvrRun:
     """Run ``elf`` until it writes ``stop_marker`` to GPIOR0; raise if it never does."""
     exe = harness()
     with tempfile.TemporaryDirectory(prefix="delta6-sim-") as tmp:
@@ -89,4 +91,4 @@ def run(elf: Path, *, mcu: str = "atmega328p", freq: int = 16_000_000,
         for line in markers.read_text().splitlines():
             cycle, value = line.split()
             pairs.append((int(cycle), int(value)))
-        return SimResult(markers=pairs, uart=uart.read_bytes(), stderr=proc.stderr)
+        return AvrRun(markers=pairs, uart=uart.read_bytes(), stderr=proc.stderr)
