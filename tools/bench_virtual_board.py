@@ -22,6 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from delta6.build import avrbuild
 from delta6.link import protocol as P
 from delta6.link.device import Device
 from delta6.sim.virtualboard import (
@@ -33,7 +34,7 @@ from delta6.sim.virtualboard import (
     write_replay,
 )
 
-F_CPU = 16_000_000
+F_CPU = avrbuild.NANO.f_cpu
 DEFAULT_RATES = (250, 300, 350, 400, 425, 450, 475, 500, 550)
 
 

@@ -25,7 +25,7 @@ from delta6_codegen import render
 from conftest import DESIGNS
 
 REQUIRED_CYCLES = 40_000
-AVR_TOLERANCE_FS = 5e-4       # the 0.05 % FS
+AVR_TOLERANCE_FS = 5e-4       # the required accuracy on the AVR: 0.05 % FS
 FLOAT32_TOLERANCE_FS = 2e-6   # what float32 reaches natively; the AVR must match it
 
 

@@ -45,4 +45,4 @@ def size_check_app(mcu: str = "avrxmega3") -> avrbuild.Image:
     return avrbuild.size_check(f"delta6-app-probe-{mcu}", sources,
                                include_dirs=[avrbuild.COMMITTED_DESIGN_INCLUDE, APP_DIR,
                                              avrbuild.CORE_LIB],
-                               defines=["F_CPU=16000000UL"], mcu=mcu)
+                               defines=[f"F_CPU={avrbuild.NANO.f_cpu}UL"], mcu=mcu)

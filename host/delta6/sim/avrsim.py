@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from delta6.build import compilecache
+from delta6.build.avrbuild import NANO
 from delta6.core.errors import UserError
 from delta6.core.paths import REPO_ROOT
 
@@ -70,7 +71,7 @@ def harness() -> Path:
     return build_tool("delta6_sim", [HARNESS_SOURCE])
 
 
-def run(elf: Path, *, mcu: str = "atmega328p", freq: int = 16_000_000,
+def run(elf: Path, *, mcu: str = NANO.mcu, freq: int = NANO.f_cpu,
         max_cycles: int = 200_000_000, stop_marker: int = 0xFF,
         timeout_s: float | None = 300.0) -> AvrRun:
     """Run ``elf`` until it writes ``stop_marker`` to GPIOR0; raise if it never does."""
