@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
-from delta6.link.logfile import LogWriter
+from delta6.link.logfile import open_log_writer
 from delta6.twin.truth import truth_path, write_truth
 
 #: Rows per write (and per progress report).
@@ -26,7 +26,7 @@ def write_log(result, path: str | Path, *, progress: Callable[[float], None] | N
         meta["scenario"] = truth["scenario"]
     optional = ("temp_c",) if result.temp_c is not None else ()
     n = len(result)
-    with LogWriter(path, meta, optional=optional) as log:
+    with open_log_writer(path, meta, optional=optional) as log:
         for start in range(0, n, WRITE_BLOCK):
             part = slice(start, min(n, start + WRITE_BLOCK))
             extra = {"temp_c": result.temp_c[part]} if result.temp_c is not None else {}
