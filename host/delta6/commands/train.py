@@ -36,8 +36,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-minutes", type=number("--max-minutes", low=0, low_open=True),
                         metavar="M", help="stop after about M minutes, keeping the best "
                                           "checkpoint so far")
-    parser.add_argument("--threads", type=number("--threads", int, 1), metavar="N",
-                        help="CPU threads for training (default: torch's choice)")
+    parser.add_argument("--threads", type=number("--threads", int, 1), default=1, metavar="N",
+                        help="CPU threads for training (default 1: these networks are small, "
+                             "and on a busy machine more threads wait more than they work)")
     parser.add_argument("-o", "--output", required=True, metavar="MODEL.onnx",
                         help="where to write the model")
     parser.add_argument("--quiet", action="store_true", help="no progress display")

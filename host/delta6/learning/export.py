@@ -6,6 +6,7 @@ import contextlib
 import io
 import logging
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +31,8 @@ def export(module: torch.nn.Module, card: ModelCard, path: str | Path) -> Path:
     try:
         # The exporter reports its graph passes on stdout; keep the console for our own lines.
         with contextlib.redirect_stdout(chatter), contextlib.redirect_stderr(chatter), \
-                _quiet("torch.onnx"):
+                _quiet("torch.onnx"), warnings.catch_warnings():
+            warnings.simplefilter("ignore")     # the exporter's notes about torch internals
             program = torch.onnx.export(module, (example,), dynamo=True, input_names=[INPUT],
                                         output_names=[OUTPUT],
                                         dynamic_shapes=({0: batch},), optimize=True)

@@ -59,7 +59,7 @@ def base_model(name: str, design: Design):
 
 
 def fit(log: LogData, design: Design, preset: Preset, *, base: str = "none", seed: int = 0,
-        threads: int | None = None, source: str = "the log",
+        threads: int = training.DEFAULT_THREADS, source: str = "the log",
         progress: Callable[[training.EpochReport], None] | None = None) -> Fitted:
     check_log(log, design, source)
     rate = nominal_rate(log.t)

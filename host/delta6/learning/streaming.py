@@ -1,7 +1,7 @@
 """The learned estimator sample by sample: keeps the last window of readings and turns each new
 sample into a wrench, the same numbers as :meth:`LearnedEstimator.predict` on the whole log.
 
-With a device (``delta6.link.device``), stream raw counts (mode ``wrench_raw``) and either wrap
+With a device (``delta6.link.device``), stream raw counts (``set_mode("raw")``) and either wrap
 its sample iterator or register a callback:
 
     live = LearnedEstimator("gru.onnx", design=design).streaming()
@@ -18,6 +18,9 @@ import numpy as np
 
 from delta6.core.errors import UserError
 from delta6.learning.windows import GAP_PERIODS
+
+NO_ANGLES = ("the stream carries no encoder angles: a learned estimator needs the raw counts "
+             "(Device.set_mode(\"raw\"), delta6 stream --raw)")
 
 
 class StreamingEstimator:
@@ -50,6 +53,13 @@ class StreamingEstimator:
         z = self.estimator.network(norm.inputs(self._buffer[None]))
         return norm.wrench(z)[0] + base
 
+    def update_block(self, t, theta) -> np.ndarray:
+        """:meth:`update` for each row of a block of samples ((n,) times, (n, 6) angles or None
+        when the stream carried no counts); (n, 6)."""
+        if theta is None:
+            raise UserError(NO_ANGLES)
+        return np.array([self.update(ti, row) for ti, row in zip(t, theta)]).reshape(-1, 6)
+
     # -- with a Device ------------------------------------------------------------------------
 
     def check_device(self, info) -> None:
@@ -62,8 +72,7 @@ class StreamingEstimator:
 
     def wrench_of(self, sample) -> np.ndarray:
         if sample.theta is None:
-            raise UserError("the stream carries no encoder angles: a learned estimator needs "
-                            "the raw counts (mode wrench_raw, --raw)")
+            raise UserError(NO_ANGLES)
         return self.update(sample.t, sample.theta)
 
     def wrap(self, samples: Iterable) -> Iterator[tuple[object, np.ndarray]]:
