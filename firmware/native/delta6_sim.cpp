@@ -149,6 +149,9 @@ int32_t d6_cobs_decode_in_place(uint8_t* buf, uint32_t n) {
   return delta6::cobsDecodeInPlace(buf, static_cast<uint16_t>(n));
 }
 
+uint32_t d6_record_size(uint8_t type) { return delta6::proto::recordSize(type); }
+uint32_t d6_command_size(uint8_t type) { return delta6::proto::commandSize(type); }
+
 uint32_t d6_encode_data(uint8_t* out, uint16_t seq, uint32_t time_us, uint16_t status,
                         const int16_t* wrench, const uint16_t* counts) {
   return delta6::proto::encodeDataRecord(out, seq, time_us, status, wrench, counts);
