@@ -23,8 +23,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from delta6 import twin
 from delta6.core import accuracy
 from delta6.core.design import load

@@ -7,8 +7,15 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from delta6.learning.windows import (GAP_PERIODS, Normalisation, nominal_rate, segment_starts,
-                                     time_split, window_index, windows)
+from delta6.learning.windows import (
+    GAP_PERIODS,
+    Normalisation,
+    nominal_rate,
+    segment_starts,
+    time_split,
+    window_index,
+    windows,
+)
 
 RATE = 50.0
 

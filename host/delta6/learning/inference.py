@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 
 from delta6.core.design import Design
-from delta6.link.logfile import LogData
 from delta6.learning.bases import AnalyticalBase, NoBase
 from delta6.learning.card import ModelCard, ModelFileError
 from delta6.learning.streaming import StreamingEstimator
 from delta6.learning.windows import nominal_rate, segment_starts, window_index
+from delta6.link.logfile import LogData
 
 #: Windows per onnxruntime call in batch evaluation (bounds memory, not the result).
 CHUNK = 4096
