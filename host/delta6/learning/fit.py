@@ -17,7 +17,7 @@ from delta6.learning import dataset as dataset_mod
 from delta6.learning import export as export_mod
 from delta6.learning import nets, training
 from delta6.learning.bases import AnalyticalBase, NoBase
-from delta6.learning.card import ModelCard
+from delta6.learning.card import ModelCard, check_log_design
 from delta6.learning.presets import Preset
 from delta6.learning.windows import WINDOW, nominal_rate
 from delta6.link.logfile import LogData
@@ -36,15 +36,7 @@ class Fitted:
 
 
 def check_log(log: LogData, design: Design, source: str) -> None:
-    logged = log.meta.get("design_hash")
-    if logged is not None:
-        try:
-            same = int(logged, 16) == design.hash32()
-        except ValueError:
-            same = True     # an unreadable header hash is the log reader's business
-        if not same:
-            raise UserError(f"{source} was recorded with design {log.meta.get('design', '?')} "
-                            f"({logged}), not {design.name} (0x{design.hash32():08x})")
+    check_log_design(log, design, source)
     if len(log.t) < MIN_SAMPLES:
         raise UserError(f"{source}: too few samples to train on ({len(log.t)}; at least "
                         f"{MIN_SAMPLES})")
