@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from delta6.commands._port import Progress, number
 from delta6.core.accuracy import format_table
@@ -48,6 +49,9 @@ def run(args: argparse.Namespace) -> int:
     if args.residual_over not in ("none", "analytical"):
         raise UserError(f"--residual-over {args.residual_over}: only 'analytical' is available "
                         "in this version (a calibration file needs delta6.calibration)")
+    folder = Path(args.output).resolve().parent
+    if not folder.is_dir():     # before the minutes of training, not after
+        raise UserError(f"cannot write {args.output}: no folder {folder}")
     design = load_checked(args.design)
     log = read_log(args.log)
     chosen = preset(args.preset, args.model)

@@ -1,0 +1,44 @@
+"""``delta6 train`` on the command line: a model file with its summary, and one-line refusals."""
+from __future__ import annotations
+
+import sys
+
+import onnx
+
+from delta6.cli import main
+
+
+def test_train_writes_a_model_and_prints_its_held_out_table(tmp_path, unit_logs, capsys):
+    out = tmp_path / "m.onnx"
+    assert main(["train", str(unit_logs[0]), "--model", "mlp", "--residual-over", "analytical",
+                 "--epochs", "2", "--seed", "3", "-o", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "mlp, residual over the analytical model, design delta6 (0x535534af)" in captured.out
+    assert "2 epochs" in captured.out and "ONNX equals torch within" in captured.out
+    assert "p99 % FS" in captured.out and "analytical" in captured.out
+    assert "epoch   2/2" in captured.err                   # the progress display
+    props = {p.key: p.value for p in onnx.load(str(out)).metadata_props}
+    assert props["delta6.base"] == "analytical" and '"seed": 3' in props["delta6.training"]
+
+
+def test_bad_requests_get_one_line(tmp_path, unit_logs, capsys, monkeypatch):
+    log = str(unit_logs[0])
+    cases = [
+        (["train", log, "--model", "mlp", "--residual-over", "nothing", "-o", "x.onnx"],
+         "--residual-over nothing"),
+        (["train", str(tmp_path / "none.csv"), "--model", "mlp", "-o", "x.onnx"], "no such file"),
+        (["train", log, "--model", "mlp", "--design", "designs/half-scale.toml", "-o", "x.onnx"],
+         "recorded with design delta6"),
+        (["train", log, "--model", "gru", "-o", str(tmp_path / "no" / "dir.onnx"), "--epochs",
+          "1"], "cannot write"),
+    ]
+    for argv, words in cases:
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and words in err[0], err
+    # without the train extra: one line that says how to get it
+    monkeypatch.delitem(sys.modules, "delta6.learning.fit", raising=False)
+    monkeypatch.setitem(sys.modules, "torch", None)
+    assert main(["train", log, "--model", "mlp", "-o", str(tmp_path / "m.onnx")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "training needs torch" in err and "delta6[train]" in err and "\n" not in err
