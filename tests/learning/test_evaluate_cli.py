@@ -13,7 +13,7 @@ from delta6.learning import LearnedEstimator
 from delta6.link.logfile import read_log
 
 
-def test_rows_are_named_after_the_model_files(tmp_path, tiny_models, unit_logs, design, capsys):
+def test_rows_are_named_after_the_model_files(tmp_path, tiny_models, unit_logs, baseline, capsys):
     models = [str(tiny_models[k][0]) for k in ("mlp", "gru")]
     out, plot = tmp_path / "t.json", tmp_path / "e.png"
     assert main(["evaluate", str(unit_logs[1]), "--model", *models, "--json", str(out),
@@ -21,12 +21,12 @@ def test_rows_are_named_after_the_model_files(tmp_path, tiny_models, unit_logs, 
     result = json.loads(out.read_text())
     assert [r["estimator"] for r in result["rows"]] == ["analytical", "mlp", "gru"]
     log = read_log(unit_logs[1])
-    fs = full_scale(design)
-    gru = LearnedEstimator(models[1], design=design).predict(log)
+    fs = full_scale(baseline)
+    gru = LearnedEstimator(models[1], design=baseline).predict(log)
     expected = accuracy.percentiles(gru, log.wrench, fs, (95, 99, 100))
     assert np.allclose(result["rows"][2]["p99_pct"], expected["p99"])
     assert np.allclose(result["rows"][2]["max_pct"], expected["p100"])
-    analytical = accuracy.percentiles(wrench(design, log.theta), log.wrench, fs, (99,))
+    analytical = accuracy.percentiles(wrench(baseline, log.theta), log.wrench, fs, (99,))
     assert np.allclose(result["rows"][0]["p99_pct"], analytical["p99"])
     assert plot.stat().st_size > 10_000 and plot.read_bytes()[:4] == b"\x89PNG"
     text = capsys.readouterr().out

@@ -22,11 +22,11 @@ def test_onnx_equals_torch_on_random_windows(tiny_models, kind):
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_the_model_card_travels_in_metadata_props(tiny_models, design, kind):
+def test_the_model_card_travels_in_metadata_props(tiny_models, baseline, kind):
     path, fitted = tiny_models[kind]
     props = {p.key: p.value for p in onnx.load(str(path)).metadata_props}
     assert ModelCard.from_props(props, path.name) == fitted.card
-    assert props["delta6.design_hash"] == f"0x{design.hash32():08x}"
+    assert props["delta6.design_hash"] == f"0x{baseline.hash32():08x}"
     assert props["delta6.kind"] == kind and props["delta6.window"] == "25"
     assert "holdout_pct_fs" in props["delta6.training"]
 

@@ -21,13 +21,13 @@ KINDS = ("mlp", "lstm", "gru", "transformer")
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_streaming_equals_batch_sample_for_sample(tiny_models, design, unit_logs, kind):
+def test_streaming_equals_batch_sample_for_sample(tiny_models, baseline, unit_logs, kind):
     log = read_log(unit_logs[1])
     n = 400
     t, theta = log.t[:n].copy(), log.theta[:n].copy()
     t[250:] += 0.5              # lost samples: the window starts again
     theta[120, 3] = np.nan      # a failed encoder read: no wrench while it is in the window
-    est = LearnedEstimator(tiny_models[kind][0], design=design)
+    est = LearnedEstimator(tiny_models[kind][0], design=baseline)
     batch = est.predict_arrays(t, theta)
     live = est.streaming()
     stream = np.array([live.update(ti, row) for ti, row in zip(t, theta)])
@@ -41,9 +41,9 @@ def test_streaming_equals_batch_sample_for_sample(tiny_models, design, unit_logs
     assert np.allclose(live.update_block(t[:50], theta[:50]), batch[:50], rtol=0, atol=1e-6 * scale)
 
 
-def test_predict_on_a_log_matches_the_arrays(tiny_models, design, unit_logs):
+def test_predict_on_a_log_matches_the_arrays(tiny_models, baseline, unit_logs):
     log = read_log(unit_logs[1])
-    est = LearnedEstimator(tiny_models["mlp"][0], design=design)
+    est = LearnedEstimator(tiny_models["mlp"][0], design=baseline)
     assert est.name == "mlp"
     out = est.predict(log)
     assert out.shape == (len(log), 6) and np.isfinite(out).all()
@@ -59,11 +59,11 @@ def test_a_model_for_another_design_is_refused(tiny_models):
     assert "\n" not in message
 
 
-def test_a_log_at_another_rate_is_refused(tiny_models, design, unit_logs):
+def test_a_log_at_another_rate_is_refused(tiny_models, baseline, unit_logs):
     log = read_log(unit_logs[1])
     log.t = log.t * 0.2      # 250 Hz
     with pytest.raises(ModelFileError, match="sampled at 250 Hz.*trained at 50 Hz"):
-        LearnedEstimator(tiny_models["mlp"][0], design=design).predict(log)
+        LearnedEstimator(tiny_models["mlp"][0], design=baseline).predict(log)
 
 
 def foreign_model(path, shape=(1, 25, 6), props=None):
@@ -111,10 +111,10 @@ def bad_files(tmp_path, good):
     return out
 
 
-def test_corrupt_or_foreign_files_get_one_line(tmp_path, tiny_models, design):
+def test_corrupt_or_foreign_files_get_one_line(tmp_path, tiny_models, baseline):
     for path, words in bad_files(tmp_path, tiny_models["mlp"][0]):
         with pytest.raises(ModelFileError) as err:
-            LearnedEstimator(path, design=design)
+            LearnedEstimator(path, design=baseline)
         assert words in str(err.value) and "\n" not in str(err.value), (path.name, err.value)
 
 
@@ -143,8 +143,8 @@ def test_inference_imports_no_torch(tiny_models, unit_logs):
     assert out.stdout.strip() == "(3000, 6)"
 
 
-def test_with_a_device_the_stream_equals_the_log(tiny_models, design):
-    est = LearnedEstimator(tiny_models["gru"][0], design=design)
+def test_with_a_device_the_stream_equals_the_log(tiny_models, baseline):
+    est = LearnedEstimator(tiny_models["gru"][0], design=baseline)
     live = est.streaming()
     with Device("delta6sim://?motion=sine&rate=50") as dev:
         live.check_device(dev.info())
@@ -162,8 +162,8 @@ def test_with_a_device_the_stream_equals_the_log(tiny_models, design):
     assert np.allclose(streamed, est.predict_arrays(t, theta), rtol=1e-6, atol=1e-9)
 
 
-def test_a_device_of_another_design_is_refused(tiny_models, design, capsys):
-    live = LearnedEstimator(tiny_models["gru"][0], design=design).streaming()
+def test_a_device_of_another_design_is_refused(tiny_models, baseline, capsys):
+    live = LearnedEstimator(tiny_models["gru"][0], design=baseline).streaming()
     with Device("delta6sim://stiff") as dev:
         with pytest.raises(Exception, match="trained for design delta6 .* the device runs stiff"):
             live.check_device(dev.info())
