@@ -21,6 +21,7 @@ from delta6.commands._port import (
     start_stream,
 )
 from delta6.commands._termplot import RollingPlot
+from delta6.core import calibration as calibration_mod
 from delta6.core.design import load
 from delta6.core.errors import UserError
 from delta6.core.paths import DEFAULT_DESIGN
@@ -47,6 +48,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "rate")
     parser.add_argument("--design", default=str(DEFAULT_DESIGN), metavar="DESIGN.toml",
                         help="with --model: the device's design (default: the paper's)")
+    parser.add_argument("--calibration", metavar="CAL.toml",
+                        help="with --model: the calibration a residual model was trained over "
+                             "(applied on the host to the raw counts)")
     parser.add_argument("--format", choices=FORMATS, default="table",
                         help="table: one readout line updated in place (default); csv, jsonl: "
                              "every sample on stdout, for piping")
@@ -132,8 +136,12 @@ def learned_estimator(args: argparse.Namespace):
     """The streaming estimator of ``--model`` (None without it); the stream is then raw, at
     the model's rate."""
     if args.model is None:
+        if args.calibration:
+            raise UserError("--calibration goes with --model (a residual over a calibration)")
         return None
-    estimator = LearnedEstimator(args.model, design=load(args.design)).streaming()
+    calibration = calibration_mod.load(args.calibration) if args.calibration else None
+    estimator = LearnedEstimator(args.model, design=load(args.design),
+                                 calibration=calibration).streaming()
     model_rate = estimator.estimator.rate_hz
     if args.rate is not None and abs(args.rate / model_rate - 1) > 0.02:
         raise UserError(f"--rate {args.rate}: {args.model} was trained on samples at "

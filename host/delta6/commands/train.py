@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from delta6.commands._port import Progress, number
+from delta6.core import calibration as calibration_mod
 from delta6.core.accuracy import format_table
 from delta6.core.errors import UserError
 from delta6.core.paths import DEFAULT_DESIGN
@@ -25,7 +26,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", required=True, choices=KINDS,
                         help="network: mlp, lstm, gru or transformer")
     parser.add_argument("--residual-over", default="none", metavar="BASE",
-                        help="learn only what BASE misses: 'analytical' (the paper's model); "
+                        help="learn only what BASE misses: 'analytical' (the paper's model) "
+                             "or a calibration file CAL.toml (delta6 calibrate: the hybrid); "
                              "default: the whole wrench (end-to-end)")
     parser.add_argument("--preset", choices=tuple(PRESETS), default="default",
                         help="'paper': the paper's Table IV sizes and recipe (slow on a CPU); "
@@ -46,9 +48,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.residual_over not in ("none", "analytical"):
-        raise UserError(f"--residual-over {args.residual_over}: only 'analytical' is available "
-                        "in this version (a calibration file needs delta6.calibration)")
+    base, calibration = args.residual_over, None
+    if base not in ("none", "analytical"):
+        if not base.lower().endswith(".toml"):
+            raise UserError(f"--residual-over {base}: 'analytical' or a calibration file "
+                            "(CAL.toml)")
+        calibration = calibration_mod.load(base)
+        base = "calibration"
     folder = Path(args.output).resolve().parent
     if not folder.is_dir():     # before the minutes of training, not after
         raise UserError(f"cannot write {args.output}: no folder {folder}")
@@ -74,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
                          f"(epoch {r.best_epoch})  lr {r.lr:.1e}  {r.seconds:5.0f} s")
 
     try:
-        fitted = fit.fit(log, design, chosen, base=args.residual_over, seed=args.seed,
+        fitted = fit.fit(log, design, chosen, base=base, calibration=calibration, seed=args.seed,
                          threads=args.threads, source=args.log, progress=progress)
     finally:
         display.end()
@@ -87,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"Held-out tail of the log ({s['holdout_rows']} rows), |error| % FS:")
     print(format_table(_rows(s["holdout_pct_fs"]), title=args.model))
     if s.get("holdout_base_pct_fs"):
-        print(format_table(_rows(s["holdout_base_pct_fs"]), title=args.residual_over))
+        print(format_table(_rows(s["holdout_base_pct_fs"]),
+                           title="calibrated" if calibration else args.residual_over))
     return 0
 
 

@@ -1,4 +1,5 @@
-"""What a residual model is trained over: nothing (end-to-end), or the analytical model.
+"""What a residual model is trained over: nothing (end-to-end), the analytical model, or the
+unit's calibrated model (``delta6 calibrate``; the "hybrid").
 
 A base gives the wrench for a whole log (``batch``) and, for the streaming estimator, sample by
 sample (``update``); both must agree exactly. The learned network adds what the base misses.
@@ -8,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from delta6.core import model
+from delta6.core.calibrated import CalibratedModel, counts_from_angles
+from delta6.core.calibration import Calibration
 from delta6.core.design import Design
 
 
@@ -42,3 +45,35 @@ class AnalyticalBase:
 
     def reset(self) -> None:
         pass
+
+
+class CalibrationBase:
+    """The calibrated model (causal, with a few numbers of state per joint) run sample by
+    sample at the model's rate. A sample with a missing angle gives NaN and leaves the state
+    as it was, in the batch and in the stream alike."""
+
+    name = "calibration"
+
+    def __init__(self, design: Design, calibration: Calibration, rate_hz: float):
+        self.calibrated = CalibratedModel(design, calibration)
+        self.calibration = calibration
+        self.dt = 1.0 / rate_hz
+        self.state = None
+
+    def batch(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        theta = np.asarray(theta, dtype=float)
+        out = np.full(theta.shape, np.nan)
+        ok = np.isfinite(theta).all(axis=1)
+        if ok.any():
+            out[ok], _ = self.calibrated.run(counts_from_angles(theta[ok]), self.dt)
+        return out
+
+    def update(self, t: float, theta: np.ndarray) -> np.ndarray:
+        theta = np.asarray(theta, dtype=float).reshape(1, 6)
+        if not np.isfinite(theta).all():
+            return np.full(6, np.nan)
+        wrench, self.state = self.calibrated.run(counts_from_angles(theta), self.dt, self.state)
+        return wrench[0]
+
+    def reset(self) -> None:
+        self.state = None

@@ -112,17 +112,3 @@ class ModelCard:
         return (f"{self.kind}, {over}, design {self.design_name} (0x{self.design_hash:08x}), "
                 f"window {self.window} at {self.rate_hz:g} Hz")
 
-
-def check_log_design(log, design, source: str) -> None:
-    """Refuse a log whose header names another design than ``design`` (by hash); a log
-    without a design hash (a hand-made one) passes."""
-    logged = log.meta.get("design_hash")
-    if logged is None:
-        return
-    try:
-        same = int(logged, 16) == design.hash32()
-    except ValueError:
-        raise UserError(f"{source}: design_hash {logged!r} in the header is not a hash") from None
-    if not same:
-        raise UserError(f"{source} was recorded with design {log.meta.get('design', '?')} "
-                        f"({logged}), not {design.name} (0x{design.hash32():08x})")

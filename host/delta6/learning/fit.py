@@ -10,14 +10,15 @@ import numpy as np
 import torch
 
 from delta6.core import accuracy
+from delta6.core.calibration import Calibration, check_log_meta
 from delta6.core.design import Design
 from delta6.core.errors import UserError
 from delta6.core.spec import full_scale
 from delta6.learning import dataset as dataset_mod
 from delta6.learning import export as export_mod
 from delta6.learning import nets, training
-from delta6.learning.bases import AnalyticalBase, NoBase
-from delta6.learning.card import ModelCard, check_log_design
+from delta6.learning.bases import AnalyticalBase, CalibrationBase, NoBase
+from delta6.learning.card import ModelCard
 from delta6.learning.presets import Preset
 from delta6.learning.windows import WINDOW, nominal_rate
 from delta6.link.logfile import LogData
@@ -35,27 +36,33 @@ class Fitted:
     card: ModelCard
 
 
-def check_log(log: LogData, design: Design, source: str) -> None:
-    check_log_design(log, design, source)
+def check_log(log: LogData, design: Design, calibration: Calibration | None, source: str
+              ) -> None:
+    check_log_meta(log.meta, design, calibration, source=source)
     if len(log.t) < MIN_SAMPLES:
         raise UserError(f"{source}: too few samples to train on ({len(log.t)}; at least "
                         f"{MIN_SAMPLES})")
 
 
-def base_model(name: str, design: Design):
+def base_model(name: str, design: Design, calibration: Calibration | None, rate_hz: float):
     if name == "none":
         return NoBase()
     if name == "analytical":
         return AnalyticalBase(design)
-    raise ValueError(f"unknown base {name!r}")
+    if name == "calibration" and calibration is not None:
+        return CalibrationBase(design, calibration, rate_hz)
+    raise ValueError(f"unknown base {name!r} (a calibration base needs the calibration)")
 
 
-def fit(log: LogData, design: Design, preset: Preset, *, base: str = "none", seed: int = 0,
+def fit(log: LogData, design: Design, preset: Preset, *, base: str = "none",
+        calibration: Calibration | None = None, seed: int = 0,
         threads: int = training.DEFAULT_THREADS, source: str = "the log",
         progress: Callable[[training.EpochReport], None] | None = None) -> Fitted:
-    check_log(log, design, source)
+    """Train ``preset`` on ``log``; ``base``: "none" (end-to-end), "analytical", or
+    "calibration" (a residual over ``calibration``, the hybrid)."""
+    check_log(log, design, calibration if base == "calibration" else None, source)
     rate = nominal_rate(log.t)
-    base_est = base_model(base, design)
+    base_est = base_model(base, design, calibration, rate)
     data = dataset_mod.build(log.t, log.theta, log.wrench, base_est.batch(log.t, log.theta),
                              rate_hz=rate, holdout=preset.recipe.holdout, window=WINDOW)
     trained = training.train(data, preset, seed=seed, threads=threads, progress=progress)
@@ -78,6 +85,9 @@ def fit(log: LogData, design: Design, preset: Preset, *, base: str = "none", see
     }
     card = ModelCard(kind=preset.net.kind, design_name=design.name, design_hash=design.hash32(),
                      base=base, window=data.window, rate_hz=rate, norm=data.norm,
+                     calibration_name=calibration.name if base == "calibration" else "",
+                     calibration_hash=f"0x{calibration.hash32():08x}" if base == "calibration"
+                     else "",
                      hyperparameters=preset.as_dict(), training=summary)
     return Fitted(trained, data, card)
 

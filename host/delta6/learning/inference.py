@@ -13,8 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
+from delta6.core.calibration import Calibration
 from delta6.core.design import Design
-from delta6.learning.bases import AnalyticalBase, NoBase
+from delta6.learning.bases import AnalyticalBase, CalibrationBase, NoBase
 from delta6.learning.card import ModelCard, ModelFileError
 from delta6.learning.streaming import StreamingEstimator
 from delta6.learning.windows import nominal_rate, segment_starts, window_index
@@ -48,7 +49,8 @@ class LearnedEstimator:
     """An exported model with the base it was trained over; ``name`` is the file's stem (the
     row name of ``delta6 evaluate``)."""
 
-    def __init__(self, path: str | Path, *, design: Design, calibration=None, threads: int = 1):
+    def __init__(self, path: str | Path, *, design: Design,
+                 calibration: Calibration | None = None, threads: int = 1):
         self.path = Path(path)
         self.name = self.path.stem
         self.session = open_session(self.path, threads)
@@ -69,8 +71,15 @@ class LearnedEstimator:
             return NoBase()
         if card.base == "analytical":
             return AnalyticalBase(design)
-        raise ModelFileError(f"{self.path} is a residual over calibration {card.calibration_name} "
-                             f"({card.calibration_hash}); this version cannot apply calibrations")
+        trained_over = f"{card.calibration_name} ({card.calibration_hash})"
+        if calibration is None:
+            raise ModelFileError(f"{self.path} is a residual over calibration {trained_over}: "
+                                 "give that calibration (--calibration CAL.toml)")
+        given = f"0x{calibration.hash32():08x}"
+        if given != card.calibration_hash:
+            raise ModelFileError(f"{self.path} was trained over calibration {trained_over}, not "
+                                 f"{calibration.name} ({given})")
+        return CalibrationBase(design, calibration, card.rate_hz)
 
     def _check_graph(self) -> None:
         inputs, outputs = self.session.get_inputs(), self.session.get_outputs()
