@@ -6,12 +6,14 @@ the learning curve and the second unit.
 
 Simulates a 2000 s calibration run of one unit (the `paper` scenario, seed 1), a 600 s
 evaluation run of the SAME unit (its effects replayed from the truth record with a new
-trajectory, noise and temperature: seed 2) and a 600 s run of a SECOND unit (the same effects,
-each redrawn at magnitude 0.75 from its own seed). Trains every model (default and paper
-presets, end-to-end, and the MLP as a residual over the analytical model), evaluates them on
-both runs, trains the best end-to-end default model and the residual MLP on the first 200 s and
-500 s of the calibration run (the learning curve), and writes `results.json` and
-`tables.md`. Models already in the output folder are reused (delete them to retrain).
+trajectory, noise and temperature: seed 2, what `delta6 simulate --unit` does) and a 600 s run
+of a SECOND unit (the same effects, each redrawn at magnitude 0.75 from its own seed).
+Calibrates the unit on the calibration run (`delta6 calibrate`), trains every model (default and
+paper presets end-to-end, and the default MLP as a residual over the analytical model and over
+the calibration: the hybrid), evaluates them on both runs, repeats the calibration, the best
+end-to-end default model and the hybrid on the first 200 s and 500 s of the calibration run (the
+learning curve), and writes `results.json` and `tables.md`. Models and calibrations already in
+the output folder are reused (delete them to retrain).
 ``--budget-minutes`` bounds the wall-clock training time of each model (the best checkpoint so
 far is kept; the tables say when a budget stopped a model).
 """
@@ -25,6 +27,8 @@ from pathlib import Path
 
 from delta6 import twin
 from delta6.core import accuracy
+from delta6.core import calibration as calibration_mod
+from delta6.core.calibrated import CalibratedModel
 from delta6.core.design import load
 from delta6.core.model import AXES
 from delta6.core.paths import DEFAULT_DESIGN
@@ -61,8 +65,22 @@ def head(log: LogData, seconds: float) -> LogData:
     return LogData(t=log.t[keep], theta=log.theta[keep], wrench=log.wrench[keep], meta=log.meta)
 
 
+def calibration_of(log: LogData, design, seconds: int, out: Path):
+    """The unit's calibration fitted on the first ``seconds`` of the calibration run."""
+    from delta6.calibration import calibrate
+
+    path = out / f"unit1-{seconds}s.toml"
+    if not path.exists():
+        started = time.perf_counter()
+        fitted = calibrate(head(log, seconds), design, name=f"unit1-{seconds}s")
+        calibration_mod.save(fitted.calibration, path)
+        print(f"  calibration on {seconds} s: {time.perf_counter() - started:.0f} s",
+              file=sys.stderr)
+    return calibration_mod.load(path)
+
+
 def train_one(name: str, log: LogData, design, kind: str, preset_name: str, base: str,
-              out: Path, budget: float | None) -> Path:
+              out: Path, budget: float | None, calibration=None) -> Path:
     from delta6.learning import fit
     from delta6.learning.presets import preset
 
@@ -79,8 +97,8 @@ def train_one(name: str, log: LogData, design, kind: str, preset_name: str, base
               f"(best {r.best_loss:.5f} @ {r.best_epoch}) {r.seconds:.0f} s", end="",
               file=sys.stderr, flush=True)
 
-    fitted = fit.fit(log, design, chosen, base=base, seed=0, threads=1, source=name,
-                     progress=progress)
+    fitted = fit.fit(log, design, chosen, base=base, calibration=calibration, seed=0, threads=1,
+                     source=name, progress=progress)
     fit.write(fitted, path)
     print(f"\r  {name}: {fitted.trained.stopped}, {time.perf_counter() - started:.0f} s"
           + " " * 30, file=sys.stderr, flush=True)
@@ -115,14 +133,21 @@ def main() -> int:
     for name, kind, preset_name, base in specs:
         models[name] = train_one(name, cal, design, kind, preset_name, base, out,
                                  args.budget_minutes)
+    calibrations = {seconds: calibration_of(cal, design, seconds, out)
+                    for seconds in CURVE_SECONDS}
+    unit_cal = calibrations[2000]
+    models["mlp-hybrid-default"] = train_one("mlp-hybrid-default", cal, design, "mlp", "default",
+                                             "calibration", out, args.budget_minutes, unit_cal)
 
     from delta6.core.model import wrench
     results = {"full_scale": fs.tolist(), "same_unit": [], "second_unit": [], "curve": [],
                "models": {}}
+    calibrated = CalibratedModel(design, unit_cal)
     for key, log in (("same_unit", same), ("second_unit", second)):
         results[key].append({"estimator": "analytical", **row(wrench(design, log.theta), log, fs)})
+        results[key].append({"estimator": "calibrated", **row(calibrated.predict(log), log, fs)})
     for name, path in models.items():
-        est = LearnedEstimator(path, design=design)
+        est = LearnedEstimator(path, design=design, calibration=unit_cal)
         results["models"][name] = {"card": est.card.training, "hyper": est.card.hyperparameters}
         for key, log in (("same_unit", same), ("second_unit", second)):
             results[key].append({"estimator": name, **row(est.predict(log), log, fs)})
@@ -131,14 +156,17 @@ def main() -> int:
                   and "residual" not in r["estimator"]]
     best = min(end_to_end, key=lambda r: max(r["p99_pct"]))["estimator"]
     results["best_end_to_end"] = best
-    for name in (best, "mlp-residual-default"):
+    for seconds in CURVE_SECONDS:
+        results["curve"].append({"estimator": "calibrated", "seconds": seconds, **row(
+            CalibratedModel(design, calibrations[seconds]).predict(same), same, fs)})
+    for name in (best, "mlp-hybrid-default"):
         kind = name.split("-")[0]
-        base = "analytical" if "residual" in name else "none"
+        base = "calibration" if "hybrid" in name else "none"
         for seconds in CURVE_SECONDS:
             path = models[name] if seconds == 2000 else train_one(
                 f"{name}-{seconds}s", head(cal, seconds), design, kind, "default", base, out,
-                args.budget_minutes)
-            est = LearnedEstimator(path, design=design)
+                args.budget_minutes, calibrations[seconds])
+            est = LearnedEstimator(path, design=design, calibration=calibrations[seconds])
             results["curve"].append({"estimator": name, "seconds": seconds,
                                      **row(est.predict(same), same, fs)})
     (out / "results.json").write_text(json.dumps(results, indent=1))
