@@ -148,12 +148,14 @@ def main() -> int:
         results[key].append({"estimator": "calibrated", **row(calibrated.predict(log), log, fs)})
     for name, path in models.items():
         est = LearnedEstimator(path, design=design, calibration=unit_cal)
-        results["models"][name] = {"card": est.card.training, "hyper": est.card.hyperparameters}
+        results["models"][name] = {"card": est.card.training, "hyper": est.card.hyperparameters,
+                                   "base": est.card.base}
         for key, log in (("same_unit", same), ("second_unit", second)):
             results[key].append({"estimator": name, **row(est.predict(log), log, fs)})
 
-    end_to_end = [r for r in results["same_unit"] if r["estimator"].endswith("-default")
-                  and "residual" not in r["estimator"]]
+    end_to_end = [r for r in results["same_unit"] if r["estimator"] in models
+                  and r["estimator"].endswith("-default")
+                  and results["models"][r["estimator"]]["base"] == "none"]
     best = min(end_to_end, key=lambda r: max(r["p99_pct"]))["estimator"]
     results["best_end_to_end"] = best
     for seconds in CURVE_SECONDS:
