@@ -11,7 +11,7 @@ of a SECOND unit (the same effects, each redrawn at magnitude 0.75 from its own 
 Calibrates the unit on the calibration run (`delta6 calibrate`), trains every model (default and
 paper presets end-to-end, and the default MLP as a residual over the analytical model and over
 the calibration: the hybrid), evaluates them on both runs, repeats the calibration, the best
-end-to-end default model and the hybrid on the first 200 s and 500 s of the calibration run (the
+end-to-end default model, the residual MLP and the hybrid on the first 200 s and 500 s of the calibration run (the
 learning curve), and writes `results.json` and `tables.md`. Models and calibrations already in
 the output folder are reused (delete them to retrain).
 ``--budget-minutes`` bounds the wall-clock training time of each model (the best checkpoint so
@@ -161,9 +161,9 @@ def main() -> int:
     for seconds in CURVE_SECONDS:
         results["curve"].append({"estimator": "calibrated", "seconds": seconds, **row(
             CalibratedModel(design, calibrations[seconds]).predict(same), same, fs)})
-    for name in (best, "mlp-hybrid-default"):
+    for name in (best, "mlp-residual-default", "mlp-hybrid-default"):
         kind = name.split("-")[0]
-        base = "calibration" if "hybrid" in name else "none"
+        base = results["models"][name]["base"]
         for seconds in CURVE_SECONDS:
             path = models[name] if seconds == 2000 else train_one(
                 f"{name}-{seconds}s", head(cal, seconds), design, kind, "default", base, out,
