@@ -31,7 +31,7 @@ from delta6_codegen import render
 ROOT = Path(__file__).resolve().parents[1]
 
 
-F_CPU = 16_000_000
+F_CPU = avrbuild.NANO.f_cpu
 REQUIRED_CYCLES = 40_000
 GOAL_CYCLES = 16_000
 REQUIRED_ACCURACY_PCT_FS = 0.05

@@ -2,7 +2,7 @@
 // set of encoder deltas in the design's joint box (rest, the 64 corners, then pseudo-random
 // points) and reports every input, status and wrench over the serial port, so a host can
 // check what the AVR computed against the Python reference (tools/bench_solver_avr.py runs
-// it in simavr; delta6.solverbench decodes it).
+// it in simavr; delta6.sim.solverbench decodes it).
 //
 // Timing: each solve is bracketed by writes of 1 and 2 to GPIOR0 with interrupts off; the
 // simulator timestamps those writes (tools/simavr/delta6_sim.c). A 3/4 pair measures the

@@ -1,6 +1,6 @@
 // Size probe of the firmware application's portable part (app.cpp, the solver, the protocol
 // core) for an instruction set without a device (avrxmega3, the ATmega4809's): a do-nothing
-// board layer and a bare main. Built by delta6.appbuild.size_check_app for the avrxmega3
+// board layer and a bare main. Built by delta6.build.appbuild.size_check_app for the avrxmega3
 // size check; never run, never part of an image people flash.
 #include <stdint.h>
 

@@ -1,4 +1,4 @@
-// A scripted protocol session on the AVR, for the emulator (simavr through delta6.avrsim):
+// A scripted protocol session on the AVR, for the emulator (simavr through delta6.sim.avrsim):
 // boot, samples while stopped, start, wrench samples, wrench+raw samples, a tare, tared
 // samples, get info, get telemetry. Every call is bracketed by GPIOR0 markers (the emulator
 // stamps them with the cycle count) and everything the device sends goes out on UART0

@@ -1,6 +1,6 @@
 // C interface to the portable device core for the host: the simulated device
 // (delta6.sim.simdevice, the delta6sim:// serial URL) and the cross-language tests call these
-// through ctypes. Built natively by delta6.nativebuild; never part of the firmware image.
+// through ctypes. Built natively by delta6.build.nativebuild; never part of the firmware image.
 #include <stdint.h>
 #include <string.h>
 

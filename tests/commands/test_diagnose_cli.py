@@ -29,6 +29,7 @@ def stiff_log(tmp_path_factory, baseline):
                      synthetic_log(baseline, "stiffness_mismatch", n=6000))
 
 
+@pytest.mark.slow
 def test_json_has_exactly_the_documented_keys(stiff_log, tmp_path, capsys):
     out = tmp_path / "r.json"
     assert main(["diagnose", str(stiff_log), "--design", DESIGN, "--json", str(out),
@@ -50,6 +51,7 @@ def test_json_has_exactly_the_documented_keys(stiff_log, tmp_path, capsys):
     assert "stiffness_mismatch" in text and "held-out p99" in text
 
 
+@pytest.mark.slow
 def test_report_directory_has_the_report_and_plots(stiff_log, tmp_path):
     out = tmp_path / "rep"
     assert main(["diagnose", str(stiff_log), "--design", DESIGN, "--report", str(out),

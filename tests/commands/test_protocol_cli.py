@@ -1,6 +1,8 @@
 """The device subcommands end to end against the simulated device, and ``delta6 decode``."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -166,6 +168,25 @@ def test_info_tare_and_stream(capsys, tmp_path):
     lines = captured.out.strip().splitlines()
     assert len(lines) >= 3 and all(line.startswith("t ") and line.endswith(" ok") for line in lines)
     assert "0 lost in 0 gaps" in captured.err
+
+
+def test_info_says_why_the_configuration_fell_back_to_defaults(capsys, tmp_path):
+    eeprom = tmp_path / "e.bin"
+    url = f"delta6sim://?eeprom={eeprom}"
+    assert main(["info", "--port", url]) == 0                 # never saved: erased
+    assert "no valid configuration (EEPROM erased or never saved)" in capsys.readouterr().out
+    with Device(url) as dev:
+        dev.save_config()
+    assert main(["info", "--port", url]) == 0
+    assert "no valid configuration" not in capsys.readouterr().out
+    blob = bytearray(eeprom.read_bytes())
+    blob[P.CONFIG_LAYOUT.offsets["rate_hz"]] ^= 1               # a flipped bit: the CRC fails
+    eeprom.write_bytes(bytes(blob))
+    assert main(["info", "--port", url, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert (out["config_problem"], out["config_problem_text"]) == (P.ConfigProblem.BAD_CRC,
+                                                                  "CRC mismatch")
+    assert out["status"] & P.Status.CONFIG_DEFAULTS
 
 
 @pytest.mark.parametrize("argv, message", [

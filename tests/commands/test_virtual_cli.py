@@ -23,6 +23,7 @@ def delta6(*args, **kwargs):
                           capture_output=True, text=True, timeout=120, **kwargs)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("motion, note", [([], "demo motion"),
                                            (["--twin", "ideal", "--twin-duration", "5"],
                                             "the digital twin, scenario ideal")])

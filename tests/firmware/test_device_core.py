@@ -237,8 +237,10 @@ def test_a_corrupt_eeprom_falls_back_to_defaults_and_says_so(bench, damage, reas
     assert P.Event(P.EventCode.CONFIG_DEFAULTS, reason) in reborn.boot
     info = reborn.boot[-1]
     assert info.status & P.Status.CONFIG_DEFAULTS and info.rate_hz == 500
+    assert info.config_problem == reason                     # INFO says why, too
     reborn.answer(reborn.send(C.SAVE_CONFIG))                # saving clears the flag
     assert not reborn.sim.core.status & P.Status.CONFIG_DEFAULTS
+    assert reborn.answer(reborn.send(C.GET_INFO)).config_problem == 0
 
 
 def test_a_blob_from_another_design_keeps_zero_counts_but_not_the_tare(bench):

@@ -107,12 +107,54 @@ def test_configuration_persists_in_the_eeprom_across_power_cycles(tmp_path):
         assert (info.rate_hz, info.mode) == (300, P.Mode.WRENCH_RAW)
         assert info.status & P.Status.TARE_ACTIVE and not info.status & P.Status.CONFIG_DEFAULTS
     blob = bytearray(eeprom.read_bytes())
-    blob[30] ^= 0x10
+    blob[P.CONFIG_LAYOUT.offsets["tare"] + 2] ^= 0x10          # a bit of a tare offset
     eeprom.write_bytes(bytes(blob))
     with Device(url) as dev:
         dev.start()                     # any command; the boot records went out before
         info = dev.info(refresh=True)
         assert info.status & P.Status.CONFIG_DEFAULTS and info.rate_hz == 200
+
+
+def test_zero_here_takes_the_resting_pose_as_zero_and_clears_the_tare():
+    with Device(f"delta6sim://?motion=static&pose={POSE}") as dev:
+        dev.set_mode("raw")
+        dev.start(500)
+        dev.tare(10)
+        resting = take(dev, 5)[-1].counts
+        assert np.abs(take(dev, 1)[0].theta).max() > 0.01          # deflected from zero
+        zero = dev.zero_here(50)
+        assert zero == dev.info().zero_counts == tuple(resting)
+        assert not dev.info().status & P.Status.TARE_ACTIVE
+        dev.flush()
+        after = take(dev, 20)
+        assert all(np.array_equal(s.theta, np.zeros(6)) for s in after)
+        assert not any(s.flags & P.Status.TARE_ACTIVE for s in after)
+        for bad in (0, 70000):
+            with pytest.raises(DeviceError, match="zero capture takes 1..65535 samples"):
+                dev.zero_here(bad)
+
+
+def test_load_defaults_restores_the_factory_configuration_in_ram_only(tmp_path):
+    eeprom = tmp_path / "eeprom.bin"
+    url = f"delta6sim://?rate=200&eeprom={eeprom}&motion=static&pose={POSE}"
+    with Device(url) as dev:
+        factory = dev.info()
+        dev.set_mode("raw")
+        dev.start(300)
+        dev.tare(10)
+        dev.set_zero([100, 200, 300, 400, 500, 600])
+        dev.save_config()
+        dev.load_defaults()
+        info = dev.info()
+        assert (info.rate_hz, info.mode, info.zero_counts, info.tare) == (
+            factory.rate_hz, factory.mode, factory.zero_counts, (0.0,) * 6)
+        assert not info.status & P.Status.TARE_ACTIVE
+        dev.flush()
+        later = take(dev, 3)[1:]                # wrench-only records at the factory rate
+        assert later[0].theta is None and later[1].t - later[0].t == pytest.approx(1 / 200)
+    with Device(url) as dev:                 # the saved configuration is still what boots
+        info = dev.info()
+        assert (info.rate_hz, info.zero_counts) == (300, (100, 200, 300, 400, 500, 600))
 
 
 def test_a_vanishing_port_ends_iteration_with_a_clear_error_after_the_last_sample():

@@ -27,7 +27,7 @@ from delta6.sim.virtualboard import (
 )
 
 from conftest import DESIGNS
-from support.vboard import drain, pair, read_reads, wait_board_time
+from support.vboard import F_CPU, drain, pair, read_reads, wait_board_time
 
 ZERO = np.array([1200, 5400, 9800, 14100, 300, 16000])   # mechanism zero, wraps for joint 6
 STATUS_QUIET = P.Status.TARE_ACTIVE | P.Status.CONFIG_DEFAULTS
@@ -92,7 +92,7 @@ def test_replayed_trajectory_streams_the_reference_wrench(image, design, motion,
     assert np.array_equal(counts, reads.counts[index])
     assert np.all(reads.complete[index] == 0x3F)
     # ... which are the replay's counts in force at that board time (sample and hold).
-    read_t = reads.cycle[index] / 16e6
+    read_t = reads.cycle[index] / F_CPU
     row = np.searchsorted(t, read_t, side="right") - 1
     assert np.array_equal(counts, served[row])
 
@@ -109,7 +109,7 @@ def test_replayed_trajectory_streams_the_reference_wrench(image, design, motion,
     assert sum(enc["violations"].values()) == 0 and enc["contention"] == 0
     assert enc["aborted"] == 0 and enc["bad_commands"] == 0
     assert stats["timing"]["missed_ticks"] == 0 and stats["timing"]["marker_errors"] == 0
-    assert stats["timing"]["latency_cycles"]["max"] < 5e-3 * 16e6
+    assert stats["timing"]["latency_cycles"]["max"] < 5e-3 * F_CPU
 
 
 def test_injected_faults_flag_exactly_the_affected_samples(image, motion, tmp_path):
@@ -144,7 +144,7 @@ def test_injected_faults_flag_exactly_the_affected_samples(image, motion, tmp_pa
     assert np.all(counts[flagged] == 0)                       # never a made-up angle
     assert np.array_equal(counts[~flagged], reads.counts[index][~flagged])
     for f in faults:                                          # every window hit some samples
-        in_window = (reads.cycle[index] >= f.start * 16e6) & (reads.cycle[index] < f.stop * 16e6)
+        in_window = (reads.cycle[index] >= f.start * F_CPU) & (reads.cycle[index] < f.stop * F_CPU)
         assert in_window.sum() >= round((f.stop - f.start) * 250) - 1
         assert np.all(flagged[in_window, f.encoder - 1])
     # The device's per-encoder counters saw every faulty read, streamed or not.
@@ -330,7 +330,7 @@ def test_the_twin_drives_the_board_through_the_live_channel(image, design, tmp_p
     reads = read_reads(reads_path)
     t_us, _, status, wrench, counts = samples_as_arrays(samples)
     index = pair(t_us, reads, 4000)
-    latch = reads.cycle[index] / 16e6
+    latch = reads.cycle[index] / F_CPU
     driven = latch >= t0 + 0.002
     assert driven.sum() > 500
     # Each sample latched the twin's angles due at that board time (zero-order hold) ...

@@ -11,6 +11,7 @@ import tempfile
 import threading
 from pathlib import Path
 
+from delta6.build.avrbuild import NANO
 from delta6.commands._port import number
 from delta6.core.design import DEFAULT_DESIGN
 from delta6.core.errors import UserError
@@ -146,7 +147,7 @@ def _serve(board: vb.VirtualBoard, args: argparse.Namespace, what: str | None,
                              daemon=True).start()
         print(board.port, flush=True)
         notes = [f"virtual board on {board.port}: firmware {board.image.elf.name} on an emulated "
-                 f"ATmega328P at 16 MHz, {board.baud} baud"]
+                 f"ATmega328P at {NANO.f_cpu / 1e6:g} MHz, {board.baud} baud"]
         if what:
             notes.append(f"encoders: {what}")
         if board.live_path is not None:

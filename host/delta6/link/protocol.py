@@ -22,7 +22,7 @@ from delta6.link.layout import Field, Layout
 
 VERSION = (1, 1)
 
-#: The recommended UART rate (docs/protocol.md, "Baud rate"): exact on 16 MHz AVRs, carries
+#: The recommended UART rate (docs/protocol.md section 1, "Link"): exact on 16 MHz AVRs, carries
 #: 1 kHz of wrench records at half load.
 DEFAULT_BAUD = 500_000
 #: Frame bytes on the wire beyond the payload: CRC (2), COBS code (1), delimiter (1).
@@ -169,7 +169,7 @@ RECORD_LAYOUTS = {
         Field("mode", "B"), Field("design_hash", "I"), Field("design_name", "s", 24),
         Field("full_scale", "f", 6), Field("lsb_mantissa", "B", 6),
         Field("lsb_exponent", "b", 6), Field("rate_hz", "H"), Field("max_rate_hz", "H"),
-        Field("status", "H"), Field("streaming", "B"), Field("reserved", "B"),
+        Field("status", "H"), Field("streaming", "B"), Field("config_problem", "B"),
         Field("baud", "I"), Field("serial_number", "I"), Field("zero_counts", "H", 6),
         Field("tare", "f", 6), Field("joint_limit_rad", "f"),
         # 1.1: the calibration the firmware applies (hash 0 and no name: none).
@@ -272,6 +272,7 @@ class Info(NamedTuple):
     max_rate_hz: int
     status: int
     streaming: bool
+    config_problem: int    # a ConfigProblem while CONFIG_DEFAULTS is set (0: none)
     baud: int
     serial_number: int
     zero_counts: tuple
@@ -384,7 +385,6 @@ def parse_payload(payload: bytes):
     fields = RECORD_LAYOUTS[kind].unpack(payload)
     del fields["type"]
     if kind == RecordType.INFO:
-        del fields["reserved"]
         for key in ("design_name", "calibration_name"):
             fields[key] = fields[key].split(b"\x00", 1)[0].decode("ascii", "replace")
         fields["streaming"] = bool(fields["streaming"])
@@ -431,7 +431,7 @@ def encode_record(record) -> bytes:
         fields.update(design_name=record.design_name.encode("ascii")[:name_field.count - 1],
                       calibration_name=record.calibration_name.encode("ascii")[
                           :name_field.count - 1],
-                      streaming=int(record.streaming), reserved=0)
+                      streaming=int(record.streaming))
     return frame(RECORD_LAYOUTS[kind].pack(type=kind, **fields))
 
 

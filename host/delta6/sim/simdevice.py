@@ -95,6 +95,7 @@ class NativeCore:
     def __init__(self, *, design_name: str, design_hash: int, full_scale, joint_limit_rad: float,
                  joint_limit_counts: int, baud: int, max_rate_hz: int, default_rate_hz: int, zero_counts,
                  serial_number: int = 0, tx_capacity: int = 256):
+        self._h = None     # close() and __del__ work even if building the library fails
         self._lib = native_library()
         fs = np.ascontiguousarray(full_scale, dtype=np.float32)
         zero = np.ascontiguousarray(zero_counts, dtype=np.uint16)

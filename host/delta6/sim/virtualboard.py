@@ -219,7 +219,8 @@ class VirtualBoard:
         self._tmp = tempfile.TemporaryDirectory(prefix="delta6-vboard-")
         tmp = Path(self._tmp.name)
         self.stats_path = tmp / "stats.json"
-        cmd = [str(exe), str(self.image.elf), "--baud", str(self.baud), "--speed",
+        cmd = [str(exe), str(self.image.elf), "--freq", str(avrbuild.NANO.f_cpu),
+               "--baud", str(self.baud), "--speed",
                repr(float(self.speed)), "--stats", str(self.stats_path),
                "--rest", ",".join(str(int(z)) for z in self.zero)]
         if self.replay is not None:

@@ -30,6 +30,7 @@
  */
 #define _GNU_SOURCE
 #include <errno.h>
+#include <getopt.h>
 #include <math.h>
 #include <poll.h>
 #include <signal.h>
@@ -196,50 +197,74 @@ static void parse_options(options_t *o, int argc, char **argv)
 	o->speed = 1.0;
 	o->timing = (vb_bus_timing_t){D6_BUS_HALF_PERIOD_NS, D6_BUS_SELECT_SETUP_NS,
 	                              D6_BUS_DATA_VALID_NS};
-	for (int i = 1; i < argc; i++) {
-		const char *a = argv[i];
-		if (a[0] != '-') {
-			if (o->elf)
-				vb_die("more than one firmware file given: %s", a);
-			o->elf = a;
-			continue;
-		}
-		if (!strcmp(a, "--loop")) {
+	enum {
+		OPT_LOOP = 1, OPT_NO_WAIT, OPT_FREQ, OPT_BAUD, OPT_REPLAY, OPT_LIVE, OPT_EEPROM,
+		OPT_STATS, OPT_READ_LOG, OPT_RAM_DUMP, OPT_SPEED, OPT_DURATION, OPT_REST, OPT_FAULT,
+		OPT_BUS_TIMING,
+	};
+	static const struct option options[] = {
+		{"loop", no_argument, NULL, OPT_LOOP},
+		{"no-wait", no_argument, NULL, OPT_NO_WAIT},
+		{"freq", required_argument, NULL, OPT_FREQ},
+		{"baud", required_argument, NULL, OPT_BAUD},
+		{"replay", required_argument, NULL, OPT_REPLAY},
+		{"live", required_argument, NULL, OPT_LIVE},
+		{"eeprom", required_argument, NULL, OPT_EEPROM},
+		{"stats", required_argument, NULL, OPT_STATS},
+		{"read-log", required_argument, NULL, OPT_READ_LOG},
+		{"ram-dump", required_argument, NULL, OPT_RAM_DUMP},
+		{"speed", required_argument, NULL, OPT_SPEED},
+		{"duration", required_argument, NULL, OPT_DURATION},
+		{"rest", required_argument, NULL, OPT_REST},
+		{"fault", required_argument, NULL, OPT_FAULT},
+		{"bus-timing", required_argument, NULL, OPT_BUS_TIMING},
+		{NULL, 0, NULL, 0},
+	};
+	opterr = 0; /* our own one-line messages */
+	for (int opt; (opt = getopt_long(argc, argv, ":", options, NULL)) != -1;) {
+		char *v = optarg;
+		switch (opt) {
+		case OPT_LOOP:
 			o->loop = 1;
-			continue;
-		}
-		if (!strcmp(a, "--no-wait")) {
+			break;
+		case OPT_NO_WAIT:
 			o->no_wait = 1;
-			continue;
-		}
-		if (i + 1 >= argc)
-			vb_die("%s needs a value", a);
-		char *v = argv[++i];
-		if (!strcmp(a, "--freq")) {
-			o->freq = (uint32_t)parse_double(v, a);
-		} else if (!strcmp(a, "--baud")) {
-			o->baud = (uint32_t)parse_double(v, a);
-		} else if (!strcmp(a, "--replay")) {
+			break;
+		case OPT_FREQ:
+			o->freq = (uint32_t)parse_double(v, "--freq");
+			break;
+		case OPT_BAUD:
+			o->baud = (uint32_t)parse_double(v, "--baud");
+			break;
+		case OPT_REPLAY:
 			o->replay = v;
-		} else if (!strcmp(a, "--live")) {
+			break;
+		case OPT_LIVE:
 			o->live = v;
-		} else if (!strcmp(a, "--eeprom")) {
+			break;
+		case OPT_EEPROM:
 			o->eeprom = v;
-		} else if (!strcmp(a, "--stats")) {
+			break;
+		case OPT_STATS:
 			o->stats = v;
-		} else if (!strcmp(a, "--read-log")) {
+			break;
+		case OPT_READ_LOG:
 			o->read_log = v;
-		} else if (!strcmp(a, "--ram-dump")) {
+			break;
+		case OPT_RAM_DUMP:
 			o->ram_dump = v;
-		} else if (!strcmp(a, "--speed")) {
-			o->speed = parse_double(v, a);
+			break;
+		case OPT_SPEED:
+			o->speed = parse_double(v, "--speed");
 			if (o->speed < 0)
 				vb_die("--speed must be >= 0");
-		} else if (!strcmp(a, "--duration")) {
-			o->duration = parse_double(v, a);
+			break;
+		case OPT_DURATION:
+			o->duration = parse_double(v, "--duration");
 			if (!(o->duration > 0))
 				vb_die("--duration must be positive");
-		} else if (!strcmp(a, "--rest")) {
+			break;
+		case OPT_REST: {
 			long c[VB_ENCODERS];
 			if (parse_list(v, c, VB_ENCODERS, ','))
 				vb_die("--rest takes six counts separated by commas");
@@ -248,17 +273,29 @@ static void parse_options(options_t *o, int argc, char **argv)
 					vb_die("--rest: count %ld is not 0..16383", c[j]);
 				o->rest[j] = (uint16_t)c[j];
 			}
-		} else if (!strcmp(a, "--fault")) {
+			break;
+		}
+		case OPT_FAULT:
 			parse_fault(o, v);
-		} else if (!strcmp(a, "--bus-timing")) {
+			break;
+		case OPT_BUS_TIMING: {
 			long t[3];
 			if (parse_list(v, t, 3, ',') || t[0] <= 0 || t[1] <= 0 || t[2] <= 0)
 				vb_die("--bus-timing takes three positive times in ns: HALF,SETUP,VALID");
 			o->timing = (vb_bus_timing_t){(uint32_t)t[0], (uint32_t)t[1], (uint32_t)t[2]};
-		} else {
-			vb_die("unknown option %s", a);
+			break;
+		}
+		case ':':
+			vb_die("%s needs a value", argv[optind - 1]);
+			break;
+		default:
+			vb_die("unknown option %s", argv[optind - 1]);
 		}
 	}
+	if (optind < argc)
+		o->elf = argv[optind];
+	if (optind + 1 < argc)
+		vb_die("more than one firmware file given: %s", argv[optind + 1]);
 	if (!o->elf)
 		vb_die("no firmware file given");
 	if (o->baud < 1000 || o->freq < 1000000)

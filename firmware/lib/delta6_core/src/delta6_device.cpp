@@ -23,7 +23,7 @@ Device::Device(Hardware& hardware, const Identity& identity, const Config& defau
       queue_head_(0),
       queue_count_(0),
       streaming_(false),
-      config_defaults_(false),
+      config_problem_(0),
       tx_overflow_(false),
       seq_(0),
       last_status_(0),
@@ -110,7 +110,7 @@ void Device::begin(uint8_t reset_cause) {
   hw_.eepromRead(id_.eeprom_address, blob, kConfigBlobSize);
   Config loaded;
   const uint8_t problem = decodeConfig(blob, &loaded);
-  config_defaults_ = problem != 0;
+  config_problem_ = problem;
   config_ = problem ? defaults_ : loaded;
   hw_.sampleRateChanged(config_.rate_hz);
   answer(kEvent, 0, kEventBoot, 0, reset_cause);
@@ -132,7 +132,7 @@ void Device::saveConfig(const Command& c) {
       return;
     }
   }
-  config_defaults_ = false;
+  config_problem_ = 0;
   ack(c, kConfigBlobSize);
 }
 
@@ -140,7 +140,7 @@ uint16_t Device::persistentStatus() const {
   uint16_t s = 0;
   if (config_.tare_active) s |= kStatusTareActive;
   if (averaging_) s |= kStatusTareBusy;
-  if (config_defaults_) s |= kStatusConfigDefaults;
+  if (config_problem_) s |= kStatusConfigDefaults;
   return s;
 }
 
@@ -471,6 +471,7 @@ uint16_t Device::buildInfo(uint8_t request_id) {
   putU16(p + kInfoOffMaxRateHz, id_.max_rate_hz);
   putU16(p + kInfoOffStatus, persistentStatus());
   p[kInfoOffStreaming] = streaming_ ? 1 : 0;
+  p[kInfoOffConfigProblem] = config_problem_;
   putU32(p + kInfoOffBaud, id_.baud);
   putU32(p + kInfoOffSerialNumber, id_.serial_number);
   putF32(p + kInfoOffJointLimitRad, id_.joint_limit_rad);

@@ -173,7 +173,7 @@ class Device {
   Response last_answer_;       // repeated for a retried request (same id and command)
 
   bool streaming_;
-  bool config_defaults_;
+  uint8_t config_problem_;     // why the EEPROM configuration was rejected (0: it was not)
   bool tx_overflow_;           // a data record was dropped since the last one sent
   uint16_t seq_;
   uint16_t last_status_;
