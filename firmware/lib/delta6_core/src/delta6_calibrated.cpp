@@ -22,6 +22,11 @@
 #else
 #define DELTA6_NOINLINE
 #endif
+// -O2 for this file on the AVR (the image is built -Os): about 1,000 cycles less per sample
+// for about 650 bytes of flash.
+#if defined(__AVR__)
+#pragma GCC optimize("O2")
+#endif
 
 namespace delta6 {
 namespace {
@@ -152,15 +157,18 @@ DELTA6_NOINLINE void joint_trig(const SolverConstants& k, const CalibrationConst
                                : flash_float(&cc.ed[j]) * static_cast<float>(dir2[j]);
         if (j < 3) e += flash_float(&cc.elbow[j]) * tau[j];
         if ((fastmath::bits_of(e) & 0x7FFFFFFFul) != 0) {
-            // c' = c (1 - e^2/2) - s e, s' = s (1 - e^2/2) + c e; the e^2 term on the branches.
-            float c1 = c0 - s0 * e, s1 = s0 + c0 * e;
+            // c' = c m - s e, s' = s m + c e with m = cos e: 1 - e^2/2 on the branches, 1 on
+            // the gimbal.
             if (j < 3) {
-                const float h = fastmath::scale2(e * e, -1);
-                c1 -= c0 * h;
-                s1 -= s0 * h;
+                const float m = 1.0f - fastmath::scale2(e * e, -1);
+                const float c1 = c0 * m - s0 * e;
+                s0 = s0 * m + c0 * e;
+                c0 = c1;
+            } else {
+                const float c1 = c0 - s0 * e;
+                s0 += c0 * e;
+                c0 = c1;
             }
-            c0 = c1;
-            s0 = s1;
         }
         cs[j] = c0;
         sn[j] = s0;
