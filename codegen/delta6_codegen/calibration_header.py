@@ -48,6 +48,7 @@ class CalibrationConstants:
     offset: tuple              # 6 rows of MAX_SPEEDS + 1, fixed point
     table: tuple               # names of the six tables
     ed: tuple
+    eh: tuple
     elbow: tuple
     ux: tuple
     uy: tuple
@@ -135,6 +136,7 @@ def calibration_constants(design: Design, cal: Calibration) -> CalibrationConsta
         breakpoint=_f(np.concatenate([speeds[order], np.full(MAX_SPEEDS - len(speeds), 1e30)])),
         slope=_padded(slope, MAX_SPEEDS + 1), offset=_padded(offset, MAX_SPEEDS + 1, _q),
         table=TABLE_NAMES, ed=_f(0.5 * cal.backlash_play_rad / half),
+        eh=_f(0.5 * cal.backlash_play_rad),
         elbow=_f(cal.elbow_rad_per_nm),
         ux=_f(np.cos(phi)), uy=_f(np.sin(phi)), d=_f((a - b) * mm),
         lb_sq=_f(lb_sq), half_dlb_sq=_f(0.5 * (lb_sq - lb_sq[0])),

@@ -124,8 +124,10 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
             play[r] = y;
             sum += flash_i32(&kw[r]) * static_cast<int16_t>(x - y);
         }
-        const float v = speed_a * st.speed[j]
-                        + speed_g * static_cast<float>(static_cast<int16_t>(x - st.last[j]));
+        // A joint standing still (often, at the board's rates) costs one multiply, not three.
+        const int16_t step = static_cast<int16_t>(x - st.last[j]);
+        float v = speed_a * st.speed[j];
+        if (step != 0) v += speed_g * static_cast<float>(step);
         st.speed[j] = v;
         st.last[j] = x;
         // Friction: the segment of |v| among the breakpoints; its offset joins the int32 sum,
@@ -144,17 +146,21 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
 // part e: on the branches (backlash and the elbow's turn, |e| < 0.05 rad) to second order,
 // cos e = 1 - e^2/2, sin e = e; on the gimbal (backlash alone, |e| < 0.01 rad) to first
 // order; within 2e-6 of the amplitude either way.
-DELTA6_NOINLINE void joint_trig(const SolverConstants& k, const CalibrationConstants& cc,
-                                const int16_t delta[6], const int16_t dir2[6],
-                                const float tau[6], float cs[6], float sn[6]) {
-    const int16_t origin = k.table_origin;
-    const float* fine = k.fine_table;
+// (The solver's constants come in as scalars: a pointer to them would keep a copy in RAM.)
+DELTA6_NOINLINE void joint_trig(const CalibrationConstants& cc, int16_t origin,
+                                const float* fine, const int16_t delta[6],
+                                const int16_t dir2[6], const float tau[6], float cs[6],
+                                float sn[6]) {
+    const int16_t half = flash_i16(&cc.direction_half);
     for (uint8_t j = 0; j < 6; ++j) {
         const uint16_t biased = static_cast<uint16_t>(delta[j] + origin);
         float c0, s0;
         fastmath::table_cos_sin(flash_table(&cc.table[j]), fine, biased, &c0, &s0);
-        float e = dir2[j] == 0 ? 0.0f
-                               : flash_float(&cc.ed[j]) * static_cast<float>(dir2[j]);
+        // The direction is +-H (the play saturated) but during a reversal: no multiply then.
+        const int16_t d2 = dir2[j];
+        float e = d2 == half ? flash_float(&cc.eh[j])
+                  : d2 == -half ? -flash_float(&cc.eh[j])
+                  : flash_float(&cc.ed[j]) * static_cast<float>(d2);
         if (j < 3) e += flash_float(&cc.elbow[j]) * tau[j];
         if ((fastmath::bits_of(e) & 0x7FFFFFFFul) != 0) {
             // c' = c m - s e, s' = s m + c e with m = cos e: 1 - e^2/2 on the branches, 1 on
@@ -177,7 +183,7 @@ DELTA6_NOINLINE void joint_trig(const SolverConstants& k, const CalibrationConst
 
 // 5: sphere centres c_i = r_i u_i + h_i z and the general trilateration: P (x, y, z) and the
 // centres' x, y. Returns a SolveStatus.
-DELTA6_NOINLINE uint8_t trilaterate(const SolverConstants& k, const CalibrationConstants& cc,
+DELTA6_NOINLINE uint8_t trilaterate(const CalibrationConstants& cc, float min_height_sq,
                                     const float cs[6], const float sn[6], float cx[3],
                                     float cy[3], float p[3]) {
     float r[3];
@@ -207,7 +213,7 @@ DELTA6_NOINLINE uint8_t trilaterate(const SolverConstants& k, const CalibrationC
     const float qb = ax * ex + ay * ey - h1;
     const float qc = ex * ex + ey * ey + h1_sq - flash_float(&cc.lb_sq[0]);
     const float disc = qb * qb - qa * qc;
-    if (!fastmath::at_least(disc, k.min_height_sq * qa)) return kSolveNoSolution;
+    if (!fastmath::at_least(disc, min_height_sq * qa)) return kSolveNoSolution;
     const float z = (fastmath::sqrt32(disc) - qb) / qa;
     p[0] = ax * z + bx;
     p[1] = ay * z + by;
@@ -217,12 +223,11 @@ DELTA6_NOINLINE uint8_t trilaterate(const SolverConstants& k, const CalibrationC
 
 // Statics: link i carries tau_i v_i / G_i, G_i = (u_i . v_i) h_i - v_iz rho_i; the force on
 // the platform is F = -sum tau_i v_i / G_i. Returns a SolveStatus.
-DELTA6_NOINLINE uint8_t statics(const SolverConstants& k, const CalibrationConstants& cc,
+DELTA6_NOINLINE uint8_t statics(const CalibrationConstants& cc, float min_lever,
                                 const float cs[6], const float sn[6], const float tau[6],
                                 const float cx[3], const float cy[3], const float p[3],
                                 float f[3]) {
     f[0] = f[1] = f[2] = 0.0f;
-    const float min_lever = k.min_lever;
     for (uint8_t i = 0; i < 3; ++i) {
         const float vx = p[0] - cx[i], vy = p[1] - cy[i], vz = p[2] - sn[i];
         const float uv = flash_float(&cc.ux[i]) * vx + flash_float(&cc.uy[i]) * vy;
@@ -274,14 +279,14 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
         }
     }
     float cs[6], sn[6];
-    joint_trig(k, cc, delta, dir2, tau, cs, sn);
+    joint_trig(cc, k.table_origin, k.fine_table, delta, dir2, tau, cs, sn);
     DELTA6_PROFILE_MARK(22);
     float cx[3], cy[3], p[3];
-    uint8_t status = trilaterate(k, cc, cs, sn, cx, cy, p);
+    uint8_t status = trilaterate(cc, k.min_height_sq, cs, sn, cx, cy, p);
     if (status != kSolveOk) return fail(status, wrench);
     DELTA6_PROFILE_MARK(23);
     float f[3];
-    status = statics(k, cc, cs, sn, tau, cx, cy, p, f);
+    status = statics(cc, k.min_lever, cs, sn, tau, cx, cy, p, f);
     if (status != kSolveOk) return fail(status, wrench);
     DELTA6_PROFILE_MARK(24);
     // The gimbal: F_E0 = F - w x F, w = gimbal + tilt * (M + c z x F).

@@ -55,6 +55,7 @@ struct CalibrationConstants {
     // that varies is ed (2x - y2) (backlash), plus elbow * tau on the branches (compliance).
     const float* table[6];
     float ed[6];                       // half_play / H, rad per half count
+    float eh[6];                       // half_play, rad: ed H
     float elbow[3];                    // rad per N*m of the joint's torque
     // Geometry, branches 1..3.
     float ux[3], uy[3];                // cos, sin of each branch's azimuth
