@@ -16,13 +16,15 @@ from hypothesis import strategies as st
 
 from delta6.build import avrbuild
 from delta6.cli import main
+from delta6.core.calibrated import CalibratedModel
 from delta6.core.design import load
 from delta6.core.model import ENCODER_COUNT_RAD, wrench
 from delta6.core.spec import full_scale
 from delta6.sim import avrsim, solverbench, virtualboard
-from delta6_codegen import render
+from delta6_codegen import render, render_calibration
 
 from conftest import DESIGNS
+from support.calibrations import random_calibration
 
 REQUIRED_CYCLES = 40_000
 AVR_TOLERANCE_FS = 5e-4       # the required accuracy on the AVR: 0.05 % FS
@@ -165,3 +167,24 @@ def test_the_runner_takes_options_in_any_order_and_the_equals_form():
         proc = subprocess.run([str(avrsim.harness()), *args], capture_output=True, text=True,
                               timeout=30)
         assert proc.returncode == 3, proc.stderr             # ran, hit the cycle limit
+
+
+@pytest.mark.parametrize("seed", [5, 6])
+def test_simulated_avr_calibrated_solver_matches_the_python_model(tmp_path, baseline, seed):
+    # The calibrated solver compiled for the ATmega328P, along the bench's random walk (history
+    # included), against delta6.core.calibrated: the same 0.01 % FS as the native check.
+    cal = random_calibration(baseline, seed)
+    generated = tmp_path / "generated"
+    generated.mkdir()
+    (generated / "delta6_design.h").write_text(render(baseline, "designs/delta6.toml"))
+    (generated / "delta6_calibration.h").write_text(
+        render_calibration(baseline, cal, "designs/delta6.toml", "random.toml"))
+    run = solverbench.run_bench(tmp_path, solves=200, name="calibrated-bench-test",
+                                calibrated=True)
+    report = run.report
+    assert report.design_hash == baseline.hash32() and (report.status == 0).all()
+    assert len(np.unique(report.delta, axis=0)) > 150     # a walk, not one pose
+    python, _ = CalibratedModel(baseline, cal).run(report.delta.astype(float),
+                                                   solverbench.CALIBRATED_PERIOD_S)
+    err = np.abs(report.wrench.astype(float) - python) / full_scale(baseline) * 100
+    assert err.max() < 0.01, err.max(axis=0)
