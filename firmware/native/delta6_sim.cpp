@@ -8,6 +8,7 @@
 #include "delta6_crc16.h"
 #include "delta6_device.h"
 #include "delta6_protocol.h"
+#include "delta6_version.h"
 #include "sim_hardware.h"
 
 using delta6::Config;
@@ -34,9 +35,9 @@ struct Setup {
     for (int i = 0; i < 6; ++i) identity.full_scale[i] = full_scale[i];
     identity.joint_limit_rad = joint_limit;
     identity.joint_limit_counts = joint_limit_counts;
-    identity.firmware_version[0] = 0;
-    identity.firmware_version[1] = 1;
-    identity.firmware_version[2] = 0;
+    identity.firmware_version[0] = delta6::kFirmwareVersionMajor;
+    identity.firmware_version[1] = delta6::kFirmwareVersionMinor;
+    identity.firmware_version[2] = delta6::kFirmwareVersionPatch;
     identity.baud = baud;
     identity.max_rate_hz = max_rate;
     identity.serial_number = serial;

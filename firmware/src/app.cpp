@@ -5,6 +5,7 @@
 #include "delta6_device.h"
 #include "delta6_encoder.h"
 #include "delta6_solver.h"
+#include "delta6_version.h"
 #include "generated/delta6_design.h"
 
 // The fastest rate the board sustains without overruns in both stream modes, for the info
@@ -73,7 +74,7 @@ delta6::Identity identity = {
      d::kFullScale[5]},
     d::kJointLimitRad,
     d::kJointLimitCounts,
-    {1, 0, 0},
+    {delta6::kFirmwareVersionMajor, delta6::kFirmwareVersionMinor, delta6::kFirmwareVersionPatch},
     board::kBaud,
     DELTA6_MAX_RATE_HZ,
     0,   // serial number: set in setup()

@@ -82,7 +82,7 @@ def _bad(tmp_path, baseline, mutate):
 @pytest.mark.parametrize("mutate, words", [
     (lambda s: s.replace(",Mz", ""), "missing column(s) Mz"),
     (lambda s: "\n".join(s.splitlines()[:1500]) + "\n", "too few samples"),
-    (lambda s: s.replace("\n0.04,", "\n0.01,", 1), "not strictly increasing"),
+    (lambda s: s.replace("\n0.040000,", "\n0.010000,", 1), "not strictly increasing"),
 ])
 def test_bad_logs_exit_2_with_one_line(tmp_path, baseline, capsys, mutate, words):
     path = _bad(tmp_path, baseline, mutate)

@@ -29,7 +29,7 @@ def test_decode_turns_a_capture_into_the_documented_csv(tmp_path, capsys):
     out = tmp_path / "run.csv"
     assert main(["decode", str(cap_file), "-o", str(out)]) == 0
     err = capsys.readouterr().err
-    assert "1 missing in 1 gaps, 1 damaged frames" in err
+    assert "1 missing in 1 gaps, 0 flagged, 1 damaged frames" in err
     log = read_log(out)
     header = out.read_text().splitlines()
     assert header[0] == "# delta6-log schema=1"
@@ -142,7 +142,7 @@ def test_ctrl_c_closes_the_log_cleanly(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(Device, "read_block", interrupted)
     out = tmp_path / "int.csv"
     assert main(["log", "--port", "delta6sim://", "-o", str(out), "--rate", "500"]) == 0
-    assert "(interrupted)" in capsys.readouterr().err
+    assert "(stopped by SIGINT)" in capsys.readouterr().err
     assert out.exists() and len(read_log(out, require_complete_rows=False)) > 0
 
 
@@ -212,7 +212,7 @@ def test_a_device_restart_ends_the_log_with_what_came_before(tmp_path, capsys, m
     assert err.endswith(f"keeps the {len(log)} samples received before") and len(log) > 0
 
 
-def test_decode_stops_at_a_device_restart(tmp_path, capsys):
+def test_decode_splits_a_capture_at_a_device_restart(tmp_path, capsys):
     first, _ = capture_from_sim(0.2, raw=False)
     second, _ = capture_from_sim(0.1, raw=False)             # a fresh boot: clock from 0
     cap_file = tmp_path / "reboot.bin"
@@ -220,7 +220,38 @@ def test_decode_stops_at_a_device_restart(tmp_path, capsys):
     out = tmp_path / "r.csv"
     assert main(["decode", str(cap_file), "-o", str(out)]) == 0
     err = capsys.readouterr().err
-    assert "the device restarted at frame" in err and "the 51 samples after it" in err
     assert "101 samples, 0 missing in 0 gaps" in err
+    assert "the capture holds 2 device sessions (the device restarted; 1: 101 samples, " \
+           "2: 51 samples): this log has session 1" in err
     log = read_log(out, require_complete_rows=False)
-    assert len(log) == 101 and log.t[-1] == 0.2
+    assert len(log) == 101 and log.t[-1] == 0.2 and log.meta["session"] == "1 of 2"
+    assert main(["decode", str(cap_file), "-o", str(tmp_path / "r2.csv"), "--session", "2"]) == 0
+    assert "51 samples, 0 missing in 0 gaps" in capsys.readouterr().err
+    second_log = read_log(tmp_path / "r2.csv", require_complete_rows=False)
+    assert second_log.t[0] == 0.0 and second_log.seq[0] == 0 and len(second_log) == 51
+    assert main(["decode", str(cap_file), "-o", str(tmp_path / "r3.csv"), "--session", "3"]) == 2
+    assert "--session 3, but the capture holds 2 sessions" in capsys.readouterr().err
+
+
+def without_boot_events(stream: bytes) -> bytes:
+    """The stream minus its BOOT events (what a capture opened after the boot holds)."""
+    frames = [f + b"\x00" for f in stream.split(b"\x00")[:-1]]
+    boot = P.encode_event(P.EventCode.BOOT, 0)
+    return b"".join(f for f in frames if f != boot)
+
+
+def test_joined_captures_are_two_sessions_even_without_a_boot_event(tmp_path, capsys):
+    """A capture appended to an older one of another boot: the counters run backwards, which
+    must not be read as a 71-minute clock wrap with 65,000 records missing."""
+    first, _ = capture_from_sim(0.3, raw=False)
+    second, _ = capture_from_sim(0.1, raw=False)
+    cap_file = tmp_path / "joined.bin"
+    cap_file.write_bytes(first + without_boot_events(second))
+    out = tmp_path / "j.csv"
+    assert main(["decode", str(cap_file), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "151 samples, 0 missing in 0 gaps" in err
+    assert "2 device sessions (the device restarted, 1 of them found by counters that began " \
+           "again; 1: 151 samples, 2: 51 samples)" in err
+    log = read_log(out, require_complete_rows=False)
+    assert len(log) == 151 and log.t[-1] == 0.3 and np.all(np.diff(log.seq) == 1)

@@ -42,7 +42,7 @@ def test_partial_file_until_clean_close(tmp_path):
     partial = tmp_path / ("run.csv" + PARTIAL_SUFFIX)
     assert partial.exists() and not path.exists()
     # What a crash leaves behind is readable up to the last row.
-    assert partial.read_text().strip().splitlines()[-1].startswith("0,0,0")
+    assert partial.read_text().strip().splitlines()[-1].startswith("0.000000,0,0,0")
     log.close()
     assert path.exists() and not partial.exists()
     assert len(read_log(path)) == 1
@@ -65,13 +65,14 @@ def test_blocks_reach_the_os_at_once_and_the_disk_every_flush_every_rows(tmp_pat
     assert len(synced) == 4 and len(read_log(path)) == 100
 
 
-def test_exception_inside_context_still_keeps_the_data(tmp_path):
+def test_exception_inside_context_keeps_the_data_in_the_partial_file(tmp_path):
     path = tmp_path / "run.csv"
     with pytest.raises(RuntimeError):
         with LogWriter(path) as log:
             log.write(0.0, [0] * 6, [0] * 6)
-            raise RuntimeError("port vanished")
-    assert len(read_log(path)) == 1
+            raise RuntimeError("interrupted")
+    # The rows are kept, but a file without .partial is complete, and this one is not.
+    assert not path.exists() and len(read_log(path.with_name("run.csv.partial"))) == 1
 
 
 def test_missing_values_allowed_when_asked(tmp_path):

@@ -22,9 +22,12 @@ def run(args: argparse.Namespace) -> int:
         rtt, _ = dev.ping()
         telemetry = dev.telemetry()
     if args.json:
-        out = {**info._asdict(), "lsb": list(info.lsb), "ping_s": rtt,
-               "telemetry": telemetry._asdict()}
-        print(json.dumps(out, indent=2))
+        # No sentinels in JSON: an unknown temperature is null, not 32767.
+        health = {**telemetry._asdict(), "temperature_c": telemetry.temperature_c}
+        if telemetry.temperature_c is None:
+            health["temperature_centi"] = None
+        out = {**info._asdict(), "lsb": list(info.lsb), "ping_s": rtt, "telemetry": health}
+        print(json.dumps(out, indent=2, allow_nan=False))
         return 0
     unit = ("N",) * 3 + ("N*m",) * 3
     lines = [

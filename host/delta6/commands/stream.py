@@ -13,13 +13,16 @@ from delta6.commands._port import (
     add_port_arguments,
     add_stream_arguments,
     flag_names,
+    flagged,
+    next_block,
     number,
     open_device,
     start_stream,
 )
+from delta6.commands._signals import stop_requests
 
 NAME = "stream"
-HELP = "show the wrench live (Ctrl-C ends it)"
+HELP = "show the wrench live (Ctrl-C, SIGTERM or SIGHUP end it)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,7 +45,8 @@ def format_line(t: float, wrench: np.ndarray, status: int, rate: float, lost: in
 
 def run(args: argparse.Namespace) -> int:
     display = Progress(sys.stdout)
-    with open_device(args) as dev:
+    flags = 0
+    with stop_requests() as stop, open_device(args) as dev:
         rate = start_stream(dev, args)
         print(f"streaming {rate} Hz from {args.port} (forces N, moments N*m; Ctrl-C ends)",
               file=sys.stderr)
@@ -51,8 +55,11 @@ def run(args: argparse.Namespace) -> int:
         window = []          # device times of the samples since the last update
         try:
             while args.duration is None or time.monotonic() - started < args.duration:
-                block = dev.read_block()
+                block = next_block(dev, stop)
+                if block is None:
+                    break
                 window.append(block.t)
+                flags += flagged(block.status)
                 now = time.monotonic()
                 if now >= next_show:
                     times = np.concatenate(window)
@@ -63,9 +70,11 @@ def run(args: argparse.Namespace) -> int:
                                              dev.health.samples_lost))
                     window = [block.t[-1:]]
                     next_show = now + args.interval
-        except KeyboardInterrupt:
+        except KeyboardInterrupt:       # a second stop signal
             pass
         finally:
             display.end()
-        print(dev.health.summary(), file=sys.stderr)
+        health = dev.health
+    how = f" (stopped by {stop.name})" if stop.signum else ""
+    print(f"{health.summary()}, {flags} flagged{how}", file=sys.stderr)
     return 0
