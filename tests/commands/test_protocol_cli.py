@@ -255,3 +255,136 @@ def test_joined_captures_are_two_sessions_even_without_a_boot_event(tmp_path, ca
            "again; 1: 151 samples, 2: 51 samples)" in err
     log = read_log(out, require_complete_rows=False)
     assert len(log) == 151 and log.t[-1] == 0.3 and np.all(np.diff(log.seq) == 1)
+
+
+def one_line_error(capsys, command: str) -> str:
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(f"delta6 {command}: error: "), err
+    return err.strip()
+
+
+def test_output_paths_are_checked_before_anything_runs(tmp_path, capsys):
+    folder = tmp_path / "out"
+    folder.mkdir()
+    capture = tmp_path / "c.bin"
+    capture.write_bytes(capture_from_sim(0.1)[0])
+    cases = [
+        (["log", "--port", "delta6sim://", "-o", f"{folder}/", "--duration", "0.2"], "log",
+         "is a folder; give a file name"),
+        (["log", "--port", "delta6sim://", "-o", str(tmp_path / "no" / "x.csv")], "log",
+         "the folder"),
+        (["decode", str(capture), "-o", f"{folder}/"], "decode", "is a folder; give a file name"),
+        (["decode", str(capture), "-o", str(folder)], "decode", "is a folder; give a file name"),
+    ]
+    for argv, command, words in cases:
+        assert main(argv) == 2
+        assert words in one_line_error(capsys, command)
+    # Nothing was left beside the folder (the log used to stream into "out/.partial").
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.bin", "out"]
+    assert list(folder.iterdir()) == []
+
+
+def test_log_never_replaces_a_file_without_force(tmp_path, capsys):
+    out = tmp_path / "run.csv"
+    out.write_text("yesterday's run")
+    argv = ["log", "--port", "delta6sim://", "-o", str(out), "--duration", "0.2"]
+    assert main(argv) == 2
+    assert "run.csv exists (not replaced; --force replaces it)" in one_line_error(capsys, "log")
+    assert out.read_text() == "yesterday's run"
+    out.unlink()
+    left = tmp_path / "run.csv.partial"
+    left.write_text("what a crash left")
+    assert main(argv) == 2
+    assert "run.csv.partial exists (an interrupted run left it" in one_line_error(capsys, "log")
+    assert main(argv + ["--force"]) == 0
+    assert len(read_log(out, require_complete_rows=False)) > 0 and not left.exists()
+
+
+def test_a_capture_that_exists_is_refused_before_the_port_is_opened(tmp_path, capsys):
+    capture = tmp_path / "cap.bin"
+    capture.write_bytes(b"first session")
+    out = tmp_path / "l.csv"
+    argv = ["log", "--port", "delta6sim://", "-o", str(out), "--duration", "0.2",
+            "--capture", str(capture)]
+    assert main(argv) == 2
+    assert "cap.bin exists (not replaced; --force replaces it)" in one_line_error(capsys, "log")
+    assert capture.read_bytes() == b"first session" and not out.exists()
+    assert main(argv + ["--force"]) == 0
+    capsys.readouterr()
+    assert main(["decode", str(capture), "-o", str(tmp_path / "d.csv")]) == 0
+    assert "device sessions" not in capsys.readouterr().err
+
+
+def test_summaries_count_flagged_samples(tmp_path, capsys):
+    out = tmp_path / "f.csv"
+    url = "delta6sim://?encoder_fault=2:0.2&seed=3"
+    assert main(["log", "--port", url, "-o", str(out), "--duration", "0.4", "--rate", "500"]) == 0
+    err = capsys.readouterr().err
+    log = read_log(out, require_complete_rows=False)
+    flags = int(np.count_nonzero(log.status & P.Status.ENCODER2))
+    assert flags > 10 and f"; {flags} flagged; " in err
+    assert main(["stream", "--port", url, "--duration", "0.3", "--rate", "500"]) == 0
+    assert " flagged" in capsys.readouterr().err
+
+
+def test_decode_writes_the_rate_and_counts_unknown_records_apart(tmp_path, capsys):
+    data, _ = capture_from_sim(0.3, raw=False)
+    newer = P.frame(bytes([0x42]) + bytes(range(1, 20)))       # a newer minor version's
+    cap_file = tmp_path / "n.bin"
+    cut = data.index(b"\x00", 3000) + 1                          # between two frames
+    cap_file.write_bytes(data[:cut] + newer + data[cut:])
+    out = tmp_path / "n.csv"
+    assert main(["decode", str(cap_file), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "0 damaged frames" in err and "1 records of unknown type ignored" in err
+    log = read_log(out, require_complete_rows=False)
+    assert log.meta["rate_hz"] == "500" and log.meta["wrench_source"] == "device"
+
+
+@pytest.mark.parametrize("change, words", [
+    (dict(lsb_mantissa=(3, 1, 1, 2, 2, 2)), "axis 1 has a wrench step of 3e-3"),
+    (dict(protocol=(2, 0)), "protocol 2.0; this delta6 reads 1.x: update the host"),
+])
+def test_decode_refuses_an_unusable_info_record(tmp_path, capsys, change, words):
+    data, _ = capture_from_sim(0.1, raw=False)
+    frames = [f + b"\x00" for f in data.split(b"\x00")[:-1]]
+    out_frames = []
+    for f in frames:
+        payload = P.unframe(f[:-1])
+        record = P.parse_payload(payload) if payload else None
+        out_frames.append(P.encode_info(record._replace(**change))
+                          if isinstance(record, P.Info) else f)
+    cap_file = tmp_path / "bad.bin"
+    cap_file.write_bytes(b"".join(out_frames))
+    assert main(["decode", str(cap_file), "-o", str(tmp_path / "b.csv")]) == 2
+    assert words in one_line_error(capsys, "decode")
+    assert not (tmp_path / "b.csv").exists() and not (tmp_path / "b.csv.partial").exists()
+
+
+def test_info_json_has_null_where_a_value_is_unknown(capsys):
+    import json
+    assert main(["info", "--port", "delta6sim://", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out, parse_constant=lambda c: pytest.fail(c))
+    assert out["telemetry"]["temperature_c"] is None
+    assert out["telemetry"]["temperature_centi"] is None
+
+
+def test_top_level_help_describes_the_tool_and_the_exit_statuses(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    out = " ".join(capsys.readouterr().out.split())       # argparse wraps the lines
+    assert exc.value.code == 0
+    assert "Delta6, a low-cost 6-axis force/torque sensor:" in out
+    assert "Exit status: 0 done; 2 bad input" in out and "143 SIGTERM" in out
+    assert "Each subcommand lives" not in out
+
+
+def test_the_simulated_device_reports_the_firmware_version_of_the_board(root):
+    import re
+    header = (root / "firmware/lib/delta6_core/src/delta6_version.h").read_text()
+    version = tuple(int(v) for v in re.findall(r"kFirmwareVersion\w+ = (\d+);", header))
+    with Device("delta6sim://") as dev:
+        assert dev.info().firmware == version == (1, 0, 0)
+    app = (root / "firmware/src/app.cpp").read_text()
+    assert "kFirmwareVersionMajor, delta6::kFirmwareVersionMinor" in app

@@ -278,3 +278,68 @@ def test_device_over_socket_url():
         assert np.all(np.diff([s.seq for s in samples]) == 1)
     thread.join(timeout=2)
     assert not thread.is_alive()
+
+
+def test_a_port_in_use_is_refused_as_busy():
+    """A second program on the same port would take half of the bytes: refused at open."""
+    import os
+    master, slave = os.openpty()
+    path = os.ttyname(slave)
+    try:
+        with Device(path, handshake=False):
+            with pytest.raises(DeviceError) as info:
+                Device(path, handshake=False).open()
+            assert str(info.value) == (f"port busy: {path} is open in another program "
+                                       "(another delta6 log or stream?)")
+        with Device(path, handshake=False):     # free again once the first one closed
+            pass
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_a_capture_is_never_appended_to(tmp_path):
+    capture = tmp_path / "old.bin"
+    capture.write_bytes(b"an earlier session")
+    with pytest.raises(DeviceError, match="the capture .*old.bin exists: a capture holds one "
+                                          "session"):
+        Device("delta6sim://", capture=capture).open()
+    assert capture.read_bytes() == b"an earlier session"
+    fresh = tmp_path / "new.bin"
+    with Device("delta6sim://", capture=fresh) as dev:
+        dev.start(500)
+        take(dev, 20)
+    assert fresh.stat().st_size > 20 * 25
+
+
+def test_times_are_the_nearest_double_to_the_microsecond():
+    """t = 14000 us is 0.014 s, not 0.013999999999999999."""
+    sim = SimulatedDevice(rate_hz=500)
+    info = P.parse_payload(P.unframe(sim.read().split(b"\x00")[2]))
+    sim.close()
+    frames = [P.encode_info(info)] + [P.encode_wrench(k, 14_000 * k, 0, (0,) * 6)
+                                      for k in range(1, 4)]
+    with Device("loop://", handshake=False, timeout=0.1, retries=0) as dev:
+        dev._serial.write(b"".join(frames))
+        samples = take(dev, 3)
+    assert [repr(s.t) for s in samples] == ["0.014", "0.028", "0.042"]
+
+
+def test_an_unusable_info_record_is_never_used_for_scaling():
+    """An info record with a scale the protocol does not allow (mantissa 3) or of another major
+    version: the samples wait for a usable one instead of being scaled with it."""
+    from delta6.link.infocheck import info_problem
+    sim = SimulatedDevice(rate_hz=500)
+    info = P.parse_payload(P.unframe(sim.read().split(b"\x00")[2]))
+    sim.close()
+    assert info_problem(info) is None
+    bad_scale = info._replace(lsb_mantissa=(3, 1, 1, 2, 2, 2))
+    newer = info._replace(protocol=(2, 0))
+    assert "axis 1 has a wrench step of 3e-3" in info_problem(bad_scale)
+    assert info_problem(newer) == "protocol 2.0; this delta6 reads 1.x: update the host"
+    assert "zero count" in info_problem(info._replace(zero_counts=(16384, 0, 0, 0, 0, 0)))
+    assert "finite" in info_problem(info._replace(tare=(float("nan"),) * 6))
+    with Device("loop://", handshake=False, timeout=0.1, retries=0) as dev:
+        dev._serial.write(P.encode_info(bad_scale) + P.encode_wrench(1, 1000, 0, (1,) * 6))
+        with pytest.raises(DeviceError, match="no device info"):
+            take(dev, 1)
