@@ -18,18 +18,19 @@ from delta6.core.errors import UserError
 from delta6.core.outputs import check_output_file
 from delta6.link.bulkdecode import Capture, decode_capture, sequence_counts
 from delta6.link.infocheck import info_problem
-from delta6.link.logfile import LogWriter
+from delta6.link.logfile import open_log_writer
 from delta6.link.protocol import Info
 from delta6.link.wirescale import design_lsb
 
 NAME = "decode"
-HELP = "decode a raw capture of the device's byte stream into a CSV log"
+HELP = "decode a raw capture of the device's byte stream into a log (CSV or MCAP)"
 BLOCK_ROWS = 100_000
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("capture", metavar="CAPTURE.bin", help="raw bytes as received")
-    parser.add_argument("-o", "--output", required=True, metavar="FILE", help="log file (CSV)")
+    parser.add_argument("-o", "--output", required=True, metavar="FILE",
+                        help="log file: CSV, or MCAP (ROS 2) when it ends in .mcap")
     parser.add_argument("--design", metavar="DESIGN.toml",
                         help="the device's design file: gives the wrench scale when the capture "
                              "holds no device-info record, and is checked against it otherwise")
@@ -98,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
     status = capture.status[rows]
     seq = capture.seq[rows]
     progress = Progress()
-    with LogWriter(args.output, meta, optional=("seq", "status"), overwrite=args.force) as log:
+    with open_log_writer(args.output, meta, optional=("seq", "status"),
+                         overwrite=args.force) as log:
         for start in range(0, n, BLOCK_ROWS):
             part = slice(start, min(start + BLOCK_ROWS, n))
             # / 1e6, not * 1e-6: the double nearest each microsecond's decimal.
