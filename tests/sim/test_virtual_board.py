@@ -7,8 +7,8 @@ firmware sees, so results do not depend on how busy the machine is.
 from __future__ import annotations
 
 import math
-import time
 import random
+import time
 
 import numpy as np
 import pytest
