@@ -76,7 +76,9 @@ void* d6sim_create(const char* name, uint32_t hash, const float* full_scale, flo
 
 void d6sim_destroy(void* sim) { delete static_cast<Sim*>(sim); }
 
-void d6sim_begin(void* p, uint8_t reset_cause) { static_cast<Sim*>(p)->device.begin(reset_cause); }
+void d6sim_begin(void* p, uint8_t reset_cause, uint16_t boot_id) {
+  static_cast<Sim*>(p)->device.begin(reset_cause, boot_id);
+}
 
 void d6sim_set_time(void* p, uint32_t us) { static_cast<Sim*>(p)->hardware.setTime(us); }
 

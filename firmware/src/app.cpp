@@ -146,7 +146,8 @@ void setup() {
   board::mark(D6_MARK_BOOT);
   board::init();
   identity.serial_number = board::serialNumber();
-  device.begin(board::resetCause());   // loads the configuration, starts the sample timer
+  // Loads the configuration, starts the sample timer.
+  device.begin(board::resetCause(), board::bootId());
   board::mark(D6_MARK_READY);
 }
 

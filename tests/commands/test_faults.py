@@ -45,12 +45,16 @@ def start_device(tmp_path: Path, *options: str) -> tuple[subprocess.Popen, str, 
     return proc, port, sent
 
 
-def start_log(port: str, tmp_path: Path, name: str, *options: str) -> tuple[subprocess.Popen, Path, Path]:
+def delta6(*args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "delta6", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=ENV)
+
+
+def start_log(port: str, tmp_path: Path, name: str, *options: str,
+              raw: bool = True) -> tuple[subprocess.Popen, Path, Path]:
     out, capture = tmp_path / f"{name}.csv", tmp_path / f"{name}.bin"
-    proc = subprocess.Popen([sys.executable, "-m", "delta6", "log", "--port", port, "-o",
-                             str(out), "--capture", str(capture), "--rate", "500", "--raw",
-                             *options], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=ENV, cwd=tmp_path)
+    proc = delta6("log", "--port", port, "-o", str(out), "--capture", str(capture), "--rate",
+                  "500", *(["--raw"] if raw else []), *options)
     return proc, out, capture
 
 
@@ -115,7 +119,7 @@ def check_rows(log, sent: dict, received: dict, complete: bool) -> None:
         expected = np.where(np.array(counts) == -32768, np.nan, np.array(counts) * lsb)
         np.testing.assert_allclose(log.wrench[i], expected, rtol=1e-9, atol=0)
         theta = ((np.array(raw) - zero + 8192) % 16384 - 8192) * (2 * np.pi / 16384)
-        bad = (status >> np.arange(6)) & 1
+        bad = ((status >> np.arange(6)) & 1) | (np.array(raw) < 0)      # failed, or not sent
         np.testing.assert_allclose(np.where(bad, np.nan, log.theta[i]),
                                    np.where(bad, np.nan, theta), rtol=1e-7, atol=1e-12)
     order = list(received)                    # in the order the records arrived
@@ -161,7 +165,7 @@ def test_a_stop_signal_ends_the_log_with_every_record(device, tmp_path, signum):
 
 def test_sigkill_of_the_log_keeps_what_reached_the_file(device, tmp_path):
     port, sent = device
-    log_proc, out, capture = start_log(port, tmp_path, "killed")
+    log_proc, out, capture = start_log(port, tmp_path, "killed", raw=False)
     wait_for_rows(log_proc, out, random.Random(9).randrange(50, 300))
     log_proc.send_signal(signal.SIGKILL)
     status, _ = finish(log_proc)
@@ -169,11 +173,14 @@ def test_sigkill_of_the_log_keeps_what_reached_the_file(device, tmp_path):
     log = read_partial_or_final(out)           # a cut last row is not read
     assert len(log) > 0
     check_rows(log, device_records(sent), device_records(capture), complete=False)
-    # The device, left streaming by the killed log, serves the next log cleanly.
+    # The device, left streaming wrench-only records by the killed log, serves the next log
+    # (with angles) cleanly: no record of the old stream comes first, every row has angles.
     again, out2, capture2 = start_log(port, tmp_path, "after", "--duration", "0.4")
     status, err = finish(again)
     assert status == 0, err
-    check_rows(read_log(out2), device_records(sent), device_records(capture2), complete=True)
+    log2 = read_log(out2)                      # complete rows required: angles in every one
+    assert log2.status[0] & 0x8000             # the first record of the new stream (marked)
+    check_rows(log2, device_records(sent), device_records(capture2), complete=True)
 
 
 @pytest.mark.parametrize("signum", [signal.SIGKILL, signal.SIGTERM])
@@ -283,3 +290,47 @@ def test_every_file_reader_survives_a_truncated_log(tmp_path, capsys):
             continue
         whole = text[:cut].rsplit(b"\n", 1)[0].decode()
         assert len(log) == sum(1 for ln in whole.splitlines() if ln and ln[0].isdigit())
+
+
+def test_an_interrupted_tare_does_not_leave_the_device_busy(device):
+    """SIGTERM during a tare of 65535 samples (over two minutes): one line, status 143, and the
+    device is told to stop averaging; after SIGKILL, `tare --abort` frees it."""
+    port, _ = device
+    tare = delta6("tare", "--port", port, "--samples", "65535")
+    wait_for_port(tare, port)              # then the tare is averaging on the device
+    tare.send_signal(signal.SIGTERM)
+    status, err = finish(tare)
+    assert status == 143 and err.strip() == "delta6 tare: interrupted (SIGTERM)", err
+    quick = delta6("tare", "--port", port, "--samples", "5", "--clear")
+    assert finish(quick)[0] == 0
+    killed = delta6("tare", "--port", port, "--samples", "65535")
+    wait_for_port(killed, port)
+    killed.send_signal(signal.SIGKILL)
+    finish(killed)
+    busy = delta6("tare", "--port", port, "--samples", "5")
+    status, err = finish(busy)
+    assert status == 2 and "still running (delta6 tare --abort stops it)" in err
+    status, out = finish_out(delta6("tare", "--port", port, "--abort"))
+    assert status == 0 and out.strip() == "stopped the averaging; nothing was changed"
+    status, out = finish_out(delta6("tare", "--port", port, "--samples", "5"))
+    assert status == 0 and out.startswith("tare over 5 samples: Fx")
+
+
+def wait_for_port(proc: subprocess.Popen, port: str, timeout: float = 30.0) -> None:
+    """Until ``proc`` has the port open, and half a second more (its command is on its way)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.poll() is None:
+        try:
+            fds = list(Path(f"/proc/{proc.pid}/fd").iterdir())
+            if any(os.readlink(fd) == port for fd in fds):
+                time.sleep(0.5)
+                return
+        except OSError:
+            pass
+        time.sleep(0.02)
+    raise AssertionError(f"{proc.args} never opened {port}")
+
+
+def finish_out(proc: subprocess.Popen, timeout: float = 30.0) -> tuple[int, str]:
+    out, _ = proc.communicate(timeout=timeout)
+    return proc.returncode, out

@@ -33,7 +33,9 @@ def test_start_stop_rate_and_sample_fields():
         assert np.all(np.diff([s.seq for s in samples]) == 1)
         assert np.all(np.diff([s.host_t for s in samples]) >= 0)
         assert all(s.valid and np.isfinite(s.wrench).all() and s.theta is None for s in samples)
-        assert samples[0].flags == P.Status.CONFIG_DEFAULTS
+        # The first record after START carries the mark of a changed stream; none after it.
+        assert samples[0].flags == P.Status.CONFIG_DEFAULTS | P.Status.STREAM_CHANGED
+        assert all(s.flags == P.Status.CONFIG_DEFAULTS for s in samples[1:])
         dev.stop()
         time.sleep(0.05)
         dev.flush()
@@ -343,3 +345,75 @@ def test_an_unusable_info_record_is_never_used_for_scaling():
         dev._serial.write(P.encode_info(bad_scale) + P.encode_wrench(1, 1000, 0, (1,) * 6))
         with pytest.raises(DeviceError, match="no device info"):
             take(dev, 1)
+
+
+def test_no_sample_older_than_a_command_is_handed_out_after_it():
+    """After tare() returns, every sample is tared; after set_mode('raw'), every sample has
+    angles: the samples queued before the answer are dropped (counted), not handed out."""
+    with Device("delta6sim://?motion=static&pose=0.1,0,0,0,0.05,0") as dev:
+        dev.start(1000)
+        time.sleep(0.2)                          # untared samples pile up in the queue
+        dev.tare(20)
+        after = take(dev, 50)
+        assert all(s.status & P.Status.TARE_ACTIVE for s in after)
+        assert after[0].status & P.Status.STREAM_CHANGED
+        assert dev.latest().status & P.Status.TARE_ACTIVE
+        time.sleep(0.1)
+        dev.set_mode("raw")
+        raw = take(dev, 50)
+        assert all(s.counts is not None for s in raw) and raw[0].status & P.Status.STREAM_CHANGED
+        assert dev.health.stale_dropped >= 100
+
+
+def test_an_interrupted_tare_is_aborted_on_the_device():
+    """Ctrl-C in a long tare: the device is told to stop averaging, and is not left busy."""
+    import os
+    import signal
+    with Device("delta6sim://?rate=500") as dev:
+        dev.start(500)
+        timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))   # a real Ctrl-C
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            dev.tare(65535)                       # would take over two minutes
+        assert not dev.info(refresh=True).status & P.Status.TARE_BUSY
+        assert dev.abort() is False               # nothing left to abort
+        assert np.all(np.isfinite(dev.tare(5)))   # and it takes commands again
+
+
+def test_a_new_boot_id_starts_a_new_session_even_with_counters_that_fit():
+    """A restart whose BOOT event was lost and whose counters happen to continue: the boot id
+    of the next INFO or TELEMETRY record tells the sessions apart."""
+    sim = SimulatedDevice(rate_hz=500)
+    info = P.parse_payload(P.unframe(sim.read().split(b"\x00")[2]))._replace(boot_id=7)
+    telemetry = P.parse_payload(P.unframe(P.encode_record(P.Telemetry(
+        0, 0, 0, 0, 0, (0,) * 6, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, boot_id=8))[:-1]))
+    sim.close()
+
+    def records(first):
+        return b"".join(P.encode_wrench(k, 2000 * k, 0, (k,) * 6) for k in range(first, first + 10))
+
+    stream = P.encode_info(info) + records(0) + P.encode_record(telemetry) + records(10)
+    with Device("loop://", handshake=False, timeout=0.1, retries=0) as dev:
+        dev._serial.write(stream)
+        samples = take(dev, 20)
+        assert [s.session for s in samples] == [0] * 10 + [1] * 10
+        assert dev.health.restarts == 1 and dev.health.samples_lost == 0
+    from delta6.link.bulkdecode import decode_capture
+    cap = decode_capture(stream)
+    assert [s.stop - s.start for s in cap.sessions] == [10, 10]
+    same = stream.replace(P.encode_record(telemetry), P.encode_record(telemetry._replace(boot_id=7)))
+    assert len(decode_capture(same).sessions) == 1
+
+
+def test_a_1_0_device_has_no_abort():
+    sim = SimulatedDevice(rate_hz=500)
+    info = P.parse_payload(P.unframe(sim.read().split(b"\x00")[2]))
+    sim.close()
+    old = info._replace(protocol=(1, 0), boot_id=None)
+    with Device("loop://", handshake=False, timeout=0.1, retries=0) as dev:
+        dev._serial.write(P.encode_info(old))
+        deadline = time.monotonic() + 2
+        while dev._info is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        with pytest.raises(DeviceError, match="protocol 1.0, which has no abort command"):
+            dev.abort()

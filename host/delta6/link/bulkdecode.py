@@ -117,9 +117,23 @@ def decode_capture(data: bytes | np.ndarray, max_rate_hz: float | None = None) -
     if max_rate_hz is None:
         infos = [r.max_rate_hz for _, r in other if isinstance(r, Info) and r.max_rate_hz]
         max_rate_hz = max(infos) if infos else MAX_PROTOCOL_RATE_HZ
-    capture = _assemble(parts, recovered, boots, max_rate_hz)
+    capture = _assemble(parts, recovered, boots, _boot_id_changes(other), max_rate_hz)
     capture.other, capture.stats, capture.trailing_bytes = other, stats, int(trailing)
     return capture
+
+
+def _boot_id_changes(other) -> list[tuple[int, int]]:
+    """(frame of the last record with the old boot id, frame of the first with the new one)
+    for every change of the boot id that INFO and TELEMETRY records carry (protocol 1.1)."""
+    changes, last = [], None
+    for frame, record in other:
+        boot_id = getattr(record, "boot_id", None)
+        if boot_id is None:
+            continue
+        if last is not None and boot_id != last[1]:
+            changes.append((last[0], frame))
+        last = (frame, boot_id)
+    return changes
 
 
 def _decode_fixed(buf, starts, length, kind, dtype):
@@ -147,7 +161,7 @@ def _decode_fixed(buf, starts, length, kind, dtype):
     return ok, good.view(dtype).reshape(-1)
 
 
-def _assemble(parts, recovered, boots, max_rate_hz) -> Capture:
+def _assemble(parts, recovered, boots, boot_changes, max_rate_hz) -> Capture:
     index = [p[0] for p in parts]
     seq = [p[1]["seq"] for p in parts]
     time = [p[1]["time_us"] for p in parts]
@@ -191,6 +205,14 @@ def _assemble(parts, recovered, boots, max_rate_hz) -> Capture:
         after = np.searchsorted(frame_index, np.asarray(boots), side="right")
         booted[after[(after > 0) & (after < len(seq16))]] = True
     jumped = np.concatenate(([False], ~continues(seq_step, time_step, max_rate_hz)))
+    # Another boot id: the restart lies between the last record with the old id and the first
+    # with the new one (which a rebooted device sends before its first data record); where
+    # the counters do not show it in that stretch, the new session starts after the new id.
+    for old_frame, new_frame in boot_changes:
+        first = int(np.searchsorted(frame_index, old_frame, side="right"))
+        after = int(np.searchsorted(frame_index, new_frame, side="right"))
+        if 0 < after < len(seq16) and not (jumped | booted)[first:after + 1].any():
+            jumped[after] = True
     new = booted | jumped
     new[0] = True
     session = np.cumsum(new) - 1

@@ -16,6 +16,8 @@ from delta6.link import cobs
 from delta6.link.protocol import (
     ENCODED_SIZES,
     MAX_RECORD_SIZE,
+    MIN_RECORD_SIZES,
+    RECORD_SIZES,
     ProtocolError,
     checked_payload,
     parse_payload,
@@ -24,7 +26,10 @@ from delta6.link.protocol import (
 
 #: Frames longer than this are discarded without decoding (largest record + slack).
 MAX_FRAME = MAX_RECORD_SIZE + 64
-_TAIL_LENGTHS = sorted(set(ENCODED_SIZES.values()))
+#: Encoded lengths of the records of each type: this version's and the shortest accepted (the
+#: record of an older minor version).
+_LENGTHS = {t: {n, MIN_RECORD_SIZES[t] + n - RECORD_SIZES[t]} for t, n in ENCODED_SIZES.items()}
+_TAIL_LENGTHS = sorted(set().union(*_LENGTHS.values()))
 
 
 @dataclass
@@ -105,7 +110,7 @@ def _recover_tail(encoded: bytes):
         if length >= len(encoded):
             break
         payload = unframe(encoded[-length:])
-        if payload is None or ENCODED_SIZES.get(payload[0]) != length:
+        if payload is None or length not in _LENGTHS.get(payload[0], ()):
             continue
         return parse_payload(payload), length
     return None, 0

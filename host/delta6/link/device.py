@@ -32,6 +32,12 @@ from delta6.link.infocheck import info_problem
 from delta6.link.protocol import DEFAULT_BAUD
 
 
+#: Commands after whose answer the records mean something else (mode, rate, tare, zero).
+STREAM_CHANGING = frozenset({P.Command.START, P.Command.SET_MODE, P.Command.TARE,
+                             P.Command.CLEAR_TARE, P.Command.SET_ZERO, P.Command.ZERO_HERE,
+                             P.Command.LOAD_DEFAULTS})
+
+
 class DeviceError(UserError):
     """Talking to the device failed; the message names the port and the problem."""
 
@@ -118,7 +124,8 @@ class Health:
     queue_drops: int = 0
     callback_errors: int = 0
     device_resets: int = 0   # BOOT events seen
-    restarts: int = 0        # sessions the counters began anew without a BOOT event
+    restarts: int = 0        # new sessions seen without a BOOT event (counters, boot id)
+    stale_dropped: int = 0   # samples queued before a command changed what they mean
     commands: int = 0
     command_retries: int = 0
     telemetry: P.Telemetry | None = field(default=None)
@@ -191,6 +198,7 @@ class Device:
         self._tracker = SequenceTracker()
         self._health = Health(decoder=self._decoder.stats)
         self._info: P.Info | None = None
+        self._boot_id: int | None = None      # the device's boot session (protocol 1.1)
         self._lsb: np.ndarray | None = None       # self._info.lsb, parsed once per info
         self._failure: DeviceError | None = None
         self._started = False
@@ -206,6 +214,7 @@ class Device:
         self._failure = None
         self._decoder = StreamDecoder()          # every session counts afresh
         self._tracker = SequenceTracker()
+        self._boot_id = None
         self._health = Health(decoder=self._decoder.stats)
         try:
             self._serial = serial.serial_for_url(self.port, baudrate=self.baud, timeout=0.05,
@@ -329,7 +338,7 @@ class Device:
         Returns the offsets (N, N*m). Fails if a sample during averaging is flagged."""
         if not 1 <= samples <= 0xFFFF:
             raise DeviceError(f"tare takes 1..65535 samples, got {samples}")
-        self._request(P.Command.TARE, samples, timeout=self._averaging_timeout(samples))
+        self._averaging(P.Command.TARE, samples)
         return np.array(self.info(refresh=True).tare)
 
     def clear_tare(self) -> None:
@@ -341,8 +350,31 @@ class Device:
         Only with no load on the tool. Returns the new zero counts."""
         if not 1 <= samples <= 0xFFFF:
             raise DeviceError(f"zero capture takes 1..65535 samples, got {samples}")
-        self._request(P.Command.ZERO_HERE, samples, timeout=self._averaging_timeout(samples))
+        self._averaging(P.Command.ZERO_HERE, samples)
         return self.info(refresh=True).zero_counts
+
+    def abort(self) -> bool:
+        """Stop a tare or zero capture that is averaging (its command is answered NACK
+        ABORTED, nothing changes). Returns whether one was running. Protocol 1.1."""
+        info = self._require_info()
+        if tuple(info.protocol) < (1, 1):
+            raise DeviceError(f"{self.port} speaks protocol {info.protocol_version}, which has "
+                              "no abort command (update the firmware)")
+        return bool(self._request(P.Command.ABORT).value)
+
+    def _averaging(self, command: P.Command, samples: int) -> None:
+        """A tare or zero capture; if it is interrupted (Ctrl-C, a signal, no answer in time)
+        the device is told to stop averaging, instead of staying busy for minutes."""
+        try:
+            self._request(command, samples, timeout=self._averaging_timeout(samples))
+        except (KeyboardInterrupt, CommandTimeout):
+            if self._failure is None and self._info is not None \
+                    and tuple(self._info.protocol) >= (1, 1):
+                try:
+                    self._request(P.Command.ABORT)
+                except DeviceError:
+                    pass
+            raise
 
     def set_zero(self, counts) -> None:
         counts = [int(c) for c in counts]
@@ -422,7 +454,7 @@ class Device:
             h.sequence_gaps = self._tracker.gaps
             h.samples_lost = self._tracker.lost
             h.duplicates = self._tracker.duplicates
-            h.restarts = self._tracker.restarts
+            h.restarts += self._tracker.restarts
         return h
 
     @property
@@ -554,13 +586,21 @@ class Device:
                     if self._callbacks:
                         fresh.append(item)
                 elif isinstance(r, (P.Ack, P.Nack)):
-                    self._resolve(r.request_id, r.command, r)
+                    answered = self._resolve(r.request_id, r.command, r)
+                    if answered and isinstance(r, P.Ack) and r.command in STREAM_CHANGING:
+                        # The device sends answers and records in order: every record before
+                        # this answer predates the command. Never hand those out as new.
+                        self._health.stale_dropped += len(self._queue)
+                        self._queue.clear()
+                        self._latest = None
                 elif isinstance(r, P.Info):
                     if info_problem(r) is None:     # never scale samples with a bad record
                         self._set_info(r)
+                    self._note_boot(r.boot_id)
                     self._resolve(r.request_id, P.Command.GET_INFO, r)
                 elif isinstance(r, P.Telemetry):
                     self._health.telemetry = r
+                    self._note_boot(r.boot_id)
                     self._resolve(r.request_id, P.Command.GET_TELEMETRY, r)
                 elif isinstance(r, P.Event):
                     self.events.append(r)
@@ -571,11 +611,24 @@ class Device:
         for item in fresh:
             self._call_back(item)
 
-    def _resolve(self, request_id: int, command: int, response) -> None:
+    def _resolve(self, request_id: int, command: int, response) -> bool:
+        """Hand ``response`` to the command waiting for it; whether one was."""
         pending = self._pending.get(request_id)
         if request_id and pending is not None and pending.command == command:
             pending.response = response
             pending.event.set()
+            return True
+        return False
+
+    def _note_boot(self, boot_id: int | None) -> None:
+        """A boot id other than the last one seen: the device restarted (its BOOT event may
+        have been lost), so the records from here on are a new session."""
+        if boot_id is None:
+            return
+        if self._boot_id is not None and boot_id != self._boot_id:
+            self._health.restarts += 1
+            self._tracker.reset()
+        self._boot_id = boot_id
 
     def _call_back(self, item) -> None:
         if self._info is None:

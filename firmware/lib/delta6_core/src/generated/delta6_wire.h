@@ -11,7 +11,7 @@ namespace delta6 {
 namespace proto {
 
 const uint8_t kVersionMajor = 1;
-const uint8_t kVersionMinor = 0;
+const uint8_t kVersionMinor = 1;
 
 // --- records (device -> host): type, payload size (type byte included, CRC
 // excluded) and the offset of every field (docs/protocol.md section 3) ---
@@ -34,7 +34,7 @@ const uint8_t kWrenchRawOffWrench = 9;  // 6 x i16
 const uint8_t kWrenchRawOffCounts = 21;  // 6 x u16
 
 const uint8_t kInfo = 0x03;
-const uint8_t kInfoSize = 128;
+const uint8_t kInfoSize = 130;
 const uint8_t kInfoOffType = 0;  // u8
 const uint8_t kInfoOffRequestId = 1;  // u8
 const uint8_t kInfoOffProtocol = 2;  // 2 x u8
@@ -56,6 +56,7 @@ const uint8_t kInfoOffSerialNumber = 84;  // u32
 const uint8_t kInfoOffZeroCounts = 88;  // 6 x u16
 const uint8_t kInfoOffTare = 100;  // 6 x f32
 const uint8_t kInfoOffJointLimitRad = 124;  // f32
+const uint8_t kInfoOffBootId = 128;  // u16
 
 const uint8_t kAck = 0x04;
 const uint8_t kAckSize = 7;
@@ -73,7 +74,7 @@ const uint8_t kNackOffReason = 3;  // u8
 const uint8_t kNackOffDetail = 4;  // u32
 
 const uint8_t kTelemetry = 0x06;
-const uint8_t kTelemetrySize = 48;
+const uint8_t kTelemetrySize = 50;
 const uint8_t kTelemetryOffType = 0;  // u8
 const uint8_t kTelemetryOffRequestId = 1;  // u8
 const uint8_t kTelemetryOffTimeUs = 2;  // u32
@@ -92,6 +93,7 @@ const uint8_t kTelemetryOffLoopTimeMaxUs = 40;  // u16
 const uint8_t kTelemetryOffLoopTimeMeanUs = 42;  // u16
 const uint8_t kTelemetryOffTemperatureCenti = 44;  // i16
 const uint8_t kTelemetryOffNextSeq = 46;  // u16
+const uint8_t kTelemetryOffBootId = 48;  // u16
 
 const uint8_t kEvent = 0x07;
 const uint8_t kEventSize = 6;
@@ -99,10 +101,10 @@ const uint8_t kEventOffType = 0;  // u8
 const uint8_t kEventOffCode = 1;  // u8
 const uint8_t kEventOffArg = 2;  // u32
 
-const uint8_t kMaxRecordSize = 128;
+const uint8_t kMaxRecordSize = 130;
 // Bytes on the wire beyond the payload: CRC, one COBS code byte, the delimiter.
 const uint8_t kFrameOverhead = 4;
-const uint8_t kMaxFrameBytes = 132;
+const uint8_t kMaxFrameBytes = 134;
 
 // --- commands (host -> device): type, request id, arguments; each command's
 // exact payload size (docs/protocol.md section 4) ---
@@ -130,10 +132,12 @@ const uint8_t kCmdZeroHere = 0x8A;
 const uint8_t kCmdZeroHereSize = 4;  // u16 samples
 const uint8_t kCmdGetTelemetry = 0x8B;
 const uint8_t kCmdGetTelemetrySize = 2;
+const uint8_t kCmdAbort = 0x8C;
+const uint8_t kCmdAbortSize = 2;
 // Types below this are records: a device never answers them (its own output looped
 // back must not start an endless exchange).
 const uint8_t kFirstCommand = 0x80;
-const uint8_t kLastCommand = 0x8B;
+const uint8_t kLastCommand = 0x8C;
 const uint8_t kMaxCommandSize = 14;
 // Receive buffer (encoded bytes): longer command frames are discarded and counted.
 const uint8_t kCommandBuffer = 32;
@@ -158,6 +162,7 @@ const uint16_t kStatusTxOverflow = 1u << 11;
 const uint16_t kStatusTareActive = 1u << 12;
 const uint16_t kStatusTareBusy = 1u << 13;
 const uint16_t kStatusConfigDefaults = 1u << 14;
+const uint16_t kStatusStreamChanged = 1u << 15;
 const uint16_t kStatusEncoderMask = 0x003F;
 
 // --- NACK reasons (docs/protocol.md section 3) ---
@@ -169,6 +174,7 @@ const uint8_t kNackLinkTooSlow = 5;
 const uint8_t kNackBusy = 6;
 const uint8_t kNackFaultDuringAveraging = 7;
 const uint8_t kNackEepromFailed = 8;
+const uint8_t kNackAborted = 9;
 
 // --- event codes (EVENT record) ---
 const uint8_t kEventBoot = 1;
