@@ -31,7 +31,6 @@ from delta6.link.decoder import DecoderStats, SequenceTracker, StreamDecoder
 from delta6.link.infocheck import info_problem
 from delta6.link.protocol import DEFAULT_BAUD
 
-
 #: Commands after whose answer the records mean something else (mode, rate, tare, zero).
 STREAM_CHANGING = frozenset({P.Command.START, P.Command.SET_MODE, P.Command.TARE,
                              P.Command.CLEAR_TARE, P.Command.SET_ZERO, P.Command.ZERO_HERE,
