@@ -19,9 +19,9 @@ COMMAND_MODULES = ("design", "codegen", "virtual", "info", "stream", "log", "tar
 DESCRIPTION = ("Delta6, a low-cost 6-axis force/torque sensor: design reports, firmware, the "
                "virtual board, the device tools, the digital twin and the gap diagnosis.")
 EPILOG = ("Exit status: 0 done; 2 bad input, an unusable file or port, or a lost device (one "
-          "line on stderr says which); 128+N ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 "
-          "SIGHUP). 'delta6 COMMAND --help' describes each command; docs/reliability.md the "
-          "promises.")
+          "line on stderr says which); 1 a check found a difference (codegen --check); 128+N "
+          "ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). 'delta6 COMMAND --help' "
+          "describes each command; docs/reliability.md the promises.")
 
 
 def build_parser() -> argparse.ArgumentParser:

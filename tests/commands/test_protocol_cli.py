@@ -188,6 +188,11 @@ def test_a_port_that_is_not_there(capsys):
         err.count("\n") == 1
     assert main(["info", "--port", "delta6sim://?bogus=1"]) == 2
     assert "unknown option 'bogus'" in capsys.readouterr().err
+    # An EEPROM image the simulated device could never save: refused when the port opens.
+    assert main(["tare", "--port", "delta6sim://?eeprom=/nonexistent/dir/e.bin", "--save"]) == 2
+    err = capsys.readouterr().err
+    assert "the folder of eeprom=/nonexistent/dir/e.bin does not exist" in err
+    assert err.count("\n") == 1
 
 
 def test_a_device_restart_ends_the_log_with_what_came_before(tmp_path, capsys, monkeypatch):

@@ -321,6 +321,7 @@ def test_watchdog_resets_a_hung_loop(tmp_path):
     with VirtualBoard(image=image, speed=0, live=True) as board:
         with Device(board.port) as dev:
             first_boot = [e.arg for e in dev.events if e.code == P.EventCode.BOOT]
+            first_id = dev.info().boot_id
             dev.start(250)
             drain(dev, dev.get(timeout=10).t + 0.1)
             hung_at = board.live.time()
@@ -337,6 +338,8 @@ def test_watchdog_resets_a_hung_loop(tmp_path):
     assert len(boots) >= 2 and all(arg == 0x08 for arg in boots[1:])   # watchdog
     assert resets == len(boots) and stats["timing"]["boots"] == len(boots)
     assert not info.streaming                                 # a fresh start, not streaming
+    # The boot id survives a reset in RAM and steps: the restart is known without BOOT.
+    assert first_id is not None and info.boot_id == (first_id + len(boots) - 1) % 65536
 
 
 def test_late_data_is_caught_by_the_sensor_timing(image, motion):

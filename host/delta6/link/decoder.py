@@ -198,6 +198,11 @@ class SequenceTracker:
         self.duplicates = 0
         self.restarts = 0
 
+    @property
+    def in_session(self) -> bool:
+        """Whether a record of the current session was seen (False right after a reset)."""
+        return self._seq is not None
+
     def reset(self) -> None:
         """Start a new session (the device announced a reboot: its counters restart)."""
         if self._seq is not None:

@@ -624,7 +624,8 @@ class Device:
         have been lost), so the records from here on are a new session."""
         if boot_id is None:
             return
-        if self._boot_id is not None and boot_id != self._boot_id:
+        if self._boot_id is not None and boot_id != self._boot_id \
+                and self._tracker.in_session:           # not already reset by a BOOT event
             self._health.restarts += 1
             self._tracker.reset()
         self._boot_id = boot_id
