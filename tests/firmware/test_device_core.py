@@ -342,10 +342,10 @@ def test_overrange_and_joint_limit(bench):
 
 
 def test_answers_go_first_on_a_full_link_and_every_drop_is_a_counted_gap():
-    """A 140-byte transmit queue at 1.6 kHz: the 132-byte info record only fits into an empty
+    """A 170-byte transmit queue at 1.6 kHz: the 160-byte info record only fits into an empty
     queue, so data records give way until it went out. The host sees exactly the gaps the
     device counts, and the first record after each gap says so."""
-    b = Bench(rate_hz=1000, tx_capacity=140, baud=500_000)
+    b = Bench(rate_hz=1000, tx_capacity=170, baud=500_000)
     records = b.send(C.START, 1600)
     infos = 0
     for _ in range(20):
@@ -481,9 +481,10 @@ def test_info_and_telemetry_carry_the_boot_id():
 
 
 def test_a_1_0_device_is_read_without_the_appended_fields():
-    """A 1.0 device's INFO (128 bytes) and TELEMETRY (48) records, cut from the layout the way
-    docs/protocol.md lists their fields, parse with the boot id left None; a 1.0 host reads
-    the 1.1 records by their known prefix (the bytes the doc puts at offsets 0..127)."""
+    """A 1.0 device's INFO (128 bytes) and TELEMETRY (48) records parse with the boot id left
+    unknown (None) and no calibration; a 1.0 host reads the 1.1 records by their known prefix.
+    The offsets are docs/protocol.md's, written here by hand: INFO's boot id at 156, after the
+    calibration hash (128) and name (132); TELEMETRY's at 48."""
     bench = Bench(rate_hz=500, boot_id=0x1234)
     bench.sim.write(P.encode_command(C.GET_INFO, 9) + P.encode_command(C.GET_TELEMETRY, 10))
     bench.sim.advance(0.02)                      # the answers leave at the baud rate
@@ -491,13 +492,15 @@ def test_a_1_0_device_is_read_without_the_appended_fields():
     bench.sim.close()
     payloads = [P.unframe(f) for f in raw.split(b"\x00")[:-1]]
     info, telemetry = (P.parse_payload(p) for p in payloads)
-    assert [len(p) for p in payloads] == [130, 50]
-    assert payloads[0][128:130] == (0x1234).to_bytes(2, "little")   # offset 128, u16 LE
+    assert [len(p) for p in payloads] == [158, 50]
+    assert payloads[0][156:158] == (0x1234).to_bytes(2, "little")   # u16, little-endian
     assert payloads[1][48:50] == (0x1234).to_bytes(2, "little")
+    assert payloads[0][128:132] == bytes(4) and info.calibration_hash == 0   # none built in
     old_info = P.parse_payload(payloads[0][:128])
     old_telemetry = P.parse_payload(payloads[1][:48])
     assert old_info == info._replace(boot_id=None)
     assert old_telemetry == telemetry._replace(boot_id=None)
-    assert P.encode_record(old_info) == P.frame(payloads[0][:128])  # and written so again
+    assert P.encode_record(old_info, minor=0) == P.frame(payloads[0][:128])
+    assert P.encode_record(old_telemetry) == P.frame(payloads[1][:48])
     with pytest.raises(P.ProtocolError):
         P.parse_payload(payloads[0][:127])

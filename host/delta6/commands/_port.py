@@ -110,6 +110,11 @@ def log_meta(info: Info, port: str, command: str) -> dict:
         "zero_counts": " ".join(map(str, info.zero_counts)),
         "tare": " ".join(f"{v:.9g}" for v in info.tare),
         "rate_hz": info.rate_hz,
+        # The calibration the board applies (docs/calibration.md), when there is one: a host
+        # refuses to evaluate the log against another.
+        **({"calibration": info.calibration_name,
+            "calibration_hash": f"0x{info.calibration_hash:08x}"}
+           if info.calibration_hash else {}),
     }
 
 

@@ -177,7 +177,11 @@ RECORD_LAYOUTS = {
         Field("lsb_exponent", "b", 6), Field("rate_hz", "H"), Field("max_rate_hz", "H"),
         Field("status", "H"), Field("streaming", "B"), Field("reserved", "B"),
         Field("baud", "I"), Field("serial_number", "I"), Field("zero_counts", "H", 6),
-        Field("tare", "f", 6), Field("joint_limit_rad", "f"), Field("boot_id", "H")]),
+        Field("tare", "f", 6), Field("joint_limit_rad", "f"),
+        # 1.1: the calibration the firmware applies (hash 0 and no name: none), and the boot
+        # session.
+        Field("calibration_hash", "I"), Field("calibration_name", "s", 24),
+        Field("boot_id", "H")]),
     RecordType.ACK: Layout("ACK", [_TYPE, _REQUEST, Field("command", "B"), Field("value", "I")]),
     RecordType.NACK: Layout("NACK", [_TYPE, _REQUEST, Field("command", "B"),
                                      Field("reason", "B"), Field("detail", "I")]),
@@ -191,12 +195,16 @@ RECORD_LAYOUTS = {
     RecordType.EVENT: Layout("EVENT", [_TYPE, Field("code", "B"), Field("arg", "I")]),
 }
 RECORD_SIZES = {t: layout.size for t, layout in RECORD_LAYOUTS.items()}
-#: Fields a minor version appended, with that version: a host reads the shorter records of an
-#: older device, without them (None in the record's tuple).
-APPENDED_FIELDS = {RecordType.INFO: {"boot_id": 1}, RecordType.TELEMETRY: {"boot_id": 1}}
+#: Fields a minor version appended: a host reads the shorter records of an older device, each
+#: missing field as the value here (its version: 1.1 for all of these).
+APPENDED_FIELDS = {
+    RecordType.INFO: {"calibration_hash": 0, "calibration_name": "", "boot_id": None},
+    RecordType.TELEMETRY: {"boot_id": None},
+}
 #: The shortest payload of each type a host accepts: the record as version 1.0 defined it.
 MIN_RECORD_SIZES = {t: min((layout.offsets[n] for n in APPENDED_FIELDS.get(t, ())),
                            default=layout.size) for t, layout in RECORD_LAYOUTS.items()}
+INFO_SIZE_1_0 = MIN_RECORD_SIZES[RecordType.INFO]
 _WRENCH = RECORD_LAYOUTS[RecordType.WRENCH].struct
 _WRENCH_RAW = RECORD_LAYOUTS[RecordType.WRENCH_RAW].struct
 
@@ -286,6 +294,8 @@ class Info(NamedTuple):
     zero_counts: tuple
     tare: tuple
     joint_limit_rad: float
+    calibration_hash: int = 0      # 1.1; 0: the analytical model, no calibration
+    calibration_name: str = ""
     boot_id: int | None = None      # 1.1: identifies the device's boot session
 
     @property
@@ -392,15 +402,16 @@ def parse_payload(payload: bytes):
         return WrenchRecord(v[1], v[2], v[3], v[4:10], v[10:16])
     layout = RECORD_LAYOUTS[kind]
     if len(payload) < layout.size:       # an older minor version's record
-        fields = dict.fromkeys(APPENDED_FIELDS[kind])
+        fields = dict(APPENDED_FIELDS[kind])
         fields.update(_older_layout(kind, len(payload)).unpack(payload))
     else:
         fields = layout.unpack(payload)
     del fields["type"]
     if kind == RecordType.INFO:
         del fields["reserved"]
-        fields["design_name"] = fields["design_name"].split(b"\x00", 1)[0].decode("ascii",
-                                                                                   "replace")
+        for key in ("design_name", "calibration_name"):
+            if isinstance(fields[key], bytes):
+                fields[key] = fields[key].split(b"\x00", 1)[0].decode("ascii", "replace")
         fields["streaming"] = bool(fields["streaming"])
     return _RECORD_TUPLES[kind](**fields)
 
@@ -445,21 +456,28 @@ def encode_wrench(seq: int, time_us: int, status: int, wrench, counts=None) -> b
     return frame(_WRENCH_RAW.pack(RecordType.WRENCH_RAW, seq, time_us, status, *wrench, *counts))
 
 
-def encode_record(record) -> bytes:
-    """The frame of an INFO, ACK, NACK, TELEMETRY or EVENT record (the tuples above); a record
-    without the fields a later minor version appended (None) as the older version sends it."""
+def encode_record(record, minor: int | None = None) -> bytes:
+    """The frame of an INFO, ACK, NACK, TELEMETRY or EVENT record (the tuples above), as this
+    version sends it, or as minor version ``minor`` did (0: 1.0, without the appended fields).
+    An appended field the record does not have (None) is left off, with those after it."""
     kind = next(t for t, cls in _RECORD_TUPLES.items() if isinstance(record, cls))
     fields = record._asdict()
-    missing = [name for name in APPENDED_FIELDS.get(kind, ()) if fields[name] is None]
+    layout = RECORD_LAYOUTS[kind]
+    size = MIN_RECORD_SIZES[kind] if minor == 0 else layout.size
+    for name in APPENDED_FIELDS.get(kind, ()):
+        if fields[name] is None:
+            size = min(size, layout.offsets[name])
+    if size < layout.size:
+        layout = _older_layout(kind, size)
+        fields = {k: v for k, v in fields.items() if k in layout.offsets}
     if kind == RecordType.INFO:
         name_field = RECORD_LAYOUTS[kind].field("design_name")
         fields.update(design_name=record.design_name.encode("ascii")[:name_field.count - 1],
                       streaming=int(record.streaming), reserved=0)
-    if missing:
-        for name in missing:
-            del fields[name]
-        return frame(_older_layout(kind, MIN_RECORD_SIZES[kind]).pack(type=kind, **fields))
-    return frame(RECORD_LAYOUTS[kind].pack(type=kind, **fields))
+        if "calibration_name" in fields:
+            fields["calibration_name"] = record.calibration_name.encode("ascii")[
+                :name_field.count - 1]
+    return frame(layout.pack(type=kind, **fields))
 
 
 def encode_info(info: Info) -> bytes:

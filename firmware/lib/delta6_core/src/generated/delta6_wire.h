@@ -34,7 +34,7 @@ const uint8_t kWrenchRawOffWrench = 9;  // 6 x i16
 const uint8_t kWrenchRawOffCounts = 21;  // 6 x u16
 
 const uint8_t kInfo = 0x03;
-const uint8_t kInfoSize = 130;
+const uint8_t kInfoSize = 158;
 const uint8_t kInfoOffType = 0;  // u8
 const uint8_t kInfoOffRequestId = 1;  // u8
 const uint8_t kInfoOffProtocol = 2;  // 2 x u8
@@ -56,7 +56,10 @@ const uint8_t kInfoOffSerialNumber = 84;  // u32
 const uint8_t kInfoOffZeroCounts = 88;  // 6 x u16
 const uint8_t kInfoOffTare = 100;  // 6 x f32
 const uint8_t kInfoOffJointLimitRad = 124;  // f32
-const uint8_t kInfoOffBootId = 128;  // u16
+const uint8_t kInfoOffCalibrationHash = 128;  // u32
+const uint8_t kInfoOffCalibrationName = 132;  // 24 x char
+const uint8_t kInfoCalibrationNameBytes = 24;  // NUL-padded
+const uint8_t kInfoOffBootId = 156;  // u16
 
 const uint8_t kAck = 0x04;
 const uint8_t kAckSize = 7;
@@ -101,10 +104,10 @@ const uint8_t kEventOffType = 0;  // u8
 const uint8_t kEventOffCode = 1;  // u8
 const uint8_t kEventOffArg = 2;  // u32
 
-const uint8_t kMaxRecordSize = 130;
+const uint8_t kMaxRecordSize = 158;
 // Bytes on the wire beyond the payload: CRC, one COBS code byte, the delimiter.
 const uint8_t kFrameOverhead = 4;
-const uint8_t kMaxFrameBytes = 134;
+const uint8_t kMaxFrameBytes = 162;
 
 // --- commands (host -> device): type, request id, arguments; each command's
 // exact payload size (docs/protocol.md section 4) ---

@@ -1,0 +1,56 @@
+"""``delta6 evaluate``: the paper's Table V for the analytical model and, with a calibration,
+the calibrated model, on a log with reference wrenches (``delta6.evaluation.tablev``)."""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from delta6.core import calibration as calibration_mod
+from delta6.core.calibrated import CalibratedModel
+from delta6.core.errors import UserError
+from delta6.core.paths import DEFAULT_DESIGN
+from delta6.core.workspace import load_checked
+from delta6.evaluation import tablev
+from delta6.link.logfile import read_log
+
+NAME = "evaluate"
+HELP = ("Table V (p95, p99, max |error| per axis, % FS) of the analytical model and, with "
+        "--calibration, the calibrated model on a log with reference wrenches")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("log", metavar="LOG.csv", help="log with t, theta_e1..6, Fx..Mz "
+                        "(docs/log-format.md)")
+    parser.add_argument("--design", default=str(DEFAULT_DESIGN), metavar="DESIGN.toml",
+                        help="the design the log was recorded with")
+    parser.add_argument("--calibration", metavar="CAL.toml",
+                        help="also evaluate the calibrated model (delta6 calibrate)")
+    parser.add_argument("--json", metavar="OUT.json", help="write the table as JSON")
+
+
+def estimators(args, design, log) -> list:
+    """The rows: the analytical model always, the calibrated model with --calibration."""
+    rows = [tablev.Analytical(design)]
+    if args.calibration:
+        cal = calibration_mod.load(args.calibration)
+        calibration_mod.check_log_meta(log.meta, design, cal, source=str(args.log))
+        rows.append(CalibratedModel(design, cal))
+    else:
+        calibration_mod.check_log_meta(log.meta, design, source=str(args.log))
+    return rows
+
+
+def run(args: argparse.Namespace) -> int:
+    design = load_checked(args.design)
+    log = read_log(args.log)
+    if len(log) == 0:
+        raise UserError(f"{args.log}: no samples")
+    result = tablev.table(estimators(args, design, log), log, design)
+    if args.json:
+        try:
+            Path(args.json).write_text(json.dumps(result, indent=1) + "\n")
+        except OSError as exc:
+            raise UserError(f"cannot write {args.json}: {exc.strerror}") from None
+    print(tablev.format_table(result))
+    return 0
