@@ -43,7 +43,8 @@ def test_decode_turns_a_capture_into_the_documented_csv(tmp_path, capsys):
     assert np.all(np.abs(log.theta - truth) <= P.COUNT_RAD / 2 + 1e-12)
     assert np.allclose(log.wrench, model_wrench(sim.design, log.theta),
                        atol=np.array([5e-4] * 3 + [1e-5] * 3) + 1e-9)
-    assert (log.status == P.Status.CONFIG_DEFAULTS).all()
+    assert log.status[0] == P.Status.CONFIG_DEFAULTS | P.Status.STREAM_CHANGED    # after START
+    assert (log.status[1:] == P.Status.CONFIG_DEFAULTS).all()
 
 
 def test_decode_of_a_wrench_only_capture_leaves_angles_empty(tmp_path):
