@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from delta6.cli import main
+from delta6.cli import COMMAND_MODULES, main
 from delta6.core.model import wrench as model_wrench
 from delta6.link import protocol as P
 from delta6.link.device import Device
@@ -384,6 +384,13 @@ def test_top_level_help_describes_the_tool_and_the_exit_statuses(capsys):
     assert "Delta6, a low-cost 6-axis force/torque sensor:" in out
     assert "Exit status: 0 done; 2 bad input" in out and "143 SIGTERM" in out
     assert "Each subcommand lives" not in out
+
+
+@pytest.mark.parametrize("command", COMMAND_MODULES)
+def test_every_command_has_working_help(capsys, command):
+    with pytest.raises(SystemExit) as exc:
+        main([command, "--help"])
+    assert exc.value.code == 0 and capsys.readouterr().out.startswith("usage: delta6 ")
 
 
 def test_the_simulated_device_reports_the_firmware_version_of_the_board(root):

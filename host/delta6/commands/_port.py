@@ -12,7 +12,7 @@ from delta6.link.device import DEFAULT_BAUD, Device, SampleBlock, SampleTimeout
 from delta6.link.protocol import ENCODER_MASK, Info, Mode, Status
 
 #: Status bits that inform rather than warn: left out of the short display.
-QUIET_FLAGS = Status.TARE_ACTIVE | Status.CONFIG_DEFAULTS
+QUIET_FLAGS = Status.TARE_ACTIVE | Status.CONFIG_DEFAULTS | Status.STREAM_CHANGED
 #: Status bits that flag a sample as faulty or doubtful (counted as "flagged").
 FAULT_FLAGS = (ENCODER_MASK | Status.OVERRANGE | Status.JOINT_LIMIT | Status.SOLVER_ERROR
                | Status.WRENCH_INVALID | Status.LOOP_OVERRUN | Status.TX_OVERFLOW)
