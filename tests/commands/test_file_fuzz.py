@@ -1,7 +1,7 @@
 """Every file the command line reads, damaged at random, through the command that reads it:
 the answer is the work done (status 0) or one line naming the problem (status 2), never a
 traceback. Designs (``delta6 design``), logs in CSV and MCAP (``delta6 convert``, which reads
-them whole), captures (``delta6 decode``)."""
+them whole), captures (``delta6 decode``), calibrations (``delta6 evaluate --calibration``)."""
 from __future__ import annotations
 
 import contextlib
@@ -13,6 +13,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from delta6.cli import main
+from delta6.core import calibration as C
+from delta6.core.design import load
 from delta6.link import protocol as P
 from delta6.link.logfile import LogWriter
 from delta6.sim.simdevice import SimulatedDevice
@@ -72,8 +74,10 @@ def seeds(tmp_path_factory):
     sim.advance(0.1)
     capture = sim.read()
     sim.close()
+    calibration = C.dumps(C.neutral(load(DESIGNS / "delta6.toml"), "fuzz")).encode()
     return {"design": (DESIGNS / "delta6.toml").read_bytes(), "csv": log.read_bytes(),
-            "mcap": mcap.read_bytes(), "capture": capture}
+            "mcap": mcap.read_bytes(), "capture": capture, "calibration": calibration,
+            "log_path": log}
 
 
 @settings(max_examples=25)        # a valid design runs its report (0.3 s): fewer examples
@@ -100,6 +104,15 @@ def test_damaged_captures(seeds, tmp_path_factory, changes):
     path = folder / "c.bin"
     path.write_bytes(damaged(seeds["capture"], changes))
     run_cli(["decode", str(path), "-o", str(folder / "out.csv")])
+
+
+@settings(max_examples=60)
+@given(changes=edits)
+def test_damaged_calibrations(seeds, tmp_path_factory, changes):
+    folder = tmp_path_factory.mktemp("k")
+    path = folder / "cal.toml"
+    path.write_bytes(damaged(seeds["calibration"], changes))
+    run_cli(["evaluate", str(seeds["log_path"]), "--calibration", str(path)])
 
 
 @settings(max_examples=60)

@@ -17,6 +17,7 @@ from delta6.core.workspace import load_checked
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.report import write_report
 from delta6.diagnosis.run import diagnose_data
+from delta6.link.logdata import wrench_from_device
 from delta6.link.logfile import LogData, read_log
 
 NAME = "diagnose"
@@ -67,10 +68,8 @@ def run(args: argparse.Namespace) -> int:
 
 def refuse_device_log(log: LogData, name) -> None:
     """A device log's wrench is the device's own model output: diagnosing it compares the
-    model with itself. Device logs say so in their header (``wrench_source=device``; older
-    ones carry the device's ``firmware`` version)."""
-    source = log.meta.get("wrench_source")
-    if source == "device" or (source is None and "firmware" in log.meta):
+    model with itself."""
+    if wrench_from_device(log.meta):
         raise UserError(f"{name}: the wrench in this log is the device's own model output "
                         "(a device log), not a reference sensor's: the diagnosis compares the "
                         "model with a reference (docs/diagnosis.md)")
