@@ -194,8 +194,8 @@ def avr_cycles() -> None:
     print(f"   onSample: stopped {fig('stopped')}, streaming wrench {fig('wrench')}, "
           f"wrench+raw {fig('raw')}, wrench+raw tared {fig('raw_tared')}")
     print(f"   the byte completing a command: start {fig('start')}, get_info {fig('get_info')} "
-          f"(a {P.RECORD_SIZES[P.RecordType.INFO]}-byte record), get_telemetry {fig('get_telemetry')}; "
-          f"begin {fig('begin')}")
+          f"(a {P.RECORD_SIZES[P.RecordType.INFO]}-byte record), "
+          f"get_telemetry {fig('get_telemetry')}; begin {fig('begin')}")
 
 
 def main() -> int:

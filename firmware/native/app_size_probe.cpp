@@ -17,6 +17,7 @@ namespace board {
 void init() {}
 uint8_t resetCause() { return sink; }
 uint32_t serialNumber() { return 0; }
+uint16_t bootId() { return sink; }
 void startSampling(uint16_t rate_hz) { sink = static_cast<uint8_t>(rate_hz); }
 uint32_t micros() { return clock_us += 4000; }
 void scanEncoders(uint16_t word[6], uint16_t inverse[6]) {

@@ -10,7 +10,7 @@ def _info(**changes) -> P.Info:
                   design_hash=0x535534AF, design_name="delta6", full_scale=(1.0,) * 6,
                   lsb_mantissa=(1,) * 6, lsb_exponent=(-3,) * 6, rate_hz=250, max_rate_hz=350,
                   status=0, streaming=False, config_problem=0, baud=500000, serial_number=0,
-                  zero_counts=(0,) * 6, tare=(0.0,) * 6, joint_limit_rad=0.5)
+                  zero_counts=(0,) * 6, tare=(0.0,) * 6, joint_limit_rad=0.5, boot_id=0x0102)
     return base._replace(**changes)
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import random
+import time
 
 import numpy as np
 import pytest
@@ -263,11 +264,64 @@ def test_configuration_survives_a_restart_and_a_corrupt_one_falls_back(image, tm
     assert sample.status & P.Status.CONFIG_DEFAULTS
 
 
+def test_an_eeprom_image_that_cannot_be_saved_fails_the_run(image, tmp_path):
+    """A configuration the firmware saved and acknowledged must not vanish silently."""
+    folder = tmp_path / "gone"
+    folder.mkdir()
+    board = VirtualBoard(image=image, speed=0, eeprom=folder / "e.bin").start()
+    try:
+        with Device(board.port) as dev:
+            dev.tare(5)
+            dev.save_config()
+        folder.rmdir()                       # the folder went away while the board ran
+        status = board.stop()
+    finally:
+        board.close()
+    assert status == 2
+    assert "error: could not save the EEPROM image" in board.stderr
+
+
+def test_the_emulator_dies_with_the_program_that_started_it(tmp_path):
+    """SIGKILL of the program that runs the board: the emulator notices and ends (it used to
+    run on at half a core, its encoders frozen, its stream still saying ok)."""
+    import signal
+    import subprocess
+    import sys
+    script = ("from delta6.sim.virtualboard import VirtualBoard\n"
+              "import time\n"
+              "board = VirtualBoard(speed=1, wait_for_client=False).start()\n"
+              "print(board.proc.pid, flush=True)\n"
+              "time.sleep(60)\n")
+    parent = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    try:
+        emulator = int(parent.stdout.readline())
+        assert _alive(emulator)
+        parent.send_signal(signal.SIGKILL)
+        parent.wait(timeout=10)
+        deadline = time.monotonic() + 5
+        while _alive(emulator) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not _alive(emulator)
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+
+
+def _alive(pid: int) -> bool:
+    """Whether pid runs (a zombie, dead but not yet reaped by init, does not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
 def test_watchdog_resets_a_hung_loop(tmp_path):
     image = firmware(test_hooks=True)
     with VirtualBoard(image=image, speed=0, live=True) as board:
         with Device(board.port) as dev:
             first_boot = [e.arg for e in dev.events if e.code == P.EventCode.BOOT]
+            first_id = dev.info().boot_id
             dev.start(250)
             drain(dev, dev.get(timeout=10).t + 0.1)
             hung_at = board.live.time()
@@ -284,6 +338,8 @@ def test_watchdog_resets_a_hung_loop(tmp_path):
     assert len(boots) >= 2 and all(arg == 0x08 for arg in boots[1:])   # watchdog
     assert resets == len(boots) and stats["timing"]["boots"] == len(boots)
     assert not info.streaming                                 # a fresh start, not streaming
+    # The boot id survives a reset in RAM and steps: the restart is known without BOOT.
+    assert first_id is not None and info.boot_id == (first_id + len(boots) - 1) % 65536
 
 
 def test_late_data_is_caught_by_the_sensor_timing(image, motion):

@@ -25,9 +25,13 @@ def run(args: argparse.Namespace) -> int:
     problem = (config_problem_text(info.config_problem)
                if info.status & Status.CONFIG_DEFAULTS and info.config_problem else None)
     if args.json:
-        out = {**info._asdict(), "lsb": list(info.lsb), "ping_s": rtt,
-               "telemetry": telemetry._asdict(), "config_problem_text": problem}
-        print(json.dumps(out, indent=2))
+        # No sentinels in JSON: an unknown temperature is null, not 32767.
+        health = {**telemetry._asdict(), "temperature_c": telemetry.temperature_c}
+        if telemetry.temperature_c is None:
+            health["temperature_centi"] = None
+        out = {**info._asdict(), "lsb": list(info.lsb), "ping_s": rtt, "telemetry": health,
+               "config_problem_text": problem}
+        print(json.dumps(out, indent=2, allow_nan=False))
         return 0
     unit = ("N",) * 3 + ("N*m",) * 3
     lines = [

@@ -19,7 +19,8 @@ def write_log(result, path: str | Path, *, progress: Callable[[float], None] | N
     columns, is also the replay file of the virtual board. Returns both paths."""
     truth = result.truth
     meta = {"design": result.design.name, "design_hash": truth["design"]["hash"],
-            "source": "delta6 simulate (digital twin)", "seed": truth["seed"],
+            "source": "delta6 simulate (digital twin)", "wrench_source": "reference",
+            "seed": truth["seed"],
             "rate_hz": f"{truth['rate_hz']:g}", "truth": truth_path(path).name,
             **(extra_meta or {})}
     if truth.get("scenario"):
