@@ -11,9 +11,17 @@
 
 #include "board.h"
 #include "board_contract.h"
+#include "delta6_device.h"
 #include "uart_queue.h"
 
 static_assert(board::kTxQueue == uartq::kTxSize, "one transmit queue size");
+static_assert(board::kTxQueue - 1 >= delta6::Device::kMinTxBuffer,
+              "the transmit queue holds the largest record");
+// The longest command frame: its payload (at most the command buffer), the CRC, COBS's code
+// byte and the delimiter.
+static_assert(uartq::kRxSize >= delta6::proto::kCommandBuffer + delta6::proto::kFrameOverhead,
+              "the receive ring holds the longest command frame");
+static_assert((uartq::kRxSize & (uartq::kRxSize - 1)) == 0, "the receive ring's size is a power of two");
 
 namespace uartq {
 
@@ -27,6 +35,14 @@ volatile uint8_t rx_tail = 0;
 }  // namespace uartq
 
 namespace board {
+
+// .noinit: neither avr-libc's start-up code nor the Arduino core touches it.
+static uint16_t boot_counter __attribute__((section(".noinit")));
+
+uint16_t bootId() {
+  boot_counter = static_cast<uint16_t>(boot_counter + 1);
+  return boot_counter;
+}
 
 uint16_t txSpace() { return static_cast<uint16_t>(kTxQueue - 1 - uartq::txQueued()); }
 

@@ -1,6 +1,6 @@
 """The device's wrench pipeline (low-pass -> tool frame -> tare -> quantise -> limits) as the
 firmware core runs it, natively, against the Python references (delta6.core.lowpass,
-delta6.core.toolframe, delta6.link.wirescale.quantize); the OVERLOAD flag exactly at the
+delta6.core.toolframe, delta6.link.wirescale.quantize); the OVERRANGE flag exactly at the
 threshold; the configuration in EEPROM, including a blob of the previous layout."""
 from __future__ import annotations
 
@@ -184,13 +184,21 @@ def test_pipeline_matches_the_references_and_flags_overload_by_its_counts(
     want = after / lsb
     slack = 0.5 + 1e-5 * (1 + np.abs(in_tool).max(axis=0) / lsb)
     assert (np.abs(got - want) <= slack).all()
-    over = ((np.abs(got) > limits) & (limits > 0)).any(axis=1)
-    assert ((status(records[tare_samples:]) & P.Status.OVERLOAD) != 0).tolist() == over.tolist()
+    # OVERRANGE: over a limit, or clipped at the wire's range (|value| > 32767 counts; rows
+    # within rounding of that edge could go either way and are not judged).
+    over_limit = ((np.abs(got) > limits) & (limits > 0)).any(axis=1)
+    clipped = (np.abs(want) > P.MAX_VALUE + slack).any(axis=1)
+    edge = (np.abs(np.abs(want) - P.MAX_VALUE) <= slack).any(axis=1)
+    flagged = (status(records[tare_samples:]) & P.Status.OVERRANGE) != 0
+    assert flagged[~edge].tolist() == (over_limit | clipped)[~edge].tolist()
+    assert flagged[over_limit].all()
 
 
 def test_overload_is_exact_at_the_threshold(core):
-    """A steady wrench of known counts: a limit equal to the count does not flag, one count
-    less does, on either sign and on each axis alone; 0 means no limit."""
+    """A steady wrench of known counts: a limit equal to the count does not flag OVERRANGE,
+    one count less does, on either sign and on each axis alone; 0 means no limit. A value
+    exactly at the wire's range (-32767) is not clipped; one beyond it flags whatever the
+    limits."""
     info = core.info()
     lsb = lsb32(info)
     level = np.array([1234, -2000, 3, -4, 5000, -32767])
@@ -198,15 +206,20 @@ def test_overload_is_exact_at_the_threshold(core):
     core.command(C.START, 0)
     sent = counts(core.samples(np.tile(w, (3, 1))))
     assert (sent == level).all()
-    assert not (status(core.samples(w)) & P.Status.OVERLOAD).any()
+    assert not (status(core.samples(w)) & P.Status.OVERRANGE).any()
     for axis in range(6):
         for limit, flagged in [(abs(level[axis]), False), (abs(level[axis]) - 1, True), (0, False)]:
             limits = [0] * 6
             limits[axis] = limit
             core.command(C.SET_LIMITS, *limits)
             got = status(core.samples(w))[0]
-            assert bool(got & P.Status.OVERLOAD) == flagged, (axis, limit)
-            assert not got & P.Status.OVERRANGE or axis == 5
+            assert bool(got & P.Status.OVERRANGE) == flagged, (axis, limit)
+    core.command(C.SET_LIMITS, *[P.MAX_VALUE] * 6)
+    beyond = w.copy()
+    beyond[0] = np.float32(40000 * lsb[0])                  # clipped at the wire's range
+    records = core.samples(beyond)
+    assert counts(records)[0][0] == P.MAX_VALUE
+    assert status(records)[0] & P.Status.OVERRANGE
 
 
 def test_commands_refuse_what_the_device_cannot_do(core):

@@ -63,7 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--limits", type=_numbers("--limits", 6, allow_none=True),
                         metavar="FX,FY,FZ,MX,MY,MZ",
                         help="overload thresholds (N, N*m; '-' or 0 for none on an axis, 'off' "
-                             "for none): a sample over one is flagged OVERLOAD")
+                             "for none): a sample over one is flagged OVERRANGE")
     parser.add_argument("--save", action="store_true",
                         help="store the configuration in the device's EEPROM")
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -15,17 +16,25 @@ from delta6.commands._port import (
     add_port_arguments,
     add_stream_arguments,
     flag_names,
+    flagged,
+    next_block,
     number,
     open_device,
     start_stream,
 )
+from delta6.commands._signals import stop_requests
 from delta6.commands._termplot import RollingPlot
+from delta6.core import calibration as calibration_mod
+from delta6.core.design import load
 from delta6.core.errors import UserError
+from delta6.core.paths import DEFAULT_DESIGN
+from delta6.learning import LearnedEstimator
 from delta6.link.logfile import THETA_COLUMNS, WRENCH_COLUMNS
 from delta6.link.ros2msg import DEFAULT_FRAME_ID
 
 NAME = "stream"
-HELP = "show the wrench live: readout, plots, CSV or JSON lines; serve it to Foxglove (Ctrl-C ends)"
+HELP = ("show the wrench live: readout, plots, CSV or JSON lines; serve it to Foxglove "
+        "(Ctrl-C, SIGTERM or SIGHUP end it)")
 FORMATS = ("table", "csv", "jsonl")
 
 
@@ -37,6 +46,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--interval", type=number("--interval", low=0, low_open=True),
                         default=0.1, metavar="S",
                         help="seconds between display updates (default 0.1)")
+    parser.add_argument("--model", metavar="MODEL.onnx",
+                        help="the wrench of a learned estimator (delta6 train) instead of the "
+                             "device's, in every output: streams the raw counts at the model's "
+                             "rate")
+    parser.add_argument("--design", default=str(DEFAULT_DESIGN), metavar="DESIGN.toml",
+                        help="with --model: the device's design (default: the paper's)")
+    parser.add_argument("--calibration", metavar="CAL.toml",
+                        help="with --model: the calibration a residual model was trained over "
+                             "(applied on the host to the raw counts)")
     parser.add_argument("--format", choices=FORMATS, default="table",
                         help="table: one readout line updated in place (default); csv, jsonl: "
                              "every sample on stdout, for piping")
@@ -69,14 +87,16 @@ def csv_header(raw: bool) -> str:
 
 
 def csv_rows(block, raw: bool) -> str:
-    """Every sample of a block as the log format's columns (9 significant digits, NaN empty)."""
+    """Every sample of a block as the log format's columns (times with 6 decimals, values with
+    9 significant digits, NaN empty)."""
     cols = [block.t[:, None]] + ([block.theta] if raw else []) + [
         block.wrench, block.seq[:, None], block.status[:, None], block.host_t[:, None]]
     table = np.hstack([np.asarray(c, float) for c in cols])
     lines = []
     n_float = table.shape[1] - 3
     for row in table:
-        cells = ["" if not np.isfinite(v) else f"{v:.9g}" for v in row[:n_float]]
+        cells = [f"{row[0]:.6f}"]
+        cells += ["" if not np.isfinite(v) else f"{v:.9g}" for v in row[1:n_float]]
         cells += [str(int(row[n_float])), str(int(row[n_float + 1])), f"{row[-1]:.6f}"]
         lines.append(",".join(cells))
     return "\n".join(lines) + "\n"
@@ -88,7 +108,7 @@ def jsonl_rows(block, raw: bool) -> str:
         return [_short(x) for x in v]
     out = []
     for i in range(len(block.t)):
-        record = {"t": _short(block.t[i]), "seq": int(block.seq[i]),
+        record = {"t": round(float(block.t[i]), 6), "seq": int(block.seq[i]),
                   "status": int(block.status[i]), "flags": flag_names(int(block.status[i]), 0),
                   "wrench": values(block.wrench[i])}
         if raw:
@@ -118,17 +138,44 @@ class _Screen:
         pass
 
 
+def learned_estimator(args: argparse.Namespace):
+    """The streaming estimator of ``--model`` (None without it); the stream is then raw, at
+    the model's rate."""
+    if args.model is None:
+        if args.calibration:
+            raise UserError("--calibration goes with --model (a residual over a calibration)")
+        return None
+    calibration = calibration_mod.load(args.calibration) if args.calibration else None
+    estimator = LearnedEstimator(args.model, design=load(args.design),
+                                 calibration=calibration).streaming()
+    model_rate = estimator.estimator.rate_hz
+    if args.rate is not None and abs(args.rate / model_rate - 1) > 0.02:
+        raise UserError(f"--rate {args.rate}: {args.model} was trained on samples at "
+                        f"{model_rate:g} Hz")
+    if abs(model_rate - round(model_rate)) > 1e-6:
+        raise UserError(f"{args.model} was trained at {model_rate:g} Hz, which the device "
+                        "cannot sample at")
+    args.rate, args.raw = int(round(model_rate)), True
+    return estimator
+
+
 def run(args: argparse.Namespace) -> int:
     if args.plot and args.format != "table":
         raise UserError("--plot draws on the terminal; it does not combine with --format "
                         f"{args.format}")
-    raw = bool(args.raw)
     out = sys.stdout
     display = _Screen(out) if args.plot else Progress(out) if args.format == "table" else None
     plot = RollingPlot(args.plot_seconds) if args.plot else None
     live = None
-    with open_device(args) as dev:
+    learned = learned_estimator(args)
+    raw = bool(args.raw)
+    flags = 0
+    with stop_requests() as stop, open_device(args) as dev:
+        if learned is not None:
+            learned.check_device(dev.info())
         rate = start_stream(dev, args)
+        if learned is not None:
+            print(f"learned estimator: {learned.estimator.card.describe()}", file=sys.stderr)
         if args.foxglove:
             from delta6.link.foxglovelive import FoxgloveLive
             info = dev.info()
@@ -145,7 +192,13 @@ def run(args: argparse.Namespace) -> int:
         window = []          # device times of the samples since the last update
         try:
             while args.duration is None or time.monotonic() - started < args.duration:
-                block = dev.read_block()
+                block = next_block(dev, stop)
+                if block is None:
+                    break
+                flags += flagged(block.status)
+                if learned is not None:
+                    block = dataclasses.replace(
+                        block, wrench=learned.update_block(block.t, block.theta))
                 if live is not None:
                     live.publish(block)
                 if args.format == "csv":
@@ -169,14 +222,16 @@ def run(args: argparse.Namespace) -> int:
                     display.show(plot.render() + "\n" + line if plot is not None else line)
                     window = [block.t[-1:]]
                     next_show = now + args.interval
-        except KeyboardInterrupt:
+        except KeyboardInterrupt:       # a second stop signal
             pass
         finally:
             if display is not None:
                 display.end()
             if live is not None:
                 live.close()
-        print(dev.health.summary()
-              + (f"; {live.published} samples served to Foxglove" if live else ""),
-              file=sys.stderr)
+        health = dev.health
+    how = f" (stopped by {stop.name})" if stop.signum else ""
+    print(f"{health.summary()}, {flags} flagged"
+          + (f"; {live.published} samples served to Foxglove" if live else "") + how,
+          file=sys.stderr)
     return 0

@@ -10,6 +10,8 @@ stale. This module packs and parses single frames; :mod:`delta6.link.decoder` an
 from __future__ import annotations
 
 import enum
+import functools
+import struct
 from fractions import Fraction
 from typing import NamedTuple
 
@@ -22,7 +24,7 @@ from delta6.link.layout import Field, Layout
 
 VERSION = (1, 1)
 
-#: The recommended UART rate (docs/protocol.md, "Baud rate"): exact on 16 MHz AVRs, carries
+#: The recommended UART rate (docs/protocol.md section 1, "Link"): exact on 16 MHz AVRs, carries
 #: 1 kHz of wrench records at half load.
 DEFAULT_BAUD = 500_000
 #: Frame bytes on the wire beyond the payload: CRC (2), COBS code (1), delimiter (1).
@@ -73,14 +75,15 @@ class Command(enum.IntEnum):
     SET_ZERO = 0x89
     ZERO_HERE = 0x8A
     GET_TELEMETRY = 0x8B
-    SET_FILTER = 0x8C           # protocol 1.1
-    SET_TOOL = 0x8D             # protocol 1.1
-    SET_LIMITS = 0x8E           # protocol 1.1
+    ABORT = 0x8C           # 1.1
+    SET_FILTER = 0x8D      # 1.1
+    SET_TOOL = 0x8E        # 1.1
+    SET_LIMITS = 0x8F      # 1.1
 
 
 #: The protocol minor version that introduced each command newer than 1.0: a host sends it
 #: only to a device of that minor version or later.
-COMMAND_SINCE = {Command.SET_FILTER: (1, 1), Command.SET_TOOL: (1, 1),
+COMMAND_SINCE = {Command.ABORT: (1, 1), Command.SET_FILTER: (1, 1), Command.SET_TOOL: (1, 1),
                  Command.SET_LIMITS: (1, 1)}
 
 
@@ -98,6 +101,8 @@ class Status(enum.IntFlag):
     ENCODER4 = 1 << 3
     ENCODER5 = 1 << 4
     ENCODER6 = 1 << 5
+    # An axis is outside its overload limit (SET_LIMITS, 1.1) or outside the wire's range
+    # (clipped): the two share this bit, no other is free.
     OVERRANGE = 1 << 6
     JOINT_LIMIT = 1 << 7
     SOLVER_ERROR = 1 << 8
@@ -107,7 +112,7 @@ class Status(enum.IntFlag):
     TARE_ACTIVE = 1 << 12
     TARE_BUSY = 1 << 13
     CONFIG_DEFAULTS = 1 << 14
-    OVERLOAD = 1 << 15          # protocol 1.1: an axis exceeded its SET_LIMITS threshold
+    STREAM_CHANGED = 1 << 15   # 1.1
 
 
 ENCODER_MASK = 0x3F
@@ -123,7 +128,8 @@ class NackReason(enum.IntEnum):
     BUSY = 6
     FAULT_DURING_AVERAGING = 7
     EEPROM_FAILED = 8
-    FILTER_RANGE = 9            # protocol 1.1
+    ABORTED = 9            # 1.1
+    FILTER_RANGE = 10      # 1.1
 
 
 NACK_TEXT = {
@@ -133,10 +139,11 @@ NACK_TEXT = {
     NackReason.RATE_TOO_HIGH: "rate above the board's maximum of {detail} Hz",
     NackReason.LINK_TOO_SLOW: "the serial link carries at most {detail} Hz in this mode "
                               "(raise the baud rate or lower the rate)",
-    NackReason.BUSY: "a tare or zero capture is still running",
+    NackReason.BUSY: "a tare or zero capture is still running (delta6 tare --abort stops it)",
     NackReason.FAULT_DURING_AVERAGING: "a sample was flagged while averaging "
                                        "(status {detail:#06x}); nothing was changed",
     NackReason.EEPROM_FAILED: "the EEPROM did not read back what was written (byte {detail})",
+    NackReason.ABORTED: "aborted (an ABORT command stopped the averaging); nothing was changed",
     NackReason.FILTER_RANGE: "the low-pass cutoff must lie within 0.001 .. 0.45 x the sample "
                              "rate of {detail} Hz (0 turns the filter off)",
 }
@@ -181,27 +188,27 @@ _REQUEST = Field("request_id", "B")
 _DATA = [_TYPE, Field("seq", "H"), Field("time_us", "I"), Field("status", "H"),
          Field("wrench", "h", 6)]
 
-_INFO_1_0 = [
-    _TYPE, _REQUEST, Field("protocol", "B", 2), Field("firmware", "B", 3),
-    Field("mode", "B"), Field("design_hash", "I"), Field("design_name", "s", 24),
-    Field("full_scale", "f", 6), Field("lsb_mantissa", "B", 6),
-    Field("lsb_exponent", "b", 6), Field("rate_hz", "H"), Field("max_rate_hz", "H"),
-    Field("status", "H"), Field("streaming", "B"), Field("reserved", "B"),
-    Field("baud", "I"), Field("serial_number", "I"), Field("zero_counts", "H", 6),
-    Field("tare", "f", 6), Field("joint_limit_rad", "f")]
-#: Appended in 1.1: the calibration the firmware applies (hash 0 and no name: none), then the
-#: wrench pipeline's configuration (SET_FILTER, SET_TOOL, SET_LIMITS).
-_INFO_1_1 = [Field("calibration_hash", "I"), Field("calibration_name", "s", 24),
-             Field("filter_hz", "f"), Field("tool_translation", "f", 3),
-             Field("tool_rpy", "f", 3), Field("limits", "H", 6),
-             Field("max_rate_pipeline_hz", "H")]
-
 #: The payload of each record (type byte included, CRC excluded). Field names are those of
 #: the record's tuple below; a minor version only appends fields.
 RECORD_LAYOUTS = {
     RecordType.WRENCH: Layout("WRENCH", _DATA),
     RecordType.WRENCH_RAW: Layout("WRENCH_RAW", _DATA + [Field("counts", "H", 6)]),
-    RecordType.INFO: Layout("INFO", _INFO_1_0 + _INFO_1_1),
+    RecordType.INFO: Layout("INFO", [
+        _TYPE, _REQUEST, Field("protocol", "B", 2), Field("firmware", "B", 3),
+        Field("mode", "B"), Field("design_hash", "I"), Field("design_name", "s", 24),
+        Field("full_scale", "f", 6), Field("lsb_mantissa", "B", 6),
+        Field("lsb_exponent", "b", 6), Field("rate_hz", "H"), Field("max_rate_hz", "H"),
+        Field("status", "H"), Field("streaming", "B"), Field("config_problem", "B"),
+        Field("baud", "I"), Field("serial_number", "I"), Field("zero_counts", "H", 6),
+        Field("tare", "f", 6), Field("joint_limit_rad", "f"),
+        # 1.1: the calibration the firmware applies (hash 0 and no name: none), and the boot
+        # session.
+        Field("calibration_hash", "I"), Field("calibration_name", "s", 24),
+        Field("boot_id", "H"),
+        # 1.1: the wrench pipeline's configuration (SET_FILTER, SET_TOOL, SET_LIMITS).
+        Field("filter_hz", "f"), Field("tool_translation", "f", 3),
+        Field("tool_rpy", "f", 3), Field("limits", "H", 6),
+        Field("max_rate_pipeline_hz", "H")]),
     RecordType.ACK: Layout("ACK", [_TYPE, _REQUEST, Field("command", "B"), Field("value", "I")]),
     RecordType.NACK: Layout("NACK", [_TYPE, _REQUEST, Field("command", "B"),
                                      Field("reason", "B"), Field("detail", "I")]),
@@ -211,21 +218,24 @@ RECORD_LAYOUTS = {
         Field("rx_frames", "H"), Field("rx_crc_errors", "H"), Field("rx_bad_frames", "H"),
         Field("rx_overflows", "H"), Field("tx_dropped", "H"), Field("responses_dropped", "H"),
         Field("loop_time_max_us", "H"), Field("loop_time_mean_us", "H"),
-        Field("temperature_centi", "h"), Field("next_seq", "H")]),
+        Field("temperature_centi", "h"), Field("next_seq", "H"), Field("boot_id", "H")]),
     RecordType.EVENT: Layout("EVENT", [_TYPE, Field("code", "B"), Field("arg", "I")]),
 }
 RECORD_SIZES = {t: layout.size for t, layout in RECORD_LAYOUTS.items()}
-#: The shortest record of each type a host accepts: its size in protocol 1.0. A shorter INFO
-#: comes from an older device; the fields appended since read as APPENDED_DEFAULTS.
-RECORD_MIN_SIZES = {**RECORD_SIZES, RecordType.INFO: Layout("INFO 1.0", _INFO_1_0).size}
-#: INFO as protocol 1.0 sent it (without the calibration and the pipeline fields).
-INFO_SIZE_1_0 = RECORD_MIN_SIZES[RecordType.INFO]
-#: What an older device's INFO record means by the fields it does not carry: no calibration
-#: (the analytical model), no filter, the identity tool frame, no overload limits.
-APPENDED_DEFAULTS = {RecordType.INFO: {"calibration_hash": 0, "calibration_name": "",
-                                       "filter_hz": 0.0, "tool_translation": (0.0,) * 3,
-                                       "tool_rpy": (0.0,) * 3, "limits": (0,) * 6,
-                                       "max_rate_pipeline_hz": 0}}
+#: Fields a minor version appended: a host reads the shorter records of an older device, each
+#: missing field as the value here (its version: 1.1 for all of these).
+APPENDED_FIELDS = {
+    RecordType.INFO: {"calibration_hash": 0, "calibration_name": "", "boot_id": None,
+                      # no filter, the identity tool frame, no overload limits
+                      "filter_hz": 0.0, "tool_translation": (0.0,) * 3,
+                      "tool_rpy": (0.0,) * 3, "limits": (0,) * 6,
+                      "max_rate_pipeline_hz": 0},
+    RecordType.TELEMETRY: {"boot_id": None},
+}
+#: The shortest payload of each type a host accepts: the record as version 1.0 defined it.
+MIN_RECORD_SIZES = {t: min((layout.offsets[n] for n in APPENDED_FIELDS.get(t, ())),
+                           default=layout.size) for t, layout in RECORD_LAYOUTS.items()}
+INFO_SIZE_1_0 = MIN_RECORD_SIZES[RecordType.INFO]
 _WRENCH = RECORD_LAYOUTS[RecordType.WRENCH].struct
 _WRENCH_RAW = RECORD_LAYOUTS[RecordType.WRENCH_RAW].struct
 
@@ -241,6 +251,7 @@ COMMAND_LAYOUTS = {c: Layout(c.name, [_TYPE, _REQUEST, *args]) for c, args in {
     Command.TARE: [Field("samples", "H")], Command.CLEAR_TARE: [], Command.SAVE_CONFIG: [],
     Command.LOAD_DEFAULTS: [], Command.SET_ZERO: [Field("zero_counts", "H", 6)],
     Command.ZERO_HERE: [Field("samples", "H")], Command.GET_TELEMETRY: [],
+    Command.ABORT: [],
     Command.SET_FILTER: [Field("cutoff_hz", "f")],
     Command.SET_TOOL: [Field("translation", "f", 3), Field("rpy", "f", 3)],
     Command.SET_LIMITS: [Field("limits", "H", 6)],
@@ -275,7 +286,7 @@ if any(not CONFIG_LAYOUTS[v + 1].starts_with(CONFIG_LAYOUTS[v]) for v in range(1
 #: Encoded length (no delimiter) of each record type: payload + CRC + one COBS code byte.
 ENCODED_SIZES = {t: s + 3 for t, s in RECORD_SIZES.items()}
 #: Every encoded length a record of each type may have (this version's, or protocol 1.0's).
-ENCODED_LENGTHS = {t: frozenset({s + 3, RECORD_MIN_SIZES[t] + 3}) for t, s in RECORD_SIZES.items()}
+ENCODED_LENGTHS = {t: frozenset({s + 3, MIN_RECORD_SIZES[t] + 3}) for t, s in RECORD_SIZES.items()}
 
 
 def wire_bytes(record_type: RecordType) -> int:
@@ -326,6 +337,7 @@ class Info(NamedTuple):
     max_rate_hz: int
     status: int
     streaming: bool
+    config_problem: int    # a ConfigProblem while CONFIG_DEFAULTS is set (0: none)
     baud: int
     serial_number: int
     zero_counts: tuple
@@ -333,6 +345,7 @@ class Info(NamedTuple):
     joint_limit_rad: float
     calibration_hash: int = 0      # 1.1; 0: the analytical model, no calibration
     calibration_name: str = ""
+    boot_id: int | None = None      # 1.1: identifies the device's boot session
     # 1.1: the wrench pipeline (defaults: what a 1.0 device does)
     filter_hz: float = 0.0          # low-pass cutoff, Hz; 0: off
     tool_translation: tuple = (0.0, 0.0, 0.0)   # tool point in {E}, m
@@ -399,6 +412,7 @@ class Telemetry(NamedTuple):
     loop_time_mean_us: int
     temperature_centi: int
     next_seq: int
+    boot_id: int | None = None      # 1.1
 
     @property
     def temperature_c(self) -> float | None:
@@ -428,21 +442,18 @@ class ProtocolError(ValueError):
 def parse_payload(payload: bytes):
     """A record from a decoded, CRC-checked payload (CRC bytes removed).
 
-    Longer payloads than version 1.0 defines are accepted and their known prefix parsed (newer
-    minor versions only append fields); shorter ones and unknown types raise ProtocolError."""
+    Longer payloads than this version defines are accepted and their known prefix parsed
+    (newer minor versions only append fields); the shorter records of an older minor version
+    are read without the fields appended since (None); shorter ones still and unknown types
+    raise ProtocolError."""
     if not payload:
         raise ProtocolError("empty frame")
     kind = payload[0]
-    size = RECORD_MIN_SIZES.get(kind)
+    size = MIN_RECORD_SIZES.get(kind)
     if size is None:
         raise ProtocolError(f"unknown record type 0x{kind:02x}")
     if len(payload) < size:
         raise ProtocolError(f"record type 0x{kind:02x} has {len(payload)} bytes, needs {size}")
-    if len(payload) < RECORD_SIZES[kind]:
-        # An older device: its version's fields, the appended ones at their defaults. A
-        # length between two versions' sizes is no record at all.
-        fields = _older_record(kind, payload)
-        return _RECORD_TUPLES[kind](**fields)
     # Data records by position, twice as fast as by name (the order is checked at import):
     # type, seq, time_us, status, wrench[6], counts[6].
     if kind == RecordType.WRENCH:
@@ -451,30 +462,32 @@ def parse_payload(payload: bytes):
     if kind == RecordType.WRENCH_RAW:
         v = _WRENCH_RAW.unpack_from(payload)
         return WrenchRecord(v[1], v[2], v[3], v[4:10], v[10:16])
-    fields = RECORD_LAYOUTS[kind].unpack(payload)
-    return _RECORD_TUPLES[kind](**_clean(kind, fields))
-
-
-def _older_record(kind: int, payload: bytes) -> dict:
     layout = RECORD_LAYOUTS[kind]
-    defaults = APPENDED_DEFAULTS[kind]
-    known = [f for f in layout.fields if f.name not in defaults]
-    prefix = Layout(layout.name, known)
-    if len(payload) != prefix.size:
-        raise ProtocolError(f"record type 0x{kind:02x} has {len(payload)} bytes: neither "
-                            f"{prefix.size} (protocol 1.0) nor {layout.size} or more")
-    return {**_clean(kind, prefix.unpack(payload)), **defaults}
-
-
-def _clean(kind: int, fields: dict) -> dict:
+    if len(payload) < layout.size:       # an older minor version's record
+        older = _older_layout(kind, len(payload))
+        if older.size != len(payload):   # no version ends there: a record cut short
+            raise ProtocolError(f"record type 0x{kind:02x} has {len(payload)} bytes: it ends "
+                                f"inside a field ({older.size} or {layout.size} expected)")
+        fields = dict(APPENDED_FIELDS[kind])
+        fields.update(older.unpack(payload))
+    else:
+        fields = layout.unpack(payload)
     del fields["type"]
     if kind == RecordType.INFO:
-        del fields["reserved"]
         for key in ("design_name", "calibration_name"):
-            if key in fields:       # an older record may lack the latter
+            if isinstance(fields[key], bytes):
                 fields[key] = fields[key].split(b"\x00", 1)[0].decode("ascii", "replace")
         fields["streaming"] = bool(fields["streaming"])
-    return fields
+    return _RECORD_TUPLES[kind](**fields)
+
+
+@functools.cache
+def _older_layout(kind: RecordType, size: int) -> Layout:
+    """The fields of ``kind`` that fit ``size`` bytes: the record of an older minor version."""
+    layout = RECORD_LAYOUTS[kind]
+    fields = [f for f in layout.fields
+              if layout.offsets[f.name] + struct.calcsize("<" + f.fmt) <= size]
+    return Layout(f"{layout.name}<{size}>", fields)
 
 
 def frame(payload: bytes) -> bytes:
@@ -508,17 +521,28 @@ def encode_wrench(seq: int, time_us: int, status: int, wrench, counts=None) -> b
     return frame(_WRENCH_RAW.pack(RecordType.WRENCH_RAW, seq, time_us, status, *wrench, *counts))
 
 
-def encode_record(record) -> bytes:
-    """The frame of an INFO, ACK, NACK, TELEMETRY or EVENT record (the tuples above)."""
+def encode_record(record, minor: int | None = None) -> bytes:
+    """The frame of an INFO, ACK, NACK, TELEMETRY or EVENT record (the tuples above), as this
+    version sends it, or as minor version ``minor`` did (0: 1.0, without the appended fields).
+    An appended field the record does not have (None) is left off, with those after it."""
     kind = next(t for t, cls in _RECORD_TUPLES.items() if isinstance(record, cls))
     fields = record._asdict()
+    layout = RECORD_LAYOUTS[kind]
+    size = MIN_RECORD_SIZES[kind] if minor == 0 else layout.size
+    for name in APPENDED_FIELDS.get(kind, ()):
+        if fields[name] is None:
+            size = min(size, layout.offsets[name])
+    if size < layout.size:
+        layout = _older_layout(kind, size)
+        fields = {k: v for k, v in fields.items() if k in layout.offsets}
     if kind == RecordType.INFO:
         name_field = RECORD_LAYOUTS[kind].field("design_name")
         fields.update(design_name=record.design_name.encode("ascii")[:name_field.count - 1],
-                      calibration_name=record.calibration_name.encode("ascii")[
-                          :name_field.count - 1],
-                      streaming=int(record.streaming), reserved=0)
-    return frame(RECORD_LAYOUTS[kind].pack(type=kind, **fields))
+                      streaming=int(record.streaming))
+        if "calibration_name" in fields:
+            fields["calibration_name"] = record.calibration_name.encode("ascii")[
+                :name_field.count - 1]
+    return frame(layout.pack(type=kind, **fields))
 
 
 def encode_info(info: Info) -> bytes:
