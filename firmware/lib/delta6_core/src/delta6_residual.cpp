@@ -1,0 +1,213 @@
+#include "delta6_residual.h"
+
+#include <math.h>
+#include <string.h>
+
+namespace delta6 {
+namespace residual {
+
+namespace {
+
+// Flash reads: program memory on the AVR, plain memory elsewhere.
+inline void flashCopy(void* dst, const void* src, size_t n) {
+#if defined(__AVR__)
+    memcpy_P(dst, src, n);
+#else
+    memcpy(dst, src, n);
+#endif
+}
+
+inline int8_t flashI8(const int8_t* p) {
+#if defined(__AVR__)
+    return static_cast<int8_t>(pgm_read_byte(p));
+#else
+    return *p;
+#endif
+}
+
+inline int16_t flashI16(const int16_t* p) {
+#if defined(__AVR__)
+    return static_cast<int16_t>(pgm_read_word(p));
+#else
+    return *p;
+#endif
+}
+
+inline uint8_t flashU8(const uint8_t* p) {
+#if defined(__AVR__)
+    return pgm_read_byte(p);
+#else
+    return *p;
+#endif
+}
+
+inline int32_t flashI32(const int32_t* p) {
+#if defined(__AVR__)
+    return static_cast<int32_t>(pgm_read_dword(p));
+#else
+    return *p;
+#endif
+}
+
+inline float flashF32(const float* p) {
+#if defined(__AVR__)
+    return pgm_read_float(p);
+#else
+    return *p;
+#endif
+}
+
+inline int16_t saturate16(int32_t v) {
+    return static_cast<int16_t>(v > 32767 ? 32767 : (v < -32768 ? -32768 : v));
+}
+
+inline int8_t saturate8(int32_t v, int8_t lo) {
+    return static_cast<int8_t>(v > 127 ? 127 : (v < lo ? lo : v));
+}
+
+// Ring entry `periods` model periods before the newest one.
+inline const int16_t* past(const int16_t* ring, const State& s, uint8_t length, int16_t periods) {
+    int16_t back = static_cast<int16_t>(periods * s.stride);
+    int16_t index = static_cast<int16_t>(s.head) - back;
+    if (index < 0) index = static_cast<int16_t>(index + length);
+    return ring + 6 * index;
+}
+
+// The int8 input vector of the first layer; advances the plays.
+void features(const Model& model, State& s, const int16_t base[6], const int16_t counts[6],
+              int8_t* x) {
+    uint8_t play = 0;
+    for (uint8_t g = 0; g < model.feature_count; ++g) {
+        Feature f;
+        flashCopy(&f, &model.features[g], sizeof f);
+        const int16_t* now = nullptr;
+        const int16_t* then = nullptr;
+        if (f.kind == kFeatureWrenchStep || f.kind == kFeatureCountStep) {
+            const int16_t* ring = f.kind == kFeatureWrenchStep ? s.wrench_ring : s.count_ring;
+            now = past(ring, s, model.history_length, static_cast<int16_t>(f.param - 1));
+            then = past(ring, s, model.history_length, f.param);
+        }
+        for (uint8_t i = 0; i < 6; ++i) {
+            int32_t v;
+            switch (f.kind) {
+                case kFeatureWrench: v = base[i]; break;
+                case kFeatureCounts: v = counts[i]; break;
+                case kFeaturePlay: {
+                    int16_t* y = &s.plays[6 * play + i];
+                    const int32_t lo = static_cast<int32_t>(counts[i]) - f.param;
+                    const int32_t hi = static_cast<int32_t>(counts[i]) + f.param;
+                    if (*y < lo) *y = static_cast<int16_t>(lo);
+                    if (*y > hi) *y = static_cast<int16_t>(hi);
+                    v = static_cast<int32_t>(counts[i]) - *y;
+                    break;
+                }
+                default:   // the steps
+                    v = static_cast<int32_t>(now[i]) - then[i];
+                    break;
+            }
+            *x++ = saturate8(requantize16(saturate16(v), f.multiplier[i], f.shift[i]), -127);
+        }
+        if (f.kind == kFeaturePlay) ++play;
+    }
+}
+
+}  // namespace
+
+int32_t requantize16(int16_t value, int16_t m, uint8_t shift) {
+    const int32_t p = static_cast<int32_t>(value) * m;   // |p| <= 2^30
+    return (p + (static_cast<int32_t>(1) << (shift - 1))) >> shift;
+}
+
+int32_t requantize32(int32_t acc, int16_t m, uint8_t shift) {
+    // acc * m = hi * m * 2^16 + lo * m, both products in 31 bits; then
+    // floor((acc * m + 2^(s-1)) / 2^s) = floor((hi * m + 2^(s-17) + floor(lo * m / 2^16)) / 2^(s-16))
+    // for s >= 17 (floor of a floor is the floor of the quotient), and for s = 16 the same
+    // with the half added to the low product.
+    const int16_t hi = static_cast<int16_t>(acc >> 16);
+    const uint16_t lo = static_cast<uint16_t>(acc);
+    const int32_t p = static_cast<int32_t>(hi) * m;
+    const int32_t q = static_cast<int32_t>(lo) * m;
+    if (shift <= 16) return p + ((q + (static_cast<int32_t>(1) << 15)) >> 16);
+    const int32_t t = p + (static_cast<int32_t>(1) << (shift - 17)) + (q >> 16);
+    return t >> (shift - 16);
+}
+
+uint8_t strideFor(const Model& model, uint16_t board_rate_hz) {
+    const uint32_t r = model.rate_hz ? model.rate_hz : 1;
+    uint32_t stride = (2u * static_cast<uint32_t>(board_rate_hz) + r) / (2u * r);
+    if (stride < 1) stride = 1;
+    if (stride > kMaxStride) stride = kMaxStride;
+    return static_cast<uint8_t>(stride);
+}
+
+void configure(const Model& model, State& state, uint16_t board_rate_hz) {
+    state.stride = strideFor(model, board_rate_hz);
+    state.head = 0;
+    state.primed = false;
+}
+
+void step(const Model& model, State& s, const int16_t base[6], const int16_t counts[6],
+          int16_t correction[6]) {
+    const uint8_t length = model.history_length;
+    if (!s.primed) {   // from rest: the whole past equals this sample, the plays centred on it
+        for (uint8_t k = 0; k < length; ++k) {
+            if (model.wrench_history) memcpy(s.wrench_ring + 6 * k, base, 6 * sizeof(int16_t));
+            if (model.count_history) memcpy(s.count_ring + 6 * k, counts, 6 * sizeof(int16_t));
+        }
+        for (uint8_t p = 0; p < model.play_count; ++p) {
+            memcpy(s.plays + 6 * p, counts, 6 * sizeof(int16_t));
+        }
+        s.head = 0;
+        s.primed = true;
+    } else if (length) {
+        s.head = static_cast<uint8_t>(s.head + 1 == length ? 0 : s.head + 1);
+        if (model.wrench_history) memcpy(s.wrench_ring + 6 * s.head, base, 6 * sizeof(int16_t));
+        if (model.count_history) memcpy(s.count_ring + 6 * s.head, counts, 6 * sizeof(int16_t));
+    }
+    int8_t a[kMaxWidth];
+    int8_t b[kMaxWidth];
+    features(model, s, base, counts, a);
+    int8_t* in = a;
+    int8_t* out = b;
+    for (uint8_t l = 0; l < model.layer_count; ++l) {
+        Layer layer;
+        flashCopy(&layer, &model.layers[l], sizeof layer);
+        const int8_t* w = layer.weights;
+        for (uint8_t o = 0; o < layer.outputs; ++o) {
+            int32_t acc = flashI32(layer.bias + o);
+            for (uint8_t j = 0; j < layer.inputs; ++j) {
+                acc += static_cast<int16_t>(flashI8(w++) * in[j]);
+            }
+            const int32_t y = requantize32(acc, flashI16(layer.multiplier + o),
+                                           flashU8(layer.shift + o));
+            if (layer.relu) {
+                out[o] = saturate8(y, 0);
+            } else {
+                correction[o] = saturate16(y);
+            }
+        }
+        int8_t* t = in;
+        in = out;
+        out = t;
+    }
+}
+
+void quantizeInput(const Model& model, const float wrench[6], int16_t base[6]) {
+    for (uint8_t i = 0; i < 6; ++i) {
+        float v = wrench[i] * flashF32(model.input_scale + i);
+        // Saturate first (also keeps lroundf in range); a NaN never reaches here: the solver
+        // gives a wrench only when it is finite.
+        if (!(v < 32767.0f)) v = 32767.0f;
+        if (!(v > -32768.0f)) v = -32768.0f;
+        base[i] = static_cast<int16_t>(lroundf(v));
+    }
+}
+
+void applyOutput(const Model& model, const int16_t correction[6], float wrench[6]) {
+    for (uint8_t i = 0; i < 6; ++i) {
+        wrench[i] += static_cast<float>(correction[i]) * flashF32(model.output_step + i);
+    }
+}
+
+}  // namespace residual
+}  // namespace delta6
