@@ -129,8 +129,7 @@ class Int8Net:
 
     def history_length(self) -> int:
         """Ring entries the board keeps per history source: the deepest lag at MAX_STRIDE."""
-        lag = max(self.max_lag(k) for k in STEP_KINDS)
-        return lag * MAX_STRIDE + 1 if lag else 0
+        return history_length(self.features)
 
     def check(self) -> "Int8Net":
         """Raise ValueError unless the C engine can run this network exactly."""
@@ -233,8 +232,45 @@ def run(net: Int8Net, base: np.ndarray, counts: np.ndarray, *, stride: int = 1,
 
 
 def _run_segment(net, base, counts, stride, state: State) -> tuple[np.ndarray, State]:
-    keep = max(1, (net.history_length() - 1) // MAX_STRIDE * stride + 1)
-    radii = np.array(net.play_radii(), dtype=np.int64)
+    v, after = _segment_features(net.features, net.history_length(), base, counts, stride, state)
+    groups = []
+    for g, f in enumerate(net.features):
+        groups.append(saturate(requantize(v[:, 6 * g:6 * g + 6], f.multiplier, f.shift),
+                               -INT8_MAX, INT8_MAX))
+    x = np.concatenate(groups, axis=1)
+    for layer in net.layers:
+        acc = x @ layer.weights.astype(np.int64).T + layer.bias.astype(np.int64)
+        y = requantize(acc, layer.multiplier, layer.shift)
+        x = saturate(y, 0, INT8_MAX) if layer.relu else saturate(y, INT16_MIN, INT16_MAX)
+    return x, after
+
+
+def history_length(features) -> int:
+    """Ring entries the board keeps per history source for ``features`` (kind, param)."""
+    lag = max((f.param for f in features if f.kind in STEP_KINDS), default=0)
+    return lag * MAX_STRIDE + 1 if lag else 0
+
+
+def feature_values(features, base, counts, *, stride: int = 1, valid=None) -> np.ndarray:
+    """The int16 feature values (n, 6 * len(features)) before their int8 requantization, for
+    any objects with ``kind`` and ``param`` (training uses them before a network exists).
+    Rows where ``valid`` is False are 0 and restart the history, as in :func:`run`."""
+    base = np.asarray(base, dtype=np.int64).reshape(-1, 6)
+    counts = np.asarray(counts, dtype=np.int64).reshape(-1, 6)
+    n = len(base)
+    valid = np.ones(n, dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
+    out = np.zeros((n, 6 * len(features)), dtype=np.int64)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], valid.astype(np.int8), [0]])))
+    for start, stop in zip(edges[::2], edges[1::2]):
+        out[start:stop], _ = _segment_features(features, history_length(features),
+                                               base[start:stop], counts[start:stop], stride,
+                                               State())
+    return out
+
+
+def _segment_features(features, history, base, counts, stride, state: State):
+    keep = max(1, (history - 1) // MAX_STRIDE * stride + 1)
+    radii = np.array([f.param for f in features if f.kind == "play"], dtype=np.int64)
     if state.base is None:   # primed: the past equals the first sample, plays centred on it
         past_base, past_counts = base[:1].repeat(keep, 0), counts[:1].repeat(keep, 0)
         plays = counts[:1].repeat(len(radii), 0)
@@ -242,11 +278,10 @@ def _run_segment(net, base, counts, stride, state: State) -> tuple[np.ndarray, S
         past_base, past_counts, plays = state.base, state.counts, state.plays
     hb = np.concatenate([past_base, base])[-(keep + len(base) - 1):] if keep > 1 else base
     hc = np.concatenate([past_counts, counts])[-(keep + len(counts) - 1):] if keep > 1 else counts
-    offset = keep - 1                # row i of the segment is row i + offset of the history
-    rows = np.arange(len(base)) + offset
+    rows = np.arange(len(base)) + keep - 1   # row i of the segment in the history
     play_out, plays_after = _plays(counts, radii, plays)
-    groups, p = [], 0
-    for f in net.features:
+    columns, p = [], 0
+    for f in features:
         if f.kind == "wrench":
             v = base
         elif f.kind == "counts":
@@ -257,15 +292,9 @@ def _run_segment(net, base, counts, stride, state: State) -> tuple[np.ndarray, S
         else:
             v = counts - play_out[:, p]
             p += 1
-        v = saturate(v, INT16_MIN, INT16_MAX)
-        groups.append(saturate(requantize(v, f.multiplier, f.shift), -INT8_MAX, INT8_MAX))
-    x = np.concatenate(groups, axis=1)
-    for layer in net.layers:
-        acc = x @ layer.weights.astype(np.int64).T + layer.bias.astype(np.int64)
-        y = requantize(acc, layer.multiplier, layer.shift)
-        x = saturate(y, 0, INT8_MAX) if layer.relu else saturate(y, INT16_MIN, INT16_MAX)
+        columns.append(saturate(v, INT16_MIN, INT16_MAX))
     after = State(base=hb[-keep:].copy(), counts=hc[-keep:].copy(), plays=plays_after)
-    return x, after
+    return np.concatenate(columns, axis=1), after
 
 
 def _plays(x: np.ndarray, radii: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
