@@ -2,10 +2,12 @@
 
 ``render(design, label)`` gives the text of generated/delta6_design.h;
 ``solver_constants(design)`` the numbers in it (also used by the native tests);
-``render_wire()`` the text of the core's generated/delta6_wire.h (the protocol's tables).
+``render_wire()`` the text of the core's generated/delta6_wire.h (the protocol's tables);
+``render_model(model, ...)`` the text of generated/delta6_model.h (an on-chip residual model).
 """
 from .design_header import render
+from .model_header import render_model
 from .solver_constants import SolverConstants, solver_constants
 from .wire_header import render_wire
 
-__all__ = ["render", "render_wire", "solver_constants", "SolverConstants"]
+__all__ = ["render", "render_model", "render_wire", "solver_constants", "SolverConstants"]

@@ -9,6 +9,7 @@ from pathlib import Path
 from delta6.build import avrbuild
 from delta6.core import design as design_mod
 from delta6.core import paths
+from delta6.core import residualmodel
 from delta6.core.errors import UserError
 from delta6.core.workspace import load_checked
 from delta6.link.protocol import VERSION as PROTOCOL_VERSION
@@ -21,6 +22,7 @@ HELP = ("write the firmware header generated/delta6_design.h for a design "
 HEADER_RELPATH = Path("generated") / "delta6_design.h"
 COMMITTED_HEADER = avrbuild.COMMITTED_DESIGN_INCLUDE / HEADER_RELPATH
 WIRE_RELPATH = Path(WIRE_HEADER_RELPATH)
+MODEL_HEADER = "delta6_model.h"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -37,6 +39,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--build", action="store_true",
                         help="also build the ATmega328P firmware application for this design "
                              "with the local avr-gcc (the committed header is left alone)")
+    parser.add_argument("--model", metavar="MODEL.json", type=Path,
+                        help="compile an on-chip residual model (delta6 train --target mcu) into "
+                             f"the firmware: writes {MODEL_HEADER} next to the design header; "
+                             "without it, a model header there is removed")
     parser.add_argument("--check", action="store_true",
                         help="write nothing; exit 1 if the header differs from what the design "
                              "(or with --wire, the protocol) generates")
@@ -61,11 +67,39 @@ def header_text(path: Path) -> tuple[design_mod.Design, str]:
     return design, render(design, source_label(path))
 
 
-def output_path(args: argparse.Namespace, design: design_mod.Design) -> Path:
+def model_text(design: design_mod.Design, design_path: Path, model_path: Path | None):
+    """The model header for ``model_path`` (None: no model, no header); refuses a model
+    trained for another design or over a base this firmware does not compute."""
+    if model_path is None:
+        return None, None
+    from delta6_codegen import render_model
+    model = residualmodel.load(model_path)
+    check_model(model, design)
+    return model, render_model(model, source_label(design_path), source_label(model_path))
+
+
+def check_model(model: residualmodel.ResidualModel, design: design_mod.Design) -> None:
+    if model.design_hash != design.hash32():
+        raise UserError(f"model '{model.name}' was trained for design '{model.design_name}' "
+                        f"(hash 0x{model.design_hash:08x}), not '{design.name}' "
+                        f"(0x{design.hash32():08x})")
+    if model.base != "analytical":
+        raise UserError(f"model '{model.name}' corrects the {model.base} model, which this "
+                        "firmware does not compute; train it over the analytical model")
+
+
+def build_name(design: design_mod.Design, model=None) -> str:
+    """The build directory's name: the design's, plus the model's name and hash."""
+    if model is None:
+        return design.name
+    return f"{design.name}+{model.name}-{model.hash32():08x}"
+
+
+def output_path(args: argparse.Namespace, design: design_mod.Design, model=None) -> Path:
     if args.output is not None:
         return args.output
     if args.build:
-        return avrbuild.design_include_dir(design.name) / HEADER_RELPATH
+        return avrbuild.design_include_dir(build_name(design, model)) / HEADER_RELPATH
     return COMMITTED_HEADER
 
 
@@ -87,14 +121,27 @@ def run(args: argparse.Namespace) -> int:
     if args.build or args.output is None:
         paths.checkout()    # the firmware tree the header belongs to, or one line saying so
     design, text = header_text(args.design)
-    out = output_path(args, design)
+    model, text_of_model = model_text(design, args.design, args.model)
+    out = output_path(args, design, model)
+    model_out = out.with_name(MODEL_HEADER)
     if args.check:
-        return check(out, text, source_label(args.design),
-                     f"delta6 codegen {source_label(args.design)}")
+        command = f"delta6 codegen {source_label(args.design)}" + (
+            f" --model {source_label(args.model)}" if args.model else "")
+        status = check(out, text, source_label(args.design), command)
+        if _read(model_out) != text_of_model:
+            print(f"{_rel(model_out)} is out of date; run: {command}", file=sys.stderr)
+            return 1
+        return status
     verb = "wrote" if _write_if_changed(out, text) else "unchanged:"
     print(f"{verb} {_rel(out)} for design '{design.name}' (hash 0x{design.hash32():08x})")
+    if model is not None:
+        verb = "wrote" if _write_if_changed(model_out, text_of_model) else "unchanged:"
+        print(f"{verb} {_rel(model_out)} for model '{model.name}' (hash 0x{model.hash32():08x}, "
+              f"{model.net.macs} multiply-accumulates per sample)")
+    elif _remove(model_out):
+        print(f"removed {_rel(model_out)}: no model")
     if args.build:
-        image = build_image(design, include_dir_of(out))
+        image = build_image(design, include_dir_of(out), model)
         sizes = image.sizes
         print(f"built {_rel(image.elf)} and .hex ({image.mcu}): flash {sizes.flash} B of "
               f"{avrbuild.NANO.flash_bytes}, static RAM {sizes.ram} B of {avrbuild.NANO.ram_bytes}")
@@ -129,21 +176,46 @@ def check(out: Path, text: str, source: str, command: str) -> int:
     return 0
 
 
-def build_image(design: design_mod.Design, include_dir: Path) -> avrbuild.Image:
-    """The firmware application for ``design`` (header under ``include_dir``), in
+def build_image(design: design_mod.Design, include_dir: Path, model=None) -> avrbuild.Image:
+    """The firmware application for ``design`` (headers under ``include_dir``), in
     build/designs/NAME/atmega328p/."""
     from delta6.build.appbuild import build_app
+    name = build_name(design, model)
     return build_app(include_dir, name=f"delta6-{design.name}",
-                     out_dir=avrbuild.design_build_dir(design.name) / "atmega328p")
+                     out_dir=avrbuild.design_build_dir(name) / "atmega328p")
 
 
-def design_firmware(path: Path) -> avrbuild.Image:
-    """Generate ``path``'s header into build/designs/NAME/include/ (the committed header is
-    left alone) and build the application for it: what ``delta6 virtual --design`` runs."""
+def design_firmware(path: Path, model_path: Path | None = None) -> avrbuild.Image:
+    """Generate ``path``'s header (and ``model_path``'s) into build/designs/NAME/include/ (the
+    committed headers are left alone) and build the application for it: what ``delta6 virtual
+    --design [--model]`` runs."""
     design, text = header_text(path)
-    header = avrbuild.design_include_dir(design.name) / HEADER_RELPATH
+    model, text_of_model = model_text(design, path, model_path)
+    header = avrbuild.design_include_dir(build_name(design, model)) / HEADER_RELPATH
     _write_if_changed(header, text)
-    return build_image(design, include_dir_of(header))
+    if model is not None:
+        _write_if_changed(header.with_name(MODEL_HEADER), text_of_model)
+    else:
+        _remove(header.with_name(MODEL_HEADER))
+    return build_image(design, include_dir_of(header), model)
+
+
+def _read(path: Path) -> str | None:
+    try:
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return None
+
+
+def _remove(path: Path) -> bool:
+    """Remove ``path`` if it exists; returns whether it did."""
+    try:
+        path.unlink()
+    except FileNotFoundError:
+        return False
+    except OSError as exc:
+        raise UserError(f"cannot remove {path}: {exc.strerror}") from None
+    return True
 
 
 def _write_if_changed(path: Path, text: str) -> bool:

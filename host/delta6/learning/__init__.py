@@ -1,0 +1,1 @@
+"""Learned estimators. ``mcu``: the small integer residual model the microcontroller runs."""
