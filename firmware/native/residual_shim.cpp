@@ -9,6 +9,9 @@
 #include <new>
 
 #include "delta6_residual.h"
+#if defined(D6R_GENERATED)
+#include "generated/delta6_model.h"
+#endif
 
 namespace r = delta6::residual;
 
@@ -95,6 +98,20 @@ void* d6r_create(uint16_t rate_hz, uint8_t nf, const uint8_t* kinds, const int16
     r::configure(s->model, s->state, board_rate_hz);
     return s;
 }
+
+#if defined(D6R_GENERATED)
+// A session on the generated header's model (delta6::model::kModel) instead of run-time arrays.
+void* d6r_create_generated(uint16_t board_rate_hz) {
+    Session* s = new (std::nothrow) Session();
+    if (!s) return nullptr;
+    s->model = delta6::model::kModel;
+    s->state = {s->wrench_ring, s->count_ring, s->plays, 0, 1, false};
+    r::configure(s->model, s->state, board_rate_hz);
+    return s;
+}
+
+uint32_t d6r_generated_hash() { return delta6::model::kHash; }
+#endif
 
 void d6r_destroy(void* session) { delete static_cast<Session*>(session); }
 

@@ -18,8 +18,17 @@ SOURCES = [FIRMWARE_CORE / "delta6_residual.cpp", FIRMWARE_NATIVE / "residual_sh
 _P = ctypes.c_void_p
 
 
-def library() -> ctypes.CDLL:
-    lib = load_library("residual_shim", SOURCES, include_dirs=[FIRMWARE_CORE])
+def library(include_dir=None) -> ctypes.CDLL:
+    """The shim; with ``include_dir`` (holding generated/delta6_model.h) it also offers a
+    session on that header's model (:meth:`NativeResidual.generated`)."""
+    if include_dir is None:
+        lib = load_library("residual_shim", SOURCES, include_dirs=[FIRMWARE_CORE])
+    else:
+        lib = load_library("residual_shim_generated", SOURCES,
+                           include_dirs=[FIRMWARE_CORE, include_dir], flags=("-DD6R_GENERATED",))
+        lib.d6r_create_generated.restype = _P
+        lib.d6r_create_generated.argtypes = [ctypes.c_uint16]
+        lib.d6r_generated_hash.restype = ctypes.c_uint32
     lib.d6r_requantize16.restype = ctypes.c_int32
     lib.d6r_requantize16.argtypes = [ctypes.c_int16, ctypes.c_int16, ctypes.c_uint8]
     lib.d6r_requantize32.restype = ctypes.c_int32
@@ -47,9 +56,14 @@ def _ptr(a: np.ndarray):
 class NativeResidual:
     """``net`` on the C engine at ``board_rate_hz``; use as a context manager or call close()."""
 
-    def __init__(self, net: Int8Net, board_rate_hz: int = 0, lib: ctypes.CDLL | None = None):
+    def __init__(self, net: Int8Net, board_rate_hz: int = 0, lib: ctypes.CDLL | None = None,
+                 generated: bool = False):
         self.lib = lib or library()
         self.net = net
+        if generated:   # the model compiled into ``lib`` from its header
+            board = int(board_rate_hz) if board_rate_hz else int(round(net.rate_hz))
+            self.handle = self.lib.d6r_create_generated(board)
+            return
         rate = int(round(net.rate_hz))
         board = int(board_rate_hz) if board_rate_hz else rate
         f = net.features

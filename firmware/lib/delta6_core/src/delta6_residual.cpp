@@ -57,6 +57,33 @@ inline float flashF32(const float* p) {
 #endif
 }
 
+// int8 x int8 -> int16: one MULS on the AVR (avr-gcc 5.4 otherwise widens to a 16 x 16 call).
+inline int16_t mul8(int8_t a, int8_t b) {
+#if defined(__AVR__)
+    int16_t product;
+    asm("muls %1, %2\n\tmovw %0, r0\n\tclr __zero_reg__" : "=r"(product) : "d"(a), "d"(b));
+    return product;
+#else
+    return static_cast<int16_t>(a * b);
+#endif
+}
+
+// Arithmetic right shift by 0..31 with the whole bytes moved first (the AVR shifts a 32-bit
+// value one bit per loop turn, so 24 bits would cost ~150 cycles).
+inline int32_t shiftRight(int32_t x, uint8_t s) {
+    if (s & 16) x >>= 16;
+    if (s & 8) x >>= 8;
+    return x >> (s & 7);
+}
+
+// 16 x 16 -> 32 multiplies through avr-gcc's widening signed helper, never a 32 x 32 one.
+inline int32_t mulS16(int16_t a, int16_t b) { return static_cast<int32_t>(a) * b; }
+// a * b for unsigned a: 2 (a / 2) b + (a mod 2) b, both products in 31 bits.
+inline int32_t mulU16S16(uint16_t a, int16_t b) {
+    const int32_t half = mulS16(static_cast<int16_t>(a >> 1), b);
+    return half + half + ((a & 1u) ? b : 0);
+}
+
 inline int16_t saturate16(int32_t v) {
     return static_cast<int16_t>(v > 32767 ? 32767 : (v < -32768 ? -32768 : v));
 }
@@ -113,23 +140,24 @@ void features(const Model& model, State& s, const int16_t base[6], const int16_t
 
 }  // namespace
 
+// floor((x + 2^(s-1)) / 2^s) = floor((floor(x / 2^(s-1)) + 1) / 2): the half is added after
+// the shift, so no 2^(s-1) is ever built (a one-bit-per-turn loop on the AVR).
 int32_t requantize16(int16_t value, int16_t m, uint8_t shift) {
-    const int32_t p = static_cast<int32_t>(value) * m;   // |p| <= 2^30
-    return (p + (static_cast<int32_t>(1) << (shift - 1))) >> shift;
+    const int32_t p = mulS16(value, m);   // |p| <= 2^30
+    return (shiftRight(p, static_cast<uint8_t>(shift - 1)) + 1) >> 1;
 }
 
 int32_t requantize32(int32_t acc, int16_t m, uint8_t shift) {
-    // acc * m = hi * m * 2^16 + lo * m, both products in 31 bits; then
-    // floor((acc * m + 2^(s-1)) / 2^s) = floor((hi * m + 2^(s-17) + floor(lo * m / 2^16)) / 2^(s-16))
-    // for s >= 17 (floor of a floor is the floor of the quotient), and for s = 16 the same
-    // with the half added to the low product.
+    // acc * m = hi * m * 2^16 + lo * m, both products in 31 bits. For s >= 17:
+    // floor(acc * m / 2^(s-1)) = floor((hi * m + floor(lo * m / 2^16)) / 2^(s-17)) (a floor of
+    // a floor is the floor of the quotient), then the half as in requantize16. For s = 16 the
+    // half goes to the low product.
     const int16_t hi = static_cast<int16_t>(acc >> 16);
     const uint16_t lo = static_cast<uint16_t>(acc);
-    const int32_t p = static_cast<int32_t>(hi) * m;
-    const int32_t q = static_cast<int32_t>(lo) * m;
+    const int32_t p = mulS16(hi, m);
+    const int32_t q = mulU16S16(lo, m);
     if (shift <= 16) return p + ((q + (static_cast<int32_t>(1) << 15)) >> 16);
-    const int32_t t = p + (static_cast<int32_t>(1) << (shift - 17)) + (q >> 16);
-    return t >> (shift - 16);
+    return (shiftRight(p + (q >> 16), static_cast<uint8_t>(shift - 17)) + 1) >> 1;
 }
 
 uint8_t strideFor(const Model& model, uint16_t board_rate_hz) {
@@ -173,11 +201,20 @@ void step(const Model& model, State& s, const int16_t base[6], const int16_t cou
         Layer layer;
         flashCopy(&layer, &model.layers[l], sizeof layer);
         const int8_t* w = layer.weights;
+        const uint8_t inputs = layer.inputs;
         for (uint8_t o = 0; o < layer.outputs; ++o) {
             int32_t acc = flashI32(layer.bias + o);
-            for (uint8_t j = 0; j < layer.inputs; ++j) {
-                acc += static_cast<int16_t>(flashI8(w++) * in[j]);
+            const int8_t* x = in;
+            // Two products fit an int16 (|w|, |x| <= 127): one 32-bit addition per pair.
+            uint8_t j = inputs;
+            for (; j >= 2; j = static_cast<uint8_t>(j - 2)) {
+                const int8_t w0 = flashI8(w++);
+                const int8_t w1 = flashI8(w++);
+                const int16_t pair = static_cast<int16_t>(mul8(w0, x[0]) + mul8(w1, x[1]));
+                x += 2;
+                acc += pair;
             }
+            if (j) acc += mul8(flashI8(w++), *x);
             const int32_t y = requantize32(acc, flashI16(layer.multiplier + o),
                                            flashU8(layer.shift + o));
             if (layer.relu) {
