@@ -44,7 +44,7 @@ class McuSettings:
     features: tuple = DEFAULT_FEATURES
     hidden: tuple = (16,)
     epochs: int = 30
-    batch: int = 256
+    batch: int = 1024
     learning_rate: float = 3e-3
     patience: int = 6
     holdout: float = 0.2
@@ -121,6 +121,7 @@ def train_mcu(log, design: Design, base, *, name: str, settings: McuSettings = M
     gain = 1.0 / np.maximum(v[train_rows].std(axis=0), 1.0)
 
     torch.manual_seed(settings.seed)
+    torch.set_num_threads(1)   # tiny layers: threads cost more than they bring
     rng = np.random.default_rng(settings.seed)
     layers, width = [], v.shape[1]
     for h in settings.hidden:

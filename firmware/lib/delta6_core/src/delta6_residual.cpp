@@ -103,38 +103,36 @@ inline const int16_t* past(const int16_t* ring, const State& s, uint8_t length, 
 // The int8 input vector of the first layer; advances the plays.
 void features(const Model& model, State& s, const int16_t base[6], const int16_t counts[6],
               int8_t* x) {
-    uint8_t play = 0;
+    int16_t* play = s.plays;
     for (uint8_t g = 0; g < model.feature_count; ++g) {
         Feature f;
         flashCopy(&f, &model.features[g], sizeof f);
-        const int16_t* now = nullptr;
-        const int16_t* then = nullptr;
-        if (f.kind == kFeatureWrenchStep || f.kind == kFeatureCountStep) {
+        int16_t v[6];
+        if (f.kind == kFeatureWrench) {
+            memcpy(v, base, sizeof v);
+        } else if (f.kind == kFeatureCounts) {
+            memcpy(v, counts, sizeof v);
+        } else if (f.kind == kFeaturePlay) {
+            for (uint8_t i = 0; i < 6; ++i) {
+                const int32_t lo = static_cast<int32_t>(counts[i]) - f.param;
+                const int32_t hi = static_cast<int32_t>(counts[i]) + f.param;
+                if (play[i] < lo) play[i] = static_cast<int16_t>(lo);
+                if (play[i] > hi) play[i] = static_cast<int16_t>(hi);
+                v[i] = saturate16(static_cast<int32_t>(counts[i]) - play[i]);
+            }
+            play += 6;
+        } else {   // the steps
             const int16_t* ring = f.kind == kFeatureWrenchStep ? s.wrench_ring : s.count_ring;
-            now = past(ring, s, model.history_length, static_cast<int16_t>(f.param - 1));
-            then = past(ring, s, model.history_length, f.param);
+            const int16_t* now =
+                past(ring, s, model.history_length, static_cast<int16_t>(f.param - 1));
+            const int16_t* then = past(ring, s, model.history_length, f.param);
+            for (uint8_t i = 0; i < 6; ++i) {
+                v[i] = saturate16(static_cast<int32_t>(now[i]) - then[i]);
+            }
         }
         for (uint8_t i = 0; i < 6; ++i) {
-            int32_t v;
-            switch (f.kind) {
-                case kFeatureWrench: v = base[i]; break;
-                case kFeatureCounts: v = counts[i]; break;
-                case kFeaturePlay: {
-                    int16_t* y = &s.plays[6 * play + i];
-                    const int32_t lo = static_cast<int32_t>(counts[i]) - f.param;
-                    const int32_t hi = static_cast<int32_t>(counts[i]) + f.param;
-                    if (*y < lo) *y = static_cast<int16_t>(lo);
-                    if (*y > hi) *y = static_cast<int16_t>(hi);
-                    v = static_cast<int32_t>(counts[i]) - *y;
-                    break;
-                }
-                default:   // the steps
-                    v = static_cast<int32_t>(now[i]) - then[i];
-                    break;
-            }
-            *x++ = saturate8(requantize16(saturate16(v), f.multiplier[i], f.shift[i]), -127);
+            *x++ = saturate8(requantize16(v[i], f.multiplier[i], f.shift[i]), -127);
         }
-        if (f.kind == kFeaturePlay) ++play;
     }
 }
 
