@@ -152,7 +152,7 @@ def main() -> int:
     net = model.net
     print(f"model '{model.name}' 0x{model.hash32():08x}: features "
           + ", ".join(f"{f.kind}({f.param})" if f.param else f.kind for f in net.features)
-          + f"; layers " + " -> ".join(str(x) for x in [net.inputs] + [l.shape[0] for l in net.layers])
+          + "; layers " + " -> ".join(str(x) for x in [net.inputs] + [l.shape[0] for l in net.layers])
           + f"; {net.macs} MACs; trained at {net.rate_hz:g} Hz")
 
     print("\nTable V on the evaluation run (integer reference = the board's integers):")

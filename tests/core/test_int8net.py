@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from delta6.core import int8net, int8quant, residualmodel
 from delta6.core.errors import UserError
+
 from support.int8nets import random_features, random_int8net, random_stream, trained_like
 
 

@@ -13,6 +13,7 @@ from delta6.build.nativeresidual import NativeResidual
 from delta6.core import int8net, residualmodel
 from delta6.core.model import ENCODER_COUNT_RAD
 from delta6_codegen import render_model
+
 from support.int8nets import random_features, random_int8net, random_stream, trained_like
 
 BOARD_RATES = (1, 10, 50, 100, 250, 300, 350, 400, 1000)

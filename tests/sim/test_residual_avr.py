@@ -11,6 +11,7 @@ from delta6.build import appbuild, avrbuild
 from delta6.core import int8net, residualmodel
 from delta6.sim import residualbench
 from delta6_codegen import render, render_model
+
 from support.int8nets import random_features, random_int8net, trained_like
 
 

@@ -8,8 +8,7 @@ from pathlib import Path
 
 from delta6.build import avrbuild
 from delta6.core import design as design_mod
-from delta6.core import paths
-from delta6.core import residualmodel
+from delta6.core import paths, residualmodel
 from delta6.core.errors import UserError
 from delta6.core.workspace import load_checked
 from delta6.link.protocol import VERSION as PROTOCOL_VERSION
