@@ -7,14 +7,22 @@
 #include "delta6_solver.h"
 #include "generated/delta6_design.h"
 
-// An on-chip residual model, when `delta6 codegen --model` put one next to the design header
-// (docs/ondevice-model.md); without it the firmware is exactly the one without a model.
+// A unit's calibration, when `delta6 codegen --calibration` put one next to the design header
+// (docs/calibration.md); without it the firmware is the plain analytical one.
+#if defined(__has_include)
+#if __has_include("generated/delta6_calibration.h")
+#include "delta6_calibrated.h"
+#include "generated/delta6_calibration.h"
+#define DELTA6_CALIBRATED 1
+#endif
+// An on-chip residual model over the base wrench (analytical or calibrated), when
+// `delta6 codegen --model` put one next to the design header (docs/ondevice-model.md); without
+// it the firmware is exactly the one without a model.
 #if __has_include("generated/delta6_model.h")
 #include "delta6_residual.h"
 #include "generated/delta6_model.h"
 #define DELTA6_RESIDUAL 1
-#else
-#define DELTA6_RESIDUAL 0
+#endif
 #endif
 
 // The fastest rate the board sustains without overruns in both stream modes, for the info
@@ -51,6 +59,12 @@ volatile uint8_t queue_head = 0;   // written by the interrupt
 volatile uint8_t queue_tail = 0;   // written by the main loop
 volatile uint8_t missed = 0;
 volatile bool latching = false;
+
+#if DELTA6_CALIBRATED
+// The calibrated model's history, and the zero counts it was built on (a new zero restarts it).
+delta6::CalibrationState calibration_state;
+uint16_t calibration_zero[6];
+#endif
 
 #if DELTA6_RESIDUAL
 namespace m = delta6::model;
@@ -97,6 +111,10 @@ class BoardHardware : public delta6::Hardware {
   }
   uint32_t micros() override { return board::micros(); }
   void sampleRateChanged(uint16_t rate_hz) override {
+#if DELTA6_CALIBRATED
+    delta6::calibration_set_period(delta6::calibration::kCalibrationConstants,
+                                   1.0f / static_cast<float>(rate_hz), calibration_state);
+#endif
 #if DELTA6_RESIDUAL
     delta6::residual::configure(m::kModel, residual_state, rate_hz);
 #endif
@@ -118,6 +136,13 @@ delta6::Identity identity = {
     DELTA6_MAX_RATE_HZ,
     0,   // serial number: set in setup()
     kEepromAddress,
+#if DELTA6_CALIBRATED
+    delta6::calibration::kName,
+    delta6::calibration::kHash,
+#else
+    nullptr,   // no calibration: the analytical model
+    0,
+#endif
 };
 // Zero counts 0 until the assembly is calibrated (ZERO_HERE, then SAVE_CONFIG).
 const delta6::Config defaults = {
@@ -143,7 +168,21 @@ void process(const Latched& latched) {
     const uint16_t* zero = device.zeroCounts();
     int16_t delta[6];
     for (uint8_t j = 0; j < 6; ++j) delta[j] = delta6::wrap_count_delta(s.counts[j], zero[j]);
+#if DELTA6_CALIBRATED
+    bool zero_changed = false;
+    for (uint8_t j = 0; j < 6; ++j) {
+      if (zero[j] != calibration_zero[j]) {
+        calibration_zero[j] = zero[j];
+        zero_changed = true;
+      }
+    }
+    if (zero_changed) delta6::calibration_reset(calibration_state);
+    s.solver_ok = delta6::solve_calibrated(d::kSolverConstants,
+                                           delta6::calibration::kCalibrationConstants,
+                                           calibration_state, delta, s.wrench) == delta6::kSolveOk;
+#else
     s.solver_ok = delta6::solve_counts(d::kSolverConstants, delta, s.wrench) == delta6::kSolveOk;
+#endif
 #if DELTA6_RESIDUAL
     applyResidual(s.solver_ok, zero, delta, s.wrench);
 #endif

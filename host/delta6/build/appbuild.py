@@ -17,9 +17,10 @@ SIZE_PROBE = avrbuild.FIRMWARE / "native" / "app_size_probe.cpp"
 
 
 def solver_sources() -> list[Path]:
-    """The wrench path: the solver and the residual engine (linked in only when a model header
-    makes the application call it)."""
-    return [avrbuild.CORE_LIB / "delta6_solver.cpp", avrbuild.CORE_LIB / "delta6_residual.cpp"]
+    """The wrench path: the solver, the calibrated model and the residual engine (each linked
+    in only when a generated header makes the application call it)."""
+    return [avrbuild.CORE_LIB / "delta6_solver.cpp", avrbuild.CORE_LIB / "delta6_calibrated.cpp",
+            avrbuild.CORE_LIB / "delta6_residual.cpp"]
 
 
 def app_sources() -> list[Path]:
@@ -39,12 +40,15 @@ def build_app(include_dir: Path | None = None, *, name: str = "delta6-app",
                                 defines=defines, out_dir=out_dir)
 
 
-def size_check_app(mcu: str = "avrxmega3", include_dir: Path | None = None) -> avrbuild.Image:
+def size_check_app(mcu: str = "avrxmega3", include_dir: Path | None = None,
+                   name: str = "delta6-app-probe") -> avrbuild.Image:
     """The application's portable part (app.cpp, solver, protocol core) on ``mcu`` with a
-    do-nothing board layer: what it costs on the ATmega4809's instruction set. The 4809 board
+    do-nothing board layer: what it costs on the ATmega4809's instruction set (``include_dir``:
+    a design's generated headers, with or without a calibration). The 4809 board
     layer itself needs the 4809's device headers, which Debian lacks."""
     sources = [APP_DIR / "app.cpp", SIZE_PROBE, *solver_sources(), *nativebuild.core_sources()]
-    return avrbuild.size_check(f"delta6-app-probe-{mcu}", sources,
-                               include_dirs=[include_dir or avrbuild.COMMITTED_DESIGN_INCLUDE, APP_DIR,
+    include = include_dir if include_dir is not None else avrbuild.COMMITTED_DESIGN_INCLUDE
+    return avrbuild.size_check(f"{name}-{mcu}", sources,
+                               include_dirs=[include, APP_DIR,
                                              avrbuild.CORE_LIB],
                                defines=["F_CPU=16000000UL"], mcu=mcu)

@@ -1,20 +1,24 @@
-"""``delta6 train --target mcu``: a small integer residual model for the microcontroller."""
+"""``delta6 train``: a learned estimator from a calibration log, exported to ONNX; with
+``--target mcu`` a small integer residual model the microcontroller runs (docs/ondevice-model.md)."""
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
 
-from delta6.commands._port import number
+from delta6.commands._port import Progress, number
+from delta6.core import calibration as calibration_mod
+from delta6.core.accuracy import format_table
 from delta6.core.errors import UserError
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
+from delta6.learning.presets import KINDS, PRESETS, preset
 from delta6.link.logfile import read_log
 
 NAME = "train"
-HELP = ("train a learned model on a calibration log; --target mcu: a quantized residual model "
-        "the microcontroller runs (JSON, for delta6 codegen --model), with its float network "
-        "as ONNX next to it")
+HELP = ("train a learned wrench estimator on a calibration log and export it to ONNX; "
+        "--target mcu: a quantized residual model the microcontroller runs (JSON, for "
+        "delta6 codegen --model), with its float network as ONNX next to it")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -22,21 +26,97 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "the reference wrench Fx..Mz (docs/log-format.md)")
     parser.add_argument("--design", default=str(DEFAULT_DESIGN), metavar="DESIGN.toml",
                         help="the design the log was recorded with (default: the paper's)")
-    parser.add_argument("--target", choices=("mcu",), required=True,
-                        help="mcu: an int8 residual model for the board (docs/ondevice-model.md)")
-    parser.add_argument("--residual-over", default="analytical", metavar="BASE",
-                        help="the model the residual corrects: 'analytical' (default)")
-    parser.add_argument("--hidden", default="16", metavar="N[xM]",
-                        help="hidden layer widths, e.g. 16 or 16x8 (default 16)")
-    parser.add_argument("--name", help="model name, at most 23 characters (default: the "
-                                       "output file's stem)")
+    parser.add_argument("--target", choices=("host", "mcu"), default="host",
+                        help="host (default): an ONNX estimator for the host; mcu: an int8 "
+                             "residual model compiled into the firmware (docs/ondevice-model.md)")
+    parser.add_argument("--model", choices=KINDS,
+                        help="network: mlp, lstm, gru or transformer (--target host)")
+    parser.add_argument("--residual-over", default="none", metavar="BASE",
+                        help="learn only what BASE misses: 'analytical' (the paper's model) "
+                             "or a calibration file CAL.toml (delta6 calibrate: the hybrid); "
+                             "default: the whole wrench (end-to-end)")
+    parser.add_argument("--preset", choices=tuple(PRESETS), default="default",
+                        help="'paper': the paper's Table IV sizes and recipe (slow on a CPU); "
+                             "'default': small models that train in minutes")
     parser.add_argument("--seed", type=number("--seed", int, 0), default=0,
                         help="seed of the initial weights and the batch order (default 0)")
-    parser.add_argument("--epochs", type=number("--epochs", int, 1), default=30, metavar="N",
-                        help="at most N epochs (default 30; early stopping on a held-back part)")
-    parser.add_argument("-o", "--output", required=True, metavar="MODEL.json", type=Path,
-                        help="the model file (the float network goes to MODEL.onnx)")
+    parser.add_argument("--epochs", type=number("--epochs", int, 1), metavar="N",
+                        help="at most N epochs (default: the preset's; --target mcu: 30, with "
+                             "early stopping on a held-back part)")
+    parser.add_argument("--max-minutes", type=number("--max-minutes", low=0, low_open=True),
+                        metavar="M", help="stop after about M minutes, keeping the best "
+                                          "checkpoint so far")
+    parser.add_argument("--threads", type=number("--threads", int, 1), default=1, metavar="N",
+                        help="CPU threads for training (default 1: these networks are small, "
+                             "and on a busy machine more threads wait more than they work)")
+    parser.add_argument("--hidden", default="16", metavar="N[xM]",
+                        help="--target mcu: hidden layer widths, e.g. 16 or 16x8 (default 16)")
+    parser.add_argument("--name", help="--target mcu: model name, at most 23 characters "
+                                       "(default: the output file's stem)")
+    parser.add_argument("-o", "--output", required=True, metavar="MODEL.onnx",
+                        help="where to write the model (--target mcu: MODEL.json, and the "
+                             "float network to MODEL.onnx)")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.target == "mcu":
+        return run_mcu(args)
+    if args.model is None:
+        raise UserError("give the network with --model (mlp, lstm, gru or transformer), or "
+                        "--target mcu")
+    base, calibration = args.residual_over, None
+    if base not in ("none", "analytical"):
+        if not base.lower().endswith(".toml"):
+            raise UserError(f"--residual-over {base}: 'analytical' or a calibration file "
+                            "(CAL.toml)")
+        calibration = calibration_mod.load(base)
+        base = "calibration"
+    folder = Path(args.output).resolve().parent
+    if not folder.is_dir():     # before the minutes of training, not after
+        raise UserError(f"cannot write {args.output}: no folder {folder}")
+    design = load_checked(args.design)
+    log = read_log(args.log)
+    chosen = preset(args.preset, args.model)
+    changes = {k: v for k, v in (("max_epochs", args.epochs), ("max_minutes", args.max_minutes))
+               if v is not None}
+    if changes:
+        chosen = chosen.with_recipe(**changes)
+    try:
+        from delta6.learning import fit
+    except ImportError as exc:
+        raise UserError(f"training needs torch ({exc.name} is missing): pip install "
+                        "'delta6[train]'") from None
+
+    display = Progress(sys.stderr)
+
+    def progress(r) -> None:
+        if not args.quiet:
+            display.show(f"epoch {r.epoch:>3}/{r.max_epochs}  train {r.train_loss:.5f}  "
+                         f"held-out {r.holdout_loss:.5f}  best {r.best_loss:.5f} "
+                         f"(epoch {r.best_epoch})  lr {r.lr:.1e}  {r.seconds:5.0f} s")
+
+    try:
+        fitted = fit.fit(log, design, chosen, base=base, calibration=calibration, seed=args.seed,
+                         threads=args.threads, source=args.log, progress=progress)
+    finally:
+        display.end()
+    diff = fit.write(fitted, args.output)
+    s = fitted.card.training
+    print(f"{args.output}: {fitted.card.describe()}")
+    print(f"  {args.preset} preset, {s['parameters']} parameters, {s['epochs']} epochs in "
+          f"{s['seconds']:.0f} s ({s['stopped']}); best epoch {s['best_epoch']}; ONNX equals "
+          f"torch within {diff:.1e}")
+    print(f"Held-out tail of the log ({s['holdout_rows']} rows), |error| % FS:")
+    print(format_table(_rows(s["holdout_pct_fs"]), title=args.model))
+    if s.get("holdout_base_pct_fs"):
+        print(format_table(_rows(s["holdout_base_pct_fs"]),
+                           title="calibrated" if calibration else args.residual_over))
+    return 0
+
+
+def _rows(table: dict) -> dict:
+    return {{"p100": "max"}.get(k, k): v for k, v in table.items()}
 
 
 def _hidden(text: str) -> tuple[int, ...]:
@@ -49,17 +129,35 @@ def _hidden(text: str) -> tuple[int, ...]:
     return sizes
 
 
-def run(args: argparse.Namespace) -> int:
-    if args.residual_over != "analytical":
-        raise UserError(f"--residual-over {args.residual_over}: only 'analytical' is available "
-                        "in this version")
+def _mcu_base(args, design):
+    """The base the on-chip residual corrects: the analytical model, or a unit's calibrated
+    model (the board then runs the calibrated firmware, codegen --calibration)."""
+    from delta6.learning import mcu
+    over = args.residual_over
+    if over in ("none", "analytical"):
+        return mcu.AnalyticalBase(design)
+    if not over.lower().endswith(".toml"):
+        raise UserError(f"--residual-over {over}: 'analytical' or a calibration file (CAL.toml)")
+    cal = calibration_mod.load(over)
+    cal.check_design(design)
+    return mcu.CalibratedBase(design, cal)
+
+
+def run_mcu(args: argparse.Namespace) -> int:
+    """``--target mcu``: fit, quantize and score the integer residual model; write it as JSON
+    and its float network as ONNX."""
+    if args.model is not None:
+        raise UserError("--model picks a host network; --target mcu trains its own small MLP "
+                        "(see --hidden)")
     hidden = _hidden(args.hidden)
-    name = args.name or args.output.stem
+    output = Path(args.output)
+    name = args.name or output.stem
     if not name or len(name) > 23 or not name.isascii() or not name.isprintable():
         raise UserError("--name: 1..23 printable ASCII characters")
-    if args.output.suffix.lower() != ".json":
+    if output.suffix.lower() != ".json":
         raise UserError("-o: the model file is JSON (MODEL.json); the ONNX goes next to it")
     design = load_checked(args.design)
+    base = _mcu_base(args, design)
     log = read_log(args.log)
     try:
         import torch  # noqa: F401
@@ -68,18 +166,18 @@ def run(args: argparse.Namespace) -> int:
     from delta6.core import residualmodel
     from delta6.learning import mcu
     say = None if args.quiet else (lambda text: print(f"  {text}", file=sys.stderr, flush=True))
-    settings = mcu.McuSettings(hidden=hidden, epochs=args.epochs, seed=args.seed)
-    result = mcu.train_mcu(log, design, mcu.AnalyticalBase(design), name=name,
-                           settings=settings, progress=say, source=Path(args.log).name)
-    path = residualmodel.save(result.model, args.output)
-    onnx_path = mcu.export_onnx(result.float_net, args.output.with_suffix(".onnx"),
+    settings = mcu.McuSettings(hidden=hidden, epochs=args.epochs or 30, seed=args.seed)
+    result = mcu.train_mcu(log, design, base, name=name, settings=settings, progress=say,
+                           source=Path(args.log).name)
+    path = residualmodel.save(result.model, output)
+    onnx_path = mcu.export_onnx(result.float_net, output.with_suffix(".onnx"),
                                 {"delta6_model": name,
                                  "delta6_model_hash": f"0x{result.model.hash32():08x}",
                                  "delta6_design_hash": f"0x{design.hash32():08x}",
                                  "inputs": "int8 engine feature values, see the JSON model"})
     r = result.report
-    print(f"wrote {path} (model '{name}', hash 0x{result.model.hash32():08x}, {r['macs']} "
-          f"multiply-accumulates per sample) and {onnx_path}")
+    print(f"wrote {path} (model '{name}' over {base.name}, hash 0x{result.model.hash32():08x}, "
+          f"{r['macs']} multiply-accumulates per sample) and {onnx_path}")
     print(f"held-out p99 % FS ({r['heldout']}): Fx Fy Fz Mx My Mz")
     for key in ("base", "float", "int8"):
         print(f"  {key:<6} " + " ".join(f"{v:5.2f}" for v in r["heldout_p99_pct"][key]))

@@ -77,6 +77,28 @@ class ResidualModel:
         return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "big")
 
 
+def check_base(model: ResidualModel, design, calibration=None) -> None:
+    """The model must correct what runs under it: ``design``'s analytical wrench without a
+    calibration, the calibrated wrench of that very calibration with one (one line, else)."""
+    if model.design_hash != design.hash32():
+        raise UserError(f"model '{model.name}' was trained for design '{model.design_name}' "
+                        f"(hash 0x{model.design_hash:08x}), not '{design.name}' "
+                        f"(0x{design.hash32():08x})")
+    if model.base == "analytical":
+        if calibration is not None:
+            raise UserError(f"model '{model.name}' corrects the analytical model, not calibration "
+                            f"'{calibration.name}'; train it with --residual-over the "
+                            "calibration, or leave --calibration out")
+        return
+    trained_over = f"calibration '{model.calibration_name}' (hash 0x{model.calibration_hash:08x})"
+    if calibration is None:
+        raise UserError(f"model '{model.name}' corrects {trained_over}; give it with "
+                        "--calibration")
+    if model.calibration_hash != calibration.hash32():
+        raise UserError(f"model '{model.name}' was trained over {trained_over}, not calibration "
+                        f"'{calibration.name}' (hash 0x{calibration.hash32():08x})")
+
+
 def dumps(model: ResidualModel) -> str:
     body = {"schema": SCHEMA, **model.identity(), "training": model.training}
     return json.dumps(body, indent=1) + "\n"

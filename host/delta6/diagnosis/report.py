@@ -9,7 +9,7 @@ from delta6.core.model import AXES
 from delta6.diagnosis.data import GapData
 
 
-def _plt():
+def pyplot():
     try:
         import matplotlib
     except ImportError:  # pragma: no cover - depends on the install
@@ -30,7 +30,7 @@ def _table(header: list[str], rows: list[str]) -> list[str]:
 
 def write_report(result: dict, data: GapData, out_dir: str | Path, source: str = "") -> Path:
     """Write ``report.md`` and its PNG plots into ``out_dir``; returns the report's path."""
-    plt = _plt()
+    plt = pyplot()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     figures = {

@@ -111,7 +111,7 @@ def _kinematic_part(data: GapData) -> np.ndarray:
     return data.angle_jacobian - data.torque_map * data.params.k
 
 
-def _force_rotation(data: GapData, vectors: np.ndarray) -> np.ndarray:
+def force_rotation(data: GapData, vectors: np.ndarray) -> np.ndarray:
     """Wrench change when {E0} turns by a small rotation about each {B} axis e_k, scaled by
     ``vectors`` (n, 3) per sample (or ones): Delta F_E = -R^T (e_k x F0), moments unchanged.
     Returns (n, 6, 3)."""
@@ -131,7 +131,7 @@ def _geometry(data: GapData) -> np.ndarray:
     # Lengths and azimuths per branch, the rest angle of each proximal link (a kinematic
     # angle shift that leaves the spring torque alone), and a misaligned gimbal unit.
     rest = _kinematic_part(data)[:, :, :3]
-    tilt = _force_rotation(data, np.ones((len(data), 3)))
+    tilt = force_rotation(data, np.ones((len(data), 3)))
     return np.concatenate([data.geometry_jacobian, rest, tilt], axis=-1)
 
 
@@ -177,7 +177,7 @@ def _compliance(data: GapData) -> np.ndarray:
     from delta6.core.model import base_force
     f0 = base_force(data.params, data.theta[:, :3])
     m_p = data.params.k[3:] * data.theta[:, 3:] + np.cross([0.0, 0.0, data.params.c], f0)
-    tilt = _force_rotation(data, m_p).sum(axis=-1, keepdims=True)  # isotropic, rad/(N*m)
+    tilt = force_rotation(data, m_p).sum(axis=-1, keepdims=True)  # isotropic, rad/(N*m)
     return np.concatenate([axial * 1e-6, bending, tilt], axis=-1)  # axial in um/N
 
 

@@ -71,6 +71,45 @@ class AnalyticalBase:
         return model.wrench(self.design, np.asarray(log.theta, dtype=float))
 
 
+class CalibratedBase:
+    """A unit's calibrated model as the base (what the board computes when built with
+    ``codegen --calibration``); the model file names the calibration it was trained over."""
+
+    name = "calibrated"
+
+    def __init__(self, design: Design, calibration):
+        from delta6.core.calibrated import CalibratedModel
+        self.model = CalibratedModel(design, calibration)
+        self.calibration_name = calibration.name
+        self.calibration_hash = calibration.hash32()
+
+    def predict(self, log) -> np.ndarray:
+        return self.model.predict(log)
+
+
+class McuEstimator:
+    """An on-chip residual model file run through the integer reference over its base, as the
+    board runs it (an estimator for ``delta6.evaluation.tablev``, named after the file)."""
+
+    def __init__(self, path: str | Path, design: Design, calibration=None):
+        from delta6.core import residualmodel
+        self.path = Path(path)
+        self.name = self.path.stem
+        self.model = residualmodel.load(self.path)
+        residualmodel.check_base(self.model, design, calibration)
+        self.design = design
+        self.base = (AnalyticalBase(design) if calibration is None
+                     else CalibratedBase(design, calibration))
+
+    def predict(self, log) -> np.ndarray:
+        net = self.model.net
+        base_wrench = self.base.predict(log)
+        u, counts, valid = board_inputs(log, self.design, base_wrench, net.input_scale)
+        stride = int8net.stride_for(net, nominal_rate(log.t)) if len(log.t) > 1 else 1
+        correction, _ = int8net.run(net, u, counts, stride=stride, valid=valid)
+        return int8net.apply_output(base_wrench, correction, net.output_step).astype(float)
+
+
 def nominal_rate(t: np.ndarray) -> float:
     steps = np.diff(np.asarray(t, dtype=float))
     if len(steps) == 0 or not np.all(np.isfinite(steps)) or np.median(steps) <= 0:
