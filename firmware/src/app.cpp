@@ -143,6 +143,13 @@ delta6::Identity identity = {
     nullptr,   // no calibration: the analytical model
     0,
 #endif
+#if DELTA6_RESIDUAL
+    m::kName,
+    m::kHash,
+#else
+    nullptr,   // no on-chip residual model
+    0,
+#endif
 };
 // Zero counts 0 until the assembly is calibrated (ZERO_HERE, then SAVE_CONFIG).
 const delta6::Config defaults = {

@@ -292,7 +292,10 @@ def test_garbage_to_the_device_is_counted_and_streaming_goes_on(bench):
 
 
 def test_encoder_faults_flag_exactly_their_samples():
-    b = Bench(rate_hz=500, encoder_faults={3: 0.3, 6: 0.1}, seed=4)
+    # A queue that holds the 188-byte boot INFO beside the first two raw records: START comes
+    # at once here, while that INFO still drains (the drops a smaller queue gives are counted
+    # and flagged: test_answers_go_first_on_a_full_link_...).
+    b = Bench(rate_hz=500, encoder_faults={3: 0.3, 6: 0.1}, seed=4, tx_capacity=320)
     b.send(C.SET_MODE, P.Mode.WRENCH_RAW)
     b.send(C.START, 500)
     records = data(b.run(1.0))
@@ -342,10 +345,10 @@ def test_overrange_and_joint_limit(bench):
 
 
 def test_answers_go_first_on_a_full_link_and_every_drop_is_a_counted_gap():
-    """A 170-byte transmit queue at 1.6 kHz: the 160-byte info record only fits into an empty
+    """A 198-byte transmit queue at 1.6 kHz: the 188-byte info record only fits into an empty
     queue, so data records give way until it went out. The host sees exactly the gaps the
     device counts, and the first record after each gap says so."""
-    b = Bench(rate_hz=1000, tx_capacity=170, baud=500_000)
+    b = Bench(rate_hz=1000, tx_capacity=198, baud=500_000)
     records = b.send(C.START, 1600)
     infos = 0
     for _ in range(20):
