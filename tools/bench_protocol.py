@@ -140,7 +140,7 @@ def host_path(seconds: float = 3.0, rate: int = 2000) -> None:
             os.close(slave)
 
     def bare(slave, master, stop):
-        return lambda: len(os.read(slave, 65536)) // 25
+        return lambda: len(os.read(slave, 65536)) // P.wire_bytes(P.RecordType.WRENCH)
 
     base_cpu, _ = run(bare)
     box = {}
@@ -187,14 +187,15 @@ def avr_cycles() -> None:
     c = avr_session.cycles(result)
 
     def fig(name):
-        return f"{c[name]:.0f} ({c[name] / 16:.0f} us)"
+        return f"{c[name]:.0f} ({c[name] / (avrbuild.NANO.f_cpu / 1e6):.0f} us)"
 
-    print("5. AVR cycles (ATmega328P at 16 MHz, emulated; mean per call; output "
+    print(f"5. AVR cycles (ATmega328P at {avrbuild.NANO.f_cpu / 1e6:g} MHz, emulated; mean per call; output "
           f"{'identical to' if same else 'DIFFERENT FROM'} the native build):")
     print(f"   onSample: stopped {fig('stopped')}, streaming wrench {fig('wrench')}, "
           f"wrench+raw {fig('raw')}, wrench+raw tared {fig('raw_tared')}")
     print(f"   the byte completing a command: start {fig('start')}, get_info {fig('get_info')} "
-          f"(a 128-byte record), get_telemetry {fig('get_telemetry')}; begin {fig('begin')}")
+          f"(a {P.RECORD_SIZES[P.RecordType.INFO]}-byte record), "
+          f"get_telemetry {fig('get_telemetry')}; begin {fig('begin')}")
 
 
 def main() -> int:

@@ -7,6 +7,8 @@ and the worst error of what the AVR computed against the Python reference (% ful
     .venv/bin/python tools/bench_solver_avr.py designs/*.toml       # every variant
     .venv/bin/python tools/bench_solver_avr.py --solves 2000 --csv build/bench.csv
     .venv/bin/python tools/bench_solver_avr.py --stages             # + cycles per stage
+    .venv/bin/python tools/bench_solver_avr.py --calibration unit.toml --stages
+                                  # the calibrated solver of a unit (delta6 calibrate)
 
 Exit status 1 if a requirement fails (more than 40,000 cycles per solve, an AVR result off by
 more than 0.05 % FS, or a solve that did not succeed inside the box); 2 on bad input.
@@ -21,17 +23,19 @@ from pathlib import Path
 import numpy as np
 
 from delta6.build import avrbuild
+from delta6.commands.codegen import build_name, calibration_text
+from delta6.core.calibrated import CalibratedModel
 from delta6.core.design import load
 from delta6.core.errors import UserError
 from delta6.core.model import AXES, ENCODER_COUNT_RAD, wrench
 from delta6.core.spec import full_scale
 from delta6.sim import solverbench
-from delta6_codegen import render
+from delta6_codegen import render, render_calibration
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-F_CPU = 16_000_000
+F_CPU = avrbuild.NANO.f_cpu
 REQUIRED_CYCLES = 40_000
 GOAL_CYCLES = 16_000
 REQUIRED_ACCURACY_PCT_FS = 0.05
@@ -124,6 +128,45 @@ def bench_one(path: Path, solves: int, csv_rows: list | None, stages: bool = Fal
     return cycles_ok and accuracy_ok and status_ok
 
 
+def bench_calibrated(path: Path, cal_path: Path, solves: int, stages: bool) -> bool:
+    """The calibrated solver of the unit ``cal_path`` along the bench's random walk: cycles,
+    the stage profile and the worst difference from the Python calibrated model."""
+    design = load(path)
+    cal, _ = calibration_text(design, path, cal_path)
+    include = avrbuild.design_include_dir(f"bench-{build_name(design, cal)}")
+    generated = include / "generated"
+    generated.mkdir(parents=True, exist_ok=True)
+    (generated / "delta6_design.h").write_text(render(design, label_of(path)))
+    (generated / "delta6_calibration.h").write_text(
+        render_calibration(design, cal, label_of(path), label_of(cal_path)))
+    say(f"[{cal.name}] building the calibrated bench and running {solves} solves in simavr ...")
+    run = solverbench.run_bench(include, solves=solves, name="bench-calibrated",
+                                calibrated=True, profile=stages)
+    rep = run.report
+    ok = rep.status == 0
+    python, _ = CalibratedModel(design, cal).run(rep.delta.astype(float),
+                                                 solverbench.CALIBRATED_PERIOD_S)
+    err = (np.abs(rep.wrench.astype(float) - python) / full_scale(design))[ok].max(axis=0) * 100
+    cyc = run.cycles
+    lines = [
+        f"Calibrated solver on the ATmega328P at 16 MHz (simavr): unit '{cal.name}' "
+        f"(0x{cal.hash32():08x}; {', '.join(cal.effects) or 'no effects'})",
+        f"  inputs        {solves} solves along a random walk at "
+        f"{1 / solverbench.CALIBRATED_PERIOD_S:.0f} Hz; {int(ok.sum())} OK",
+        f"  cycles/solve  mean {cyc.mean():,.0f}  min {cyc.min():,}  max {cyc.max():,}"
+        + ("   (profile build: stage markers included)" if stages else ""),
+        "  accuracy      worst |AVR - Python calibrated model| per axis, % of full scale "
+        "(required < 0.01): " + ("PASS" if np.all(err < 0.01) else "FAIL"),
+        "                " + "  ".join(f"{a} {e:.2e}" for a, e in zip(AXES, err)),
+    ]
+    if stages:
+        lines.append("  stages        mean cycles per stage")
+        for label, spans in run.stages.items():
+            lines.append(f"                {spans.mean():8,.0f}  {label}")
+    print("\n".join(lines), flush=True)
+    return bool(ok.all() and np.all(err < 0.01))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("designs", nargs="*", type=Path, metavar="DESIGN.toml",
@@ -135,10 +178,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--csv", type=Path, metavar="PATH",
                         help="also write every solve (inputs, status, cycles, AVR and reference "
                              "wrench) to a CSV file")
+    parser.add_argument("--calibration", type=Path, metavar="CAL.toml",
+                        help="bench the calibrated solver of this unit instead (one design)")
     args = parser.parse_args(argv)
     if not 65 <= args.solves <= 20000:
         parser.error("--solves must be between 65 and 20000")
     rows = [] if args.csv else None
+    if args.calibration is not None:
+        if len(args.designs) != 1 or args.csv:
+            parser.error("--calibration takes one design and no --csv")
+        try:
+            return 0 if bench_calibrated(args.designs[0], args.calibration, args.solves,
+                                         args.stages) else 1
+        except UserError as exc:
+            print(f"bench_solver_avr: error: {exc}", file=sys.stderr)
+            return 2
     try:
         results = [bench_one(path, args.solves, rows, args.stages) for path in args.designs]
     except UserError as exc:

@@ -22,6 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from delta6.build import avrbuild
 from delta6.link import protocol as P
 from delta6.link.device import Device
 from delta6.sim.virtualboard import (
@@ -33,7 +34,7 @@ from delta6.sim.virtualboard import (
     write_replay,
 )
 
-F_CPU = 16_000_000
+F_CPU = avrbuild.NANO.f_cpu
 DEFAULT_RATES = (250, 300, 350, 400, 425, 450, 475, 500, 550)
 
 
@@ -82,7 +83,7 @@ def measure(board: VirtualBoard, dev: Device, rate: int, seconds: float) -> dict
 
 def print_table(mode: str, rows: list[dict]) -> None:
     print(f"\n{mode}: {P.wire_bytes(P.data_record_type(P.Mode.WRENCH if mode == 'wrench' else P.Mode.WRENCH_RAW))} "
-          "bytes per record at 500000 baud")
+          f"bytes per record at {P.DEFAULT_BAUD} baud")
     print(f"  {'Hz':>5} {'missed':>6} {'busy':>6} {'scan us':>8} {'work us':>8} {'solve cyc':>10} "
           f"{'onSample cyc':>12} {'latency us mean/p99/max':>24} {'UART':>6} {'emu x':>6}")
     for r in rows:
@@ -104,7 +105,7 @@ def main() -> int:
 
     image = firmware(defines=["DELTA6_MAX_RATE_HZ=2000"])
     print(f"firmware image: {image.elf.name}, flash {image.sizes.flash} B, "
-          f"static RAM {image.sizes.ram} B (ATmega328P, 16 MHz, 500000 baud)")
+          f"static RAM {image.sizes.ram} B (ATmega328P, {F_CPU / 1e6:g} MHz, {P.DEFAULT_BAUD} baud)")
     t, theta = demo_trajectory(duration_s=30.0, rate_hz=1000.0, amplitude=0.9)
     results = {}
     with tempfile.TemporaryDirectory() as tmp:
@@ -161,7 +162,7 @@ def main() -> int:
           f"{byte_cycles['max']:.0f} max ({cycles_to_us(byte_cycles['max']):.0f} us: a command "
           "completed and answered)")
     print(f"RAM: {image.sizes.ram} B static + {stack} B peak stack = "
-          f"{image.sizes.ram + stack} B of 2048 (ATmega328P; the 4809 has 6144)")
+          f"{image.sizes.ram + stack} B of {avrbuild.NANO.ram_bytes} (ATmega328P; the 4809 has 6144)")
     print("work = scan + the main loop's work on one sample (frame checks, solve, onSample),\n"
           "  interrupts included; emu x = board seconds per wall second, unpaced "
           "(delta6 virtual paces to 1.0)")

@@ -10,7 +10,7 @@ import numpy as np
 from delta6.build import avrbuild
 from delta6.sim import avrsim
 
-F_CPU = 16_000_000
+F_CPU = avrbuild.NANO.f_cpu
 
 
 def main() -> None:
@@ -25,7 +25,7 @@ def main() -> None:
                                  ("tool transform", (3, 4))):
         spans = np.array(result.spans(start, stop)) - base
         print(f"{label:24s} mean {spans.mean():7.0f} cycles, max {spans.max():7.0f} "
-              f"({spans.mean() / F_CPU * 1e6:5.0f} us at 16 MHz), {len(spans)} runs")
+              f"({spans.mean() / F_CPU * 1e6:5.0f} us at {F_CPU / 1e6:g} MHz), {len(spans)} runs")
     print(f"image: flash {image.sizes.flash} B (the two modules and the float library)")
 
 

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# The README's main command: set up what is missing, print the design report, then start the
-# virtual board (the real firmware on an emulated ATmega328P, its six encoders driven live by
-# the digital twin) and stream its wrench. DELTA6_STREAM_SECONDS (default 20) sets how long;
+# The README's main command: set up what is missing, print the design report of the paper's
+# Delta6 and the four shipped variants side by side, then start the virtual board (the real
+# firmware on an emulated ATmega328P, its six encoders driven live by the digital twin) and
+# stream its wrench. DELTA6_STREAM_SECONDS (default 20) sets how long;
 # Ctrl-C ends the stream earlier. The board is stopped cleanly either way.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -10,6 +11,8 @@ cd "$ROOT"
 D6="$ROOT/.venv/bin/delta6"
 
 "$D6" design designs/delta6.toml
+echo
+"$D6" design designs/*.toml            # the four shipped variants side by side
 echo
 
 work=$(mktemp -d)

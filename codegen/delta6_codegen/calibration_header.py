@@ -21,7 +21,7 @@ from .solver_constants import TABLE_STEP, _coarse, f32, solver_constants
 
 #: Must equal delta6::kCalibrationConstantsVersion, kMaxPlayRadii, kMaxSignSpeeds,
 #: kTorqueShift.
-CALIBRATION_VERSION = 3
+CALIBRATION_VERSION = 4
 MAX_RADII = 4
 MAX_SPEEDS = 4
 TORQUE_SHIFT = 28
@@ -37,7 +37,7 @@ class CalibrationConstants:
     kx: tuple
     kw: tuple                  # 6 rows of MAX_RADII
     kd: tuple
-    k0: tuple
+    k0: tuple                  # fixed point, as kx
     direction_half: int
     radii: int
     radius: tuple
@@ -45,9 +45,10 @@ class CalibrationConstants:
     speeds: int
     breakpoint: tuple
     slope: tuple               # 6 rows of MAX_SPEEDS + 1
-    offset: tuple              # 6 rows of MAX_SPEEDS + 1
+    offset: tuple              # 6 rows of MAX_SPEEDS + 1, fixed point
     table: tuple               # names of the six tables
     ed: tuple
+    eh: tuple
     elbow: tuple
     ux: tuple
     uy: tuple
@@ -102,13 +103,7 @@ def calibration_constants(design: Design, cal: Calibration) -> CalibrationConsta
     kx = rate * ENCODER_COUNT_RAD
     kw = cal.hysteresis_nm / radii
     kd = (rate * 0.5 * cal.backlash_play_rad + cal.presliding_nm) / half
-    # The int32 sum must hold its largest value over the joint box and every play state.
-    sc = solver_constants(design)
-    worst = (np.abs(kx) * sc.limit_counts + np.abs(kd) * 2 * half
-             + (np.abs(kw) * radii).sum(axis=1)) * 2.0 ** TORQUE_SHIFT
-    if np.any(worst >= 2.0 ** 31):
-        raise CalibrationRangeError("the calibration's torque terms exceed the firmware's "
-                                    "fixed-point range (hysteresis weights too large?)")
+    k0 = -rate * cal.offset_rad
     # Friction as a piecewise-linear function: on segment k of |v| (k speeds below it) the
     # first k signs are saturated (+-c_s), the others linear (c_s v / V_s).
     order = np.argsort(speeds)
@@ -117,6 +112,15 @@ def calibration_constants(design: Design, cal: Calibration) -> CalibrationConsta
     slope = np.stack([cal.viscous_nm_s_per_rad + (c[:, k:] / v_sorted[k:]).sum(axis=1)
                       for k in range(len(speeds) + 1)], axis=1)
     offset = np.stack([c[:, :k].sum(axis=1) for k in range(len(speeds) + 1)], axis=1)
+    # The int32 sum (count terms, constant, friction offset) must hold its largest value over
+    # the joint box and every play state.
+    sc = solver_constants(design)
+    worst = (np.abs(kx) * sc.limit_counts + np.abs(kd) * 2 * half
+             + (np.abs(kw) * radii).sum(axis=1) + np.abs(k0)
+             + np.abs(offset).max(axis=1, initial=0.0)) * 2.0 ** TORQUE_SHIFT
+    if np.any(worst >= 2.0 ** 31 - 64):
+        raise CalibrationRangeError("the calibration's torque terms exceed the firmware's "
+                                    "fixed-point range (hysteresis weights too large?)")
     # Each joint's coarse table holds its constant angle corrections, as the solver's tables.
     rows = sc.branch_table.shape[0]
     coarse = (np.arange(rows) * TABLE_STEP - sc.table_origin) * ENCODER_COUNT_RAD
@@ -125,13 +129,14 @@ def calibration_constants(design: Design, cal: Calibration) -> CalibrationConsta
                 - cal.offset_rad[j]) if j < 3 else _coarse(coarse, 1.0, -cal.offset_rad[j])
         for j in range(6))
     return CalibrationConstants(
-        kx=_q(kx), kw=_padded(kw, MAX_RADII, _q), kd=_q(kd), k0=_f(-rate * cal.offset_rad),
+        kx=_q(kx), kw=_padded(kw, MAX_RADII, _q), kd=_q(kd), k0=_q(k0),
         direction_half=int(half), radii=len(radii),
         radius=tuple(int(r) for r in radii) + (1,) * (MAX_RADII - len(radii)),
         speed_tau=f32(cal.speed_filter_s), speeds=len(speeds),
         breakpoint=_f(np.concatenate([speeds[order], np.full(MAX_SPEEDS - len(speeds), 1e30)])),
-        slope=_padded(slope, MAX_SPEEDS + 1), offset=_padded(offset, MAX_SPEEDS + 1),
+        slope=_padded(slope, MAX_SPEEDS + 1), offset=_padded(offset, MAX_SPEEDS + 1, _q),
         table=TABLE_NAMES, ed=_f(0.5 * cal.backlash_play_rad / half),
+        eh=_f(0.5 * cal.backlash_play_rad),
         elbow=_f(cal.elbow_rad_per_nm),
         ux=_f(np.cos(phi)), uy=_f(np.sin(phi)), d=_f((a - b) * mm),
         lb_sq=_f(lb_sq), half_dlb_sq=_f(0.5 * (lb_sq - lb_sq[0])),

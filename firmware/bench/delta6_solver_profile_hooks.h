@@ -1,4 +1,4 @@
-// Stage markers inside delta6_solver.cpp for the profile build of the benchmark
+// Stage markers inside delta6_solver.cpp and delta6_calibrated.cpp for the profile build of the benchmark
 // (tools/bench_solver_avr.py --stages). Each marker writes its number to GPIOR0, which the
 // simulator timestamps; the memory clobbers keep the solver's work between its markers.
 // Only this build defines DELTA6_SOLVER_PROFILE; the portable core never depends on it.
@@ -14,6 +14,14 @@ enum : uint8_t {
     kProfileForceSum = 14,           // after the levers and the three divisions
     kProfileRotation = 15,           // after summing the link forces
     kProfileOutput = 16,             // after the rotation into {E}
+};
+// The calibrated solver's stages (delta6_calibrated.cpp).
+enum : uint8_t {
+    kProfileCalHistory = 21,         // after the history and the joint torques
+    kProfileCalTrig = 22,            // after the table trig and the angle corrections
+    kProfileCalTrilateration = 23,   // after the general trilateration
+    kProfileCalStatics = 24,         // after the statics
+    kProfileCalGimbal = 25,          // after the gimbal and the tilt
 };
 
 #define DELTA6_PROFILE_MARK(stage)          \

@@ -2,7 +2,8 @@
 // set of encoder deltas in the design's joint box (rest, the 64 corners, then pseudo-random
 // points) and reports every input, status and wrench over the serial port, so a host can
 // check what the AVR computed against the Python reference (tools/bench_solver_avr.py runs
-// it in simavr; delta6.solverbench decodes it).
+// it in simavr; delta6.sim.solverbench decodes it). Built with DELTA6_BENCH_CALIBRATED (and a
+// generated/delta6_calibration.h) it runs delta6::solve_calibrated along a random walk instead.
 //
 // Timing: each solve is bracketed by writes of 1 and 2 to GPIOR0 with interrupts off; the
 // simulator timestamps those writes (tools/simavr/delta6_sim.c). A 3/4 pair measures the
@@ -17,6 +18,10 @@
 
 #include "delta6_solver.h"
 #include "generated/delta6_design.h"
+#ifdef DELTA6_BENCH_CALIBRATED
+#include "delta6_calibrated.h"
+#include "generated/delta6_calibration.h"
+#endif
 
 #ifndef DELTA6_BENCH_SOLVES
 #define DELTA6_BENCH_SOLVES 512
@@ -79,6 +84,32 @@ int16_t random_delta(int16_t limit) {
     return static_cast<int16_t>(static_cast<int32_t>((xorshift_state * span) >> 16) - limit);
 }
 
+#ifdef DELTA6_BENCH_CALIBRATED
+// The calibrated model carries a history, so its cases are a path: rest, then a random walk
+// in the box (steps of up to 6 counts, with reversals, and a jump of up to 255 counts in one
+// sample of 64), sampled at 250 Hz.
+constexpr float kBenchPeriodS = 0.004f;
+delta6::CalibrationState calibration_state;
+
+void make_case(uint16_t i, int16_t delta[6]) {
+    const int16_t limit = delta6::design::kJointLimitCounts;
+    for (uint8_t j = 0; j < 6; ++j) {
+        if (i == 0) {
+            delta[j] = 0;
+            continue;
+        }
+        const int16_t jump = (i & 63u) == 0 ? 255 : 6;
+        int16_t x = static_cast<int16_t>(delta[j] + random_delta(jump));
+        delta[j] = x > limit ? limit : (x < -limit ? static_cast<int16_t>(-limit) : x);
+    }
+}
+
+uint8_t solve(const int16_t delta[6], float wrench[6]) {
+    return delta6::solve_calibrated(delta6::design::kSolverConstants,
+                                    delta6::calibration::kCalibrationConstants,
+                                    calibration_state, delta, wrench);
+}
+#else
 // Case i: 0 = rest, 1..64 = the 64 corners of the box, then random points.
 void make_case(uint16_t i, int16_t delta[6]) {
     const int16_t limit = delta6::design::kJointLimitCounts;
@@ -92,6 +123,11 @@ void make_case(uint16_t i, int16_t delta[6]) {
         }
     }
 }
+
+uint8_t solve(const int16_t delta[6], float wrench[6]) {
+    return delta6::solve_counts(delta6::design::kSolverConstants, delta, wrench);
+}
+#endif
 
 void send_header(char type) {
     const uint8_t head[2] = {0xD6, static_cast<uint8_t>(type)};
@@ -142,15 +178,19 @@ void setup() {
     mark(kMarkCalibrateStart);
     mark(kMarkCalibrateStop);
     SREG = sreg;
+#ifdef DELTA6_BENCH_CALIBRATED
+    delta6::calibration_reset(calibration_state);
+    delta6::calibration_set_period(delta6::calibration::kCalibrationConstants, kBenchPeriodS,
+                                   calibration_state);
+#endif
+    int16_t delta[6];
     for (uint16_t i = 0; i < DELTA6_BENCH_SOLVES; ++i) {
-        int16_t delta[6];
         float wrench[6];
         make_case(i, delta);
         sreg = SREG;
         cli();
         mark(kMarkStart);
-        const uint8_t status =
-            delta6::solve_counts(delta6::design::kSolverConstants, delta, wrench);
+        const uint8_t status = solve(delta, wrench);
         mark(kMarkStop);
         SREG = sreg;
         send_solve(delta, status, wrench);

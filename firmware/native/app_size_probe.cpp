@@ -1,6 +1,6 @@
 // Size probe of the firmware application's portable part (app.cpp, the solver, the protocol
 // core) for an instruction set without a device (avrxmega3, the ATmega4809's): a do-nothing
-// board layer and a bare main. Built by delta6.appbuild.size_check_app for the avrxmega3
+// board layer and a bare main. Built by delta6.build.appbuild.size_check_app for the avrxmega3
 // size check; never run, never part of an image people flash.
 #include <stdint.h>
 
@@ -17,6 +17,7 @@ namespace board {
 void init() {}
 uint8_t resetCause() { return sink; }
 uint32_t serialNumber() { return 0; }
+uint16_t bootId() { return sink; }
 void startSampling(uint16_t rate_hz) { sink = static_cast<uint8_t>(rate_hz); }
 uint32_t micros() { return clock_us += 4000; }
 void scanEncoders(uint16_t word[6], uint16_t inverse[6]) {

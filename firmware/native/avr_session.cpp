@@ -1,4 +1,4 @@
-// A scripted protocol session on the AVR, for the emulator (simavr through delta6.avrsim):
+// A scripted protocol session on the AVR, for the emulator (simavr through delta6.sim.avrsim):
 // boot, samples while stopped, start, wrench samples, wrench+raw samples, a tare, tared
 // samples, get info, get telemetry. Every call is bracketed by GPIOR0 markers (the emulator
 // stamps them with the cycle count) and everything the device sends goes out on UART0
@@ -8,6 +8,7 @@
 #include <avr/io.h>
 
 #include "delta6_device.h"
+#include "delta6_version.h"
 
 namespace {
 
@@ -43,8 +44,10 @@ class CaptureHardware : public delta6::Hardware {
 CaptureHardware hardware;
 const delta6::Identity identity = {"delta6", 0x535534AF,
                                    {15.03f, 15.03f, 25.1f, 0.3805f, 0.3347f, 0.4266f},
-                                   0.5236f, 1365, {0, 1, 0}, 500000, 2000, 0, 0,
-                                   nullptr, 0, nullptr, 0};
+                                   0.5236f, 1365,
+                                   {delta6::kFirmwareVersionMajor, delta6::kFirmwareVersionMinor,
+                                    delta6::kFirmwareVersionPatch},
+                                   500000, 2000, 0, 0, nullptr, 0, nullptr, 0};
 const delta6::Config defaults = {500, 1, false, {0, 0, 0, 0, 0, 0},
                                  {1200, 5400, 9800, 14100, 300, 16000}};
 delta6::Device device(hardware, identity, defaults);

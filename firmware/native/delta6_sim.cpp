@@ -1,6 +1,6 @@
 // C interface to the portable device core for the host: the simulated device
 // (delta6.sim.simdevice, the delta6sim:// serial URL) and the cross-language tests call these
-// through ctypes. Built natively by delta6.nativebuild; never part of the firmware image.
+// through ctypes. Built natively by delta6.build.nativebuild; never part of the firmware image.
 #include <stdint.h>
 #include <string.h>
 
@@ -8,6 +8,7 @@
 #include "delta6_crc16.h"
 #include "delta6_device.h"
 #include "delta6_protocol.h"
+#include "delta6_version.h"
 #include "sim_hardware.h"
 
 using delta6::Config;
@@ -34,9 +35,9 @@ struct Setup {
     for (int i = 0; i < 6; ++i) identity.full_scale[i] = full_scale[i];
     identity.joint_limit_rad = joint_limit;
     identity.joint_limit_counts = joint_limit_counts;
-    identity.firmware_version[0] = 0;
-    identity.firmware_version[1] = 1;
-    identity.firmware_version[2] = 0;
+    identity.firmware_version[0] = delta6::kFirmwareVersionMajor;
+    identity.firmware_version[1] = delta6::kFirmwareVersionMinor;
+    identity.firmware_version[2] = delta6::kFirmwareVersionPatch;
     identity.baud = baud;
     identity.max_rate_hz = max_rate;
     identity.serial_number = serial;
@@ -79,7 +80,9 @@ void* d6sim_create(const char* name, uint32_t hash, const float* full_scale, flo
 
 void d6sim_destroy(void* sim) { delete static_cast<Sim*>(sim); }
 
-void d6sim_begin(void* p, uint8_t reset_cause) { static_cast<Sim*>(p)->device.begin(reset_cause); }
+void d6sim_begin(void* p, uint8_t reset_cause, uint16_t boot_id) {
+  static_cast<Sim*>(p)->device.begin(reset_cause, boot_id);
+}
 
 void d6sim_set_time(void* p, uint32_t us) { static_cast<Sim*>(p)->hardware.setTime(us); }
 

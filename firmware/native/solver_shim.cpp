@@ -1,5 +1,5 @@
-// C ABI over the firmware solver for the ctypes tests (tests/solver_native.py). Compiled by
-// host g++ together with delta6_solver.cpp and one design's generated header.
+// C ABI over the firmware solver for the ctypes tests (tests/firmware/test_solver_native.py).
+// Compiled by host g++ together with delta6_solver.cpp and one design's generated header.
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>

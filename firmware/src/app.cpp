@@ -5,6 +5,7 @@
 #include "delta6_device.h"
 #include "delta6_encoder.h"
 #include "delta6_solver.h"
+#include "delta6_version.h"
 #include "generated/delta6_design.h"
 
 // A unit's calibration, when `delta6 codegen --calibration` put one next to the design header
@@ -131,7 +132,7 @@ delta6::Identity identity = {
      d::kFullScale[5]},
     d::kJointLimitRad,
     d::kJointLimitCounts,
-    {1, 0, 0},
+    {delta6::kFirmwareVersionMajor, delta6::kFirmwareVersionMinor, delta6::kFirmwareVersionPatch},
     board::kBaud,
     DELTA6_MAX_RATE_HZ,
     0,   // serial number: set in setup()
@@ -237,7 +238,8 @@ void setup() {
   board::mark(D6_MARK_BOOT);
   board::init();
   identity.serial_number = board::serialNumber();
-  device.begin(board::resetCause());   // loads the configuration, starts the sample timer
+  // Loads the configuration, starts the sample timer.
+  device.begin(board::resetCause(), board::bootId());
   board::mark(D6_MARK_READY);
 }
 

@@ -25,6 +25,10 @@ uint8_t resetCause();
 // A board identifier for the info record (the 4809's factory serial number folded to 32 bits;
 // 0 on the 328P, which has none).
 uint32_t serialNumber();
+// This boot session's identifier for the info and telemetry records: a counter in RAM that no
+// start-up code clears, stepped at every boot, so a reset (watchdog, pin, brown-out) gives a
+// value the previous boot did not have; after power-on it starts from whatever the RAM held.
+uint16_t bootId();
 
 // (Re)start the sample timer at rate_hz; its interrupt calls app::onSampleTick() once per
 // period with interrupts enabled (UART interrupts may preempt it).

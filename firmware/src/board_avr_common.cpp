@@ -28,6 +28,14 @@ volatile uint8_t rx_tail = 0;
 
 namespace board {
 
+// .noinit: neither avr-libc's start-up code nor the Arduino core touches it.
+static uint16_t boot_counter __attribute__((section(".noinit")));
+
+uint16_t bootId() {
+  boot_counter = static_cast<uint16_t>(boot_counter + 1);
+  return boot_counter;
+}
+
 uint16_t txSpace() { return static_cast<uint16_t>(kTxQueue - 1 - uartq::txQueued()); }
 
 void markRecordQueued() {

@@ -8,6 +8,7 @@ import importlib
 import sys
 
 from delta6 import __version__
+from delta6.commands._signals import exit_status, signal_name, terminate_like_interrupt
 from delta6.core.design import DesignError
 from delta6.core.errors import UserError
 
@@ -15,14 +16,23 @@ from delta6.core.errors import UserError
 COMMAND_MODULES = ("design", "codegen", "virtual", "info", "stream", "log", "tare", "decode",
                    "convert", "simulate", "diagnose", "calibrate", "evaluate", "flash", "train")
 
+DESCRIPTION = ("Delta6, a low-cost 6-axis force/torque sensor: design reports, firmware, the "
+               "virtual board, the device tools, the digital twin and the gap diagnosis.")
+EPILOG = ("Exit status: 0 done; 2 bad input, an unusable file or port, or a lost device (one "
+          "line on stderr says which); 1 a check found a difference (codegen --check); 128+N "
+          "ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). 'delta6 COMMAND --help' "
+          "describes each command; docs/reliability.md the promises.")
+
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="delta6", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="delta6", description=DESCRIPTION, epilog=EPILOG)
     parser.add_argument("--version", action="version", version=f"delta6 {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMAND_MODULES:
         module = importlib.import_module(f".commands.{name}", __package__)
-        cmd = sub.add_parser(module.NAME, help=module.HELP, description=module.HELP)
+        # argparse %-formats help strings ("% FS" broke `delta6 --help`); descriptions not.
+        cmd = sub.add_parser(module.NAME, help=module.HELP.replace("%", "%%"),
+                             description=module.HELP)
         module.add_arguments(cmd)
         cmd.set_defaults(_run=module.run)
     return parser
@@ -32,16 +42,22 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        return int(args._run(args) or 0)
+        with terminate_like_interrupt():
+            return int(args._run(args) or 0)
     except (DesignError, UserError) as exc:
         print(f"delta6 {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"delta6 {args.command}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        print(f"delta6 {args.command}: interrupted ({signal_name(exc)})", file=sys.stderr)
+        return exit_status(exc)
     except BrokenPipeError:
         # Output piped into e.g. `head`: not an error of ours.
         return 0
+    except OSError as exc:
+        # A file system failure no command foresaw (a full disk, a vanished folder): one line.
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"delta6 {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -112,3 +112,22 @@ def test_codegen_writes_and_removes_the_calibration_header(tmp_path, baseline, c
     assert not header.exists() and "removed" in capsys.readouterr().out
     other = C.save(C.neutral(baseline.replace(lb_mm=121.0), "other"), tmp_path / "o.toml")
     assert main(["codegen", DESIGN, "-o", str(out), "--calibration", str(other)]) == 2
+
+
+def test_calibrate_checks_its_outputs_and_refuses_a_device_log_before_fitting(tmp_path, capsys):
+    from delta6.link.logfile import LogWriter
+    log = tmp_path / "device.csv"
+    with LogWriter(log, {"design": "delta6", "wrench_source": "device"}) as w:
+        w.write_block(np.arange(10) * 0.004, np.zeros((10, 6)), np.zeros((10, 6)))
+    cases = [
+        (["-o", str(tmp_path / "none" / "c.toml")], "the folder"),
+        (["-o", str(tmp_path)], "is a folder; give a file name"),
+        (["-o", str(tmp_path / "c.toml"), "--report", str(log)], "exists and is not a folder"),
+        (["-o", str(tmp_path / "c.toml")], "the device's own model output (a device log)"),
+    ]
+    for options, words in cases:
+        assert main(["calibrate", str(log), "--design", DESIGN, "--quiet", *options]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and words in err, err
+    assert main(["evaluate", str(log), "--design", DESIGN, "--json", str(tmp_path)]) == 2
+    assert "is a folder" in capsys.readouterr().err

@@ -29,6 +29,7 @@ def stiff_log(tmp_path_factory, baseline):
                      synthetic_log(baseline, "stiffness_mismatch", n=6000))
 
 
+@pytest.mark.slow
 def test_json_has_exactly_the_documented_keys(stiff_log, tmp_path, capsys):
     out = tmp_path / "r.json"
     assert main(["diagnose", str(stiff_log), "--design", DESIGN, "--json", str(out),
@@ -50,6 +51,7 @@ def test_json_has_exactly_the_documented_keys(stiff_log, tmp_path, capsys):
     assert "stiffness_mismatch" in text and "held-out p99" in text
 
 
+@pytest.mark.slow
 def test_report_directory_has_the_report_and_plots(stiff_log, tmp_path):
     out = tmp_path / "rep"
     assert main(["diagnose", str(stiff_log), "--design", DESIGN, "--report", str(out),
@@ -82,7 +84,7 @@ def _bad(tmp_path, baseline, mutate):
 @pytest.mark.parametrize("mutate, words", [
     (lambda s: s.replace(",Mz", ""), "missing column(s) Mz"),
     (lambda s: "\n".join(s.splitlines()[:1500]) + "\n", "too few samples"),
-    (lambda s: s.replace("\n0.04,", "\n0.01,", 1), "not strictly increasing"),
+    (lambda s: s.replace("\n0.040000,", "\n0.010000,", 1), "not strictly increasing"),
 ])
 def test_bad_logs_exit_2_with_one_line(tmp_path, baseline, capsys, mutate, words):
     path = _bad(tmp_path, baseline, mutate)
@@ -113,3 +115,109 @@ def test_missing_file_and_bad_design(tmp_path, capsys):
     assert "no such file" in capsys.readouterr().err
     assert main(["diagnose", str(tmp_path / "none.csv"), "--design",
                  str(tmp_path / "nope.toml")]) == 2
+
+
+def one_line(capsys) -> str:
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    return err
+
+
+@pytest.mark.parametrize("rows, value", [(slice(100, 110), 1e300), (slice(None), 1e30)])
+def test_values_far_outside_the_design_range_are_refused(tmp_path, baseline, capsys, rows,
+                                                         value):
+    log = synthetic_log(baseline, "none", n=4000)
+    log.wrench[rows, 0 if value == 1e300 else 2] = value
+    path = write_log(tmp_path / "absurd.csv", log)
+    out = tmp_path / "r.json"
+    assert main(["diagnose", str(path), "--design", DESIGN, "--json", str(out), "--quiet"]) == 2
+    err = one_line(capsys)
+    n = 10 if value == 1e300 else 4000
+    assert f"{n} samples have a reference wrench far outside the design's range" in err
+    assert "up to 3x is accepted" in err and not out.exists()
+
+
+def test_the_design_named_by_the_log_is_used_and_a_mismatch_refused(tmp_path, baseline, capsys):
+    log = synthetic_log(baseline, "none", n=4000)
+    path = tmp_path / "d.csv"
+    with LogWriter(path, {"design": "delta6", "design_hash": f"0x{baseline.hash32():08x}"}) as w:
+        w.write_block(log.t, log.theta, log.wrench)
+    stiff = str(DESIGNS / "stiff.toml")
+    assert main(["diagnose", str(path), "--design", stiff, "--quiet"]) == 2
+    err = one_line(capsys)
+    assert f"was recorded with design 'delta6' (hash 0x{baseline.hash32():08x}), but " in err
+    assert "stiff.toml has hash" in err and "--force" in err
+    # Without --design: the shipped design with the log's hash.
+    out = tmp_path / "r.json"
+    assert main(["diagnose", str(path), "--json", str(out), "--quiet"]) == 0
+    result = json.loads(out.read_text())
+    assert result["design"]["hash"] == f"0x{baseline.hash32():08x}" and result["present"] == []
+    capsys.readouterr()
+    # A hash no shipped design has: the user must name the file.
+    text = path.read_text().replace(f"0x{baseline.hash32():08x}", "0x12345678")
+    path.write_text(text)
+    assert main(["diagnose", str(path), "--quiet"]) == 2
+    assert "which is not a shipped design: pass its file with --design" in one_line(capsys)
+
+
+def test_forcing_a_design_that_differs_from_the_log(tmp_path, baseline, capsys):
+    log = synthetic_log(baseline, "none", n=4000)
+    path = tmp_path / "d.csv"
+    with LogWriter(path, {"design": "delta6", "design_hash": "0x00000001"}) as w:
+        w.write_block(log.t, log.theta, log.wrench)
+    assert main(["diagnose", str(path), "--design", DESIGN, "--force", "--quiet"]) == 0
+
+
+def test_a_device_log_is_refused(tmp_path, baseline, capsys):
+    """The wrench of a device log is the model's own output: nothing to diagnose."""
+    log = synthetic_log(baseline, "none", n=4000)
+    for meta in ({"design": "delta6", "wrench_source": "device"},
+                 {"design": "delta6", "firmware": "1.0.0", "protocol": "1.0"}):  # older logs
+        path = write_log_meta(tmp_path / "dev.csv", log, meta)
+        assert main(["diagnose", str(path), "--design", DESIGN, "--quiet"]) == 2
+        assert "the device's own model output (a device log), not a reference sensor's" in \
+            one_line(capsys)
+
+
+def write_log_meta(path, log, meta):
+    with LogWriter(path, meta) as w:
+        w.write_block(log.t, log.theta, log.wrench)
+    return path
+
+
+def test_output_paths_are_checked_before_the_run(tmp_path, stiff_log, capsys):
+    existing = tmp_path / "report.md"
+    existing.write_text("not a folder")
+    assert main(["diagnose", str(stiff_log), "--design", DESIGN, "--report",
+                 str(existing)]) == 2
+    assert "--report" in one_line(capsys) and existing.read_text() == "not a folder"
+    assert main(["diagnose", str(stiff_log), "--design", DESIGN, "--json", str(tmp_path)]) == 2
+    assert "is a folder; give a file name" in one_line(capsys)
+    assert main(["diagnose", str(stiff_log), "--design", DESIGN, "--json",
+                 str(tmp_path / "missing" / "r.json")]) == 2
+    assert "does not exist" in one_line(capsys)
+
+
+def test_json_never_holds_nan():
+    from delta6.commands.diagnose import json_safe, summary
+    result = {"samples": 5, "seconds": 1.0, "baseline_heldout_p99_pct": [float("nan")] * 6,
+              "ladder": [], "present": [], "warnings": ["x"],
+              "candidates": [{"name": "a", "score": float("inf")}]}
+    safe = json_safe(result)
+    text = json.dumps(safe, allow_nan=False)
+    assert "NaN" not in text and safe["baseline_heldout_p99_pct"] == [None] * 6
+    lines = summary(safe).splitlines()
+    assert lines[2].split()[-1] == "-" and "a -" in lines[-2] and lines[-1] == "Warning: x"
+
+
+def test_unphysical_fitted_parameters_are_flagged():
+    from delta6.diagnosis.physics import warnings
+    assert warnings("joint_friction", {"coulomb_equiv_nm": [0.01] * 6,
+                                       "viscous_equiv_nm_s_per_rad": [0.1, -0.02, 0, 0, 0, 0],
+                                       "torque_at_ref_speed_nm": [-1] * 6}) == [
+        "joint_friction: viscous_equiv_nm_s_per_rad fitted negative (j2 -0.02): not physical, "
+        "the term stands in for something else"]
+    assert warnings("link_compliance", {"axial_b1_um_per_n": -0.5, "tilt_rad_per_nm": -1.0}) \
+        == ["link_compliance: axial_b1_um_per_n fitted negative (-0.5): not physical, the term "
+            "stands in for something else"]
+    assert warnings("encoder_offset", {"offset_j1_rad": -0.01}) == []

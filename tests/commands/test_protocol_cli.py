@@ -1,10 +1,12 @@
 """The device subcommands end to end against the simulated device, and ``delta6 decode``."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
-from delta6.cli import main
+from delta6.cli import COMMAND_MODULES, main
 from delta6.core.model import wrench as model_wrench
 from delta6.link import protocol as P
 from delta6.link.device import Device
@@ -15,7 +17,7 @@ from support.streams import make_frames
 
 
 def capture_from_sim(seconds=0.5, raw=True, **kwargs) -> tuple[bytes, SimulatedDevice]:
-    # START follows the boot at once here; a queue with room for the 188-byte boot INFO beside
+    # START follows the boot at once here; a queue with room for the 190-byte boot INFO beside
     # the first raw records keeps them all (a 256-byte one drops the first, counted and flagged).
     kwargs.setdefault("tx_capacity", 320)
     sim = SimulatedDevice(**kwargs)
@@ -32,7 +34,7 @@ def test_decode_turns_a_capture_into_the_documented_csv(tmp_path, capsys):
     out = tmp_path / "run.csv"
     assert main(["decode", str(cap_file), "-o", str(out)]) == 0
     err = capsys.readouterr().err
-    assert "1 missing in 1 gaps, 1 damaged frames" in err
+    assert "1 missing in 1 gaps, 0 flagged, 1 damaged frames" in err
     log = read_log(out)
     header = out.read_text().splitlines()
     assert header[0] == "# delta6-log schema=1"
@@ -46,7 +48,8 @@ def test_decode_turns_a_capture_into_the_documented_csv(tmp_path, capsys):
     assert np.all(np.abs(log.theta - truth) <= P.COUNT_RAD / 2 + 1e-12)
     assert np.allclose(log.wrench, model_wrench(sim.design, log.theta),
                        atol=np.array([5e-4] * 3 + [1e-5] * 3) + 1e-9)
-    assert (log.status == P.Status.CONFIG_DEFAULTS).all()
+    assert log.status[0] == P.Status.CONFIG_DEFAULTS | P.Status.STREAM_CHANGED    # after START
+    assert (log.status[1:] == P.Status.CONFIG_DEFAULTS).all()
 
 
 def test_decode_of_a_wrench_only_capture_leaves_angles_empty(tmp_path):
@@ -145,7 +148,7 @@ def test_ctrl_c_closes_the_log_cleanly(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(Device, "read_block", interrupted)
     out = tmp_path / "int.csv"
     assert main(["log", "--port", "delta6sim://", "-o", str(out), "--rate", "500"]) == 0
-    assert "(interrupted)" in capsys.readouterr().err
+    assert "(stopped by SIGINT)" in capsys.readouterr().err
     assert out.exists() and len(read_log(out, require_complete_rows=False)) > 0
 
 
@@ -171,6 +174,25 @@ def test_info_tare_and_stream(capsys, tmp_path):
     assert "0 lost in 0 gaps" in captured.err
 
 
+def test_info_says_why_the_configuration_fell_back_to_defaults(capsys, tmp_path):
+    eeprom = tmp_path / "e.bin"
+    url = f"delta6sim://?eeprom={eeprom}"
+    assert main(["info", "--port", url]) == 0                 # never saved: erased
+    assert "no valid configuration (EEPROM erased or never saved)" in capsys.readouterr().out
+    with Device(url) as dev:
+        dev.save_config()
+    assert main(["info", "--port", url]) == 0
+    assert "no valid configuration" not in capsys.readouterr().out
+    blob = bytearray(eeprom.read_bytes())
+    blob[P.CONFIG_LAYOUT.offsets["rate_hz"]] ^= 1               # a flipped bit: the CRC fails
+    eeprom.write_bytes(bytes(blob))
+    assert main(["info", "--port", url, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert (out["config_problem"], out["config_problem_text"]) == (P.ConfigProblem.BAD_CRC,
+                                                                  "CRC mismatch")
+    assert out["status"] & P.Status.CONFIG_DEFAULTS
+
+
 @pytest.mark.parametrize("argv, message", [
     (["log", "--port", "delta6sim://", "-o", "x.csv", "--duration", "-1"],
      "--duration must be positive"),
@@ -191,6 +213,11 @@ def test_a_port_that_is_not_there(capsys):
         err.count("\n") == 1
     assert main(["info", "--port", "delta6sim://?bogus=1"]) == 2
     assert "unknown option 'bogus'" in capsys.readouterr().err
+    # An EEPROM image the simulated device could never save: refused when the port opens.
+    assert main(["tare", "--port", "delta6sim://?eeprom=/nonexistent/dir/e.bin", "--save"]) == 2
+    err = capsys.readouterr().err
+    assert "the folder of eeprom=/nonexistent/dir/e.bin does not exist" in err
+    assert err.count("\n") == 1
 
 
 def test_a_device_restart_ends_the_log_with_what_came_before(tmp_path, capsys, monkeypatch):
@@ -215,7 +242,7 @@ def test_a_device_restart_ends_the_log_with_what_came_before(tmp_path, capsys, m
     assert err.endswith(f"keeps the {len(log)} samples received before") and len(log) > 0
 
 
-def test_decode_stops_at_a_device_restart(tmp_path, capsys):
+def test_decode_splits_a_capture_at_a_device_restart(tmp_path, capsys):
     first, _ = capture_from_sim(0.2, raw=False)
     second, _ = capture_from_sim(0.1, raw=False)             # a fresh boot: clock from 0
     cap_file = tmp_path / "reboot.bin"
@@ -223,7 +250,178 @@ def test_decode_stops_at_a_device_restart(tmp_path, capsys):
     out = tmp_path / "r.csv"
     assert main(["decode", str(cap_file), "-o", str(out)]) == 0
     err = capsys.readouterr().err
-    assert "the device restarted at frame" in err and "the 51 samples after it" in err
     assert "101 samples, 0 missing in 0 gaps" in err
+    assert "the capture holds 2 device sessions (the device restarted; 1: 101 samples, " \
+           "2: 51 samples): this log has session 1" in err
     log = read_log(out, require_complete_rows=False)
-    assert len(log) == 101 and log.t[-1] == 0.2
+    assert len(log) == 101 and log.t[-1] == 0.2 and log.meta["session"] == "1 of 2"
+    assert main(["decode", str(cap_file), "-o", str(tmp_path / "r2.csv"), "--session", "2"]) == 0
+    assert "51 samples, 0 missing in 0 gaps" in capsys.readouterr().err
+    second_log = read_log(tmp_path / "r2.csv", require_complete_rows=False)
+    assert second_log.t[0] == 0.0 and second_log.seq[0] == 0 and len(second_log) == 51
+    assert main(["decode", str(cap_file), "-o", str(tmp_path / "r3.csv"), "--session", "3"]) == 2
+    assert "--session 3, but the capture holds 2 sessions" in capsys.readouterr().err
+
+
+def without_boot_events(stream: bytes) -> bytes:
+    """The stream minus its BOOT events (what a capture opened after the boot holds)."""
+    frames = [f + b"\x00" for f in stream.split(b"\x00")[:-1]]
+    boot = P.encode_event(P.EventCode.BOOT, 0)
+    return b"".join(f for f in frames if f != boot)
+
+
+def test_joined_captures_are_two_sessions_even_without_a_boot_event(tmp_path, capsys):
+    """A capture appended to an older one of another boot: the counters run backwards, which
+    must not be read as a 71-minute clock wrap with 65,000 records missing."""
+    first, _ = capture_from_sim(0.3, raw=False)
+    second, _ = capture_from_sim(0.1, raw=False)
+    cap_file = tmp_path / "joined.bin"
+    cap_file.write_bytes(first + without_boot_events(second))
+    out = tmp_path / "j.csv"
+    assert main(["decode", str(cap_file), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "151 samples, 0 missing in 0 gaps" in err
+    assert "2 device sessions (the device restarted, 1 of them found by counters that began " \
+           "again; 1: 151 samples, 2: 51 samples)" in err
+    log = read_log(out, require_complete_rows=False)
+    assert len(log) == 151 and log.t[-1] == 0.3 and np.all(np.diff(log.seq) == 1)
+
+
+def one_line_error(capsys, command: str) -> str:
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(f"delta6 {command}: error: "), err
+    return err.strip()
+
+
+def test_output_paths_are_checked_before_anything_runs(tmp_path, capsys):
+    folder = tmp_path / "out"
+    folder.mkdir()
+    capture = tmp_path / "c.bin"
+    capture.write_bytes(capture_from_sim(0.1)[0])
+    cases = [
+        (["log", "--port", "delta6sim://", "-o", f"{folder}/", "--duration", "0.2"], "log",
+         "is a folder; give a file name"),
+        (["log", "--port", "delta6sim://", "-o", str(tmp_path / "no" / "x.csv")], "log",
+         "the folder"),
+        (["decode", str(capture), "-o", f"{folder}/"], "decode", "is a folder; give a file name"),
+        (["decode", str(capture), "-o", str(folder)], "decode", "is a folder; give a file name"),
+    ]
+    for argv, command, words in cases:
+        assert main(argv) == 2
+        assert words in one_line_error(capsys, command)
+    # Nothing was left beside the folder (the log used to stream into "out/.partial").
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.bin", "out"]
+    assert list(folder.iterdir()) == []
+
+
+def test_log_never_replaces_a_file_without_force(tmp_path, capsys):
+    out = tmp_path / "run.csv"
+    out.write_text("yesterday's run")
+    argv = ["log", "--port", "delta6sim://", "-o", str(out), "--duration", "0.2"]
+    assert main(argv) == 2
+    assert "run.csv exists (not replaced; --force replaces it)" in one_line_error(capsys, "log")
+    assert out.read_text() == "yesterday's run"
+    out.unlink()
+    left = tmp_path / "run.csv.partial"
+    left.write_text("what a crash left")
+    assert main(argv) == 2
+    assert "run.csv.partial exists (an interrupted run left it" in one_line_error(capsys, "log")
+    assert main(argv + ["--force"]) == 0
+    assert len(read_log(out, require_complete_rows=False)) > 0 and not left.exists()
+
+
+def test_a_capture_that_exists_is_refused_before_the_port_is_opened(tmp_path, capsys):
+    capture = tmp_path / "cap.bin"
+    capture.write_bytes(b"first session")
+    out = tmp_path / "l.csv"
+    argv = ["log", "--port", "delta6sim://", "-o", str(out), "--duration", "0.2",
+            "--capture", str(capture)]
+    assert main(argv) == 2
+    assert "cap.bin exists (not replaced; --force replaces it)" in one_line_error(capsys, "log")
+    assert capture.read_bytes() == b"first session" and not out.exists()
+    assert main(argv + ["--force"]) == 0
+    capsys.readouterr()
+    assert main(["decode", str(capture), "-o", str(tmp_path / "d.csv")]) == 0
+    assert "device sessions" not in capsys.readouterr().err
+
+
+def test_summaries_count_flagged_samples(tmp_path, capsys):
+    out = tmp_path / "f.csv"
+    url = "delta6sim://?encoder_fault=2:0.2&seed=3"
+    assert main(["log", "--port", url, "-o", str(out), "--duration", "0.4", "--rate", "500"]) == 0
+    err = capsys.readouterr().err
+    log = read_log(out, require_complete_rows=False)
+    flags = int(np.count_nonzero(log.status & P.Status.ENCODER2))
+    assert flags > 10 and f"; {flags} flagged; " in err
+    assert main(["stream", "--port", url, "--duration", "0.3", "--rate", "500"]) == 0
+    assert " flagged" in capsys.readouterr().err
+
+
+def test_decode_writes_the_rate_and_counts_unknown_records_apart(tmp_path, capsys):
+    data, _ = capture_from_sim(0.3, raw=False)
+    newer = P.frame(bytes([0x42]) + bytes(range(1, 20)))       # a newer minor version's
+    cap_file = tmp_path / "n.bin"
+    cut = data.index(b"\x00", 3000) + 1                          # between two frames
+    cap_file.write_bytes(data[:cut] + newer + data[cut:])
+    out = tmp_path / "n.csv"
+    assert main(["decode", str(cap_file), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "0 damaged frames" in err and "1 records of unknown type ignored" in err
+    log = read_log(out, require_complete_rows=False)
+    assert log.meta["rate_hz"] == "500" and log.meta["wrench_source"] == "device"
+
+
+@pytest.mark.parametrize("change, words", [
+    (dict(lsb_mantissa=(3, 1, 1, 2, 2, 2)), "axis 1 has a wrench step of 3e-3"),
+    (dict(protocol=(2, 0)), "protocol 2.0; this delta6 reads 1.x: update the host"),
+])
+def test_decode_refuses_an_unusable_info_record(tmp_path, capsys, change, words):
+    data, _ = capture_from_sim(0.1, raw=False)
+    frames = [f + b"\x00" for f in data.split(b"\x00")[:-1]]
+    out_frames = []
+    for f in frames:
+        payload = P.unframe(f[:-1])
+        record = P.parse_payload(payload) if payload else None
+        out_frames.append(P.encode_info(record._replace(**change))
+                          if isinstance(record, P.Info) else f)
+    cap_file = tmp_path / "bad.bin"
+    cap_file.write_bytes(b"".join(out_frames))
+    assert main(["decode", str(cap_file), "-o", str(tmp_path / "b.csv")]) == 2
+    assert words in one_line_error(capsys, "decode")
+    assert not (tmp_path / "b.csv").exists() and not (tmp_path / "b.csv.partial").exists()
+
+
+def test_info_json_has_null_where_a_value_is_unknown(capsys):
+    import json
+    assert main(["info", "--port", "delta6sim://", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out, parse_constant=lambda c: pytest.fail(c))
+    assert out["telemetry"]["temperature_c"] is None
+    assert out["telemetry"]["temperature_centi"] is None
+
+
+def test_top_level_help_describes_the_tool_and_the_exit_statuses(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    out = " ".join(capsys.readouterr().out.split())       # argparse wraps the lines
+    assert exc.value.code == 0
+    assert "Delta6, a low-cost 6-axis force/torque sensor:" in out
+    assert "Exit status: 0 done; 2 bad input" in out and "143 SIGTERM" in out
+    assert "Each subcommand lives" not in out
+
+
+@pytest.mark.parametrize("command", COMMAND_MODULES)
+def test_every_command_has_working_help(capsys, command):
+    with pytest.raises(SystemExit) as exc:
+        main([command, "--help"])
+    assert exc.value.code == 0 and capsys.readouterr().out.startswith("usage: delta6 ")
+
+
+def test_the_simulated_device_reports_the_firmware_version_of_the_board(root):
+    import re
+    header = (root / "firmware/lib/delta6_core/src/delta6_version.h").read_text()
+    version = tuple(int(v) for v in re.findall(r"kFirmwareVersion\w+ = (\d+);", header))
+    with Device("delta6sim://") as dev:
+        assert dev.info().firmware == version == (1, 0, 0)
+    app = (root / "firmware/src/app.cpp").read_text()
+    assert "kFirmwareVersionMajor, delta6::kFirmwareVersionMinor" in app

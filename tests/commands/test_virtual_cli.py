@@ -23,6 +23,7 @@ def delta6(*args, **kwargs):
                           capture_output=True, text=True, timeout=120, **kwargs)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("motion, note", [([], "demo motion"),
                                            (["--twin", "ideal", "--twin-duration", "5"],
                                             "the digital twin, scenario ideal")])
@@ -75,6 +76,11 @@ def test_wrench_only_log_cannot_drive_the_encoders(tmp_path, capsys):
     (["--fault", "1:loud:0:1"], "kind"),
     (["--zero", "1,2,3"], "--zero"),
     (["--loop"], "--loop goes with --replay"),
+    # Files the board writes only when it ends are checked before it starts.
+    (["--eeprom", "/nonexistent/dir/e.bin"], "--eeprom /nonexistent/dir/e.bin: the folder "
+                                             "/nonexistent/dir does not exist"),
+    (["--stats", "/nonexistent/x.json"], "--stats /nonexistent/x.json: the folder"),
+    (["--stats", "/tmp/"], "is a folder"),
 ])
 def test_bad_options_are_one_line_and_exit_2(args, words, capsys):
     assert main(["virtual", *args]) == 2

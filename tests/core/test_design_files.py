@@ -61,6 +61,10 @@ def test_shipped_designs_load(path):
     (edited(set_={"theta_offset_rad": 2.0}), "theta_offset_rad", "pi/2"),
     (edited(set_={"joint_limit_rad": 1.7}), "joint_limit_rad", "pi/2"),
     (edited(set_={"colour": '"red"'}), "colour", "unknown key"),
+    (edited(set_={"name": '"../../x"'}), "name", "only letters, digits"),
+    (edited(set_={"name": '"a/b"'}), "name", "only letters, digits"),
+    (edited(set_={"name": '".hidden"'}), "name", "starts with a letter or digit"),
+    (edited(set_={"name": '"quote\\"d"'}), "name", "only letters, digits"),
     ("a_mm = [", "file", "TOML"),
 ])
 def test_bad_design_files_are_rejected_with_the_field_named(tmp_path, capsys, text, field, words):
@@ -138,3 +142,12 @@ def test_fuzzed_file_bytes_never_crash(tmp_path_factory, data):
     path.write_bytes(data)
     with pytest.raises(DesignError):
         load_checked(path)
+
+
+def test_a_design_name_cannot_lead_codegen_out_of_the_build_folder(tmp_path, capsys, root):
+    """The name becomes build/designs/NAME/: '../../x' would have written outside it."""
+    path = write(tmp_path, edited(set_={"name": '"../../x"'}))
+    assert main(["codegen", str(path), "--build"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "field 'name'" in err
+    assert not (root / "x").exists() and not (root / "build" / "x").exists()

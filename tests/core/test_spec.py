@@ -86,6 +86,7 @@ def test_converged_limits_of_the_baseline(baseline):
         assert np.allclose(got, want, rtol=6e-4), key
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", sorted(DESIGNS.glob("*.toml")), ids=lambda p: p.stem)
 def test_converged_limits_bound_every_grid(path):
     """The converged extremes contain any sampled grid, and an odd dense grid gets close."""
@@ -143,6 +144,7 @@ def test_cli_json_has_the_documented_keys(capsys):
     assert out["force_range_n"]["z"] == pytest.approx([-25.0179, 22.0949], abs=1e-4)
 
 
+@pytest.mark.slow
 def test_cli_table_of_all_variants(capsys):
     files = [str(DESIGNS / TABLE_III[i][0]) for i in sorted(TABLE_III)]
     assert main(["design", *files, "--grid", "10"]) == 0

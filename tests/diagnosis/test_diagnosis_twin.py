@@ -21,6 +21,7 @@ def run(design, effects, seed):
     return r, verdict
 
 
+@pytest.mark.slow   # each run simulates and diagnoses a full log (~2-3 s)
 @pytest.mark.parametrize("name, formulation", [
     ("encoder_offset", "constant"),
     ("stiffness_mismatch", "linear"),
@@ -57,6 +58,7 @@ def test_no_effect_on_ideal_data(baseline):
     assert max(verdict["baseline_heldout_p99_pct"]) < 0.6
 
 
+@pytest.mark.slow
 def test_two_effects_are_both_named(baseline):
     effects = [twin.make_effect("stiffness_mismatch", seed=33, magnitude=0.6),
                twin.make_effect("spring_hysteresis", seed=33, formulation="play_sum",

@@ -15,29 +15,9 @@ from delta6.core.calibrated import CalibratedModel, counts_from_angles
 from delta6.core.spec import full_scale
 from delta6_codegen.calibration_header import CalibrationRangeError, calibration_constants
 
+from support.calibrations import random_calibration
+
 TOLERANCE_PCT = 0.01
-
-
-def random_calibration(design, seed: int, scale: float = 1.0) -> C.Calibration:
-    """Everything a unit can have, drawn around the realistic ranges (scale 1)."""
-    rng = np.random.default_rng(seed)
-
-    def u(hi, shape, signed=True):
-        return rng.uniform(-hi if signed else 0.0, hi, shape) * scale
-
-    radii = tuple(sorted(rng.choice([8, 16, 32, 64, 128, 256, 512], rng.integers(1, 5),
-                                    replace=False).tolist()))
-    speeds = tuple(sorted(rng.uniform(0.002, 0.05, rng.integers(1, 5)).tolist()))
-    return C.neutral(design, f"random-{seed % 1000}").with_(
-        offset_rad=u(0.015, 6), backlash_play_rad=u(0.012, 6, False),
-        direction_half_counts=int(rng.integers(1, 8)), rate_ratio=1.0 + u(0.12, 6),
-        hysteresis_radii_counts=radii, hysteresis_nm=u(0.01, (6, len(radii))),
-        speed_filter_s=float(rng.uniform(0.005, 0.1)), friction_speeds_rad_s=speeds,
-        friction_sign_nm=u(0.008, (6, len(speeds))), viscous_nm_s_per_rad=u(0.005, 6),
-        presliding_nm=u(0.003, 6), delta_a_mm=u(0.5, 3), delta_b_mm=u(0.5, 3),
-        delta_la_mm=u(0.5, 3), delta_lb_mm=u(1.0, 3), delta_azimuth_rad=u(0.01, 3),
-        delta_rest_angle_rad=u(0.01, 3), gimbal_misalignment_rad=u(0.01, 3),
-        elbow_rad_per_nm=u(0.1, 3, False), tilt_rad_per_nm=float(u(0.08, (), False)))
 
 
 def random_path(seed: int, n: int, limit: int) -> np.ndarray:

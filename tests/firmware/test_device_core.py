@@ -237,8 +237,10 @@ def test_a_corrupt_eeprom_falls_back_to_defaults_and_says_so(bench, damage, reas
     assert P.Event(P.EventCode.CONFIG_DEFAULTS, reason) in reborn.boot
     info = reborn.boot[-1]
     assert info.status & P.Status.CONFIG_DEFAULTS and info.rate_hz == 500
+    assert info.config_problem == reason                     # INFO says why, too
     reborn.answer(reborn.send(C.SAVE_CONFIG))                # saving clears the flag
     assert not reborn.sim.core.status & P.Status.CONFIG_DEFAULTS
+    assert reborn.answer(reborn.send(C.GET_INFO)).config_problem == 0
 
 
 def test_a_blob_from_another_design_keeps_zero_counts_but_not_the_tare(bench):
@@ -292,7 +294,7 @@ def test_garbage_to_the_device_is_counted_and_streaming_goes_on(bench):
 
 
 def test_encoder_faults_flag_exactly_their_samples():
-    # A queue that holds the 188-byte boot INFO beside the first two raw records: START comes
+    # A queue that holds the 190-byte boot INFO beside the first two raw records: START comes
     # at once here, while that INFO still drains (the drops a smaller queue gives are counted
     # and flagged: test_answers_go_first_on_a_full_link_...).
     b = Bench(rate_hz=500, encoder_faults={3: 0.3, 6: 0.1}, seed=4, tx_capacity=320)
@@ -345,10 +347,10 @@ def test_overrange_and_joint_limit(bench):
 
 
 def test_answers_go_first_on_a_full_link_and_every_drop_is_a_counted_gap():
-    """A 198-byte transmit queue at 1.6 kHz: the 188-byte info record only fits into an empty
+    """A 200-byte transmit queue at 1.6 kHz: the 190-byte info record only fits into an empty
     queue, so data records give way until it went out. The host sees exactly the gaps the
     device counts, and the first record after each gap says so."""
-    b = Bench(rate_hz=1000, tx_capacity=198, baud=500_000)
+    b = Bench(rate_hz=1000, tx_capacity=200, baud=500_000)
     records = b.send(C.START, 1600)
     infos = 0
     for _ in range(20):
@@ -423,3 +425,89 @@ def test_joint_limit_flag_agrees_with_the_solver_at_a_whole_count_limit(baseline
                                    for r in records), counts
     finally:
         b.sim.close()
+
+
+def split_at_answer(records, request):
+    """The data records before and after the answer to ``request`` in the stream."""
+    at = next(i for i, r in enumerate(records) if isinstance(r, (P.Ack, P.Nack))
+              and r.request_id == request)
+    return data(records[:at]), data(records[at + 1:])
+
+
+@pytest.mark.parametrize("command, args, changed", [
+    (C.SET_MODE, (2,), lambda r: r.counts is not None),
+    (C.TARE, (20,), lambda r: r.status & P.Status.TARE_ACTIVE),
+    (C.START, (1000,), lambda r: True),
+    (C.LOAD_DEFAULTS, (), lambda r: True),
+])
+def test_the_first_record_after_a_change_is_marked_and_follows_the_answer(command, args, changed):
+    """Records before a command's answer predate it, records after it carry it, and the first
+    of those carries STREAM_CHANGED (the records and the answers share one queue)."""
+    bench = Bench(rate_hz=500)
+    bench.sim.motion = Motion.static(np.full(6, 0.05))
+    first = data(bench.send(C.START, 500, run=0.05))
+    assert first[0].status & P.Status.STREAM_CHANGED                 # START itself
+    assert not any(r.status & P.Status.STREAM_CHANGED for r in first[1:])
+    records = bench.send(command, *args, run=0.2)
+    before, after = split_at_answer(records, bench.request)
+    assert not any(r.status & P.Status.STREAM_CHANGED for r in before)
+    assert after[0].status & P.Status.STREAM_CHANGED and all(changed(r) for r in after)
+    assert not any(r.status & P.Status.STREAM_CHANGED for r in after[1:])
+    if command == C.SET_MODE:
+        assert all(r.counts is None for r in before)
+    if command == C.TARE:
+        assert not any(r.status & P.Status.TARE_ACTIVE for r in before)
+    # Commands that change nothing the records mean leave no mark.
+    quiet = bench.send(C.PING, run=0.05) + bench.send(C.GET_INFO, run=0.05)
+    assert not any(r.status & P.Status.STREAM_CHANGED for r in data(quiet))
+    bench.sim.close()
+
+
+def test_abort_ends_an_averaging_that_would_keep_the_device_busy(bench):
+    bench.send(C.START, 500)
+    bench.send(C.TARE, 65535, request=40, run=0.1)                  # 2 minutes at 500 Hz
+    assert bench.answer(bench.send(C.TARE, 5)).reason == P.NackReason.BUSY
+    records = bench.send(C.ABORT, request=41, run=0.01)
+    assert bench.answer(records, request=40) == P.Nack(40, C.TARE, P.NackReason.ABORTED, 0)
+    assert bench.answer(records, request=41) == P.Ack(41, C.ABORT, 1)
+    assert "aborted" in P.Nack(40, C.TARE, P.NackReason.ABORTED, 0).text()
+    assert not any(r.status & (P.Status.TARE_BUSY | P.Status.TARE_ACTIVE)
+                   for r in data(bench.run(0.05)))
+    assert bench.answer(bench.send(C.TARE, 5, run=0.05)).value == 5  # no longer busy
+    assert bench.answer(bench.send(C.ABORT)) == P.Ack(bench.request, C.ABORT, 0)
+
+
+def test_info_and_telemetry_carry_the_boot_id():
+    bench = Bench(rate_hz=500, boot_id=0xBEEF)
+    info = next(r for r in bench.boot if isinstance(r, P.Info))
+    assert info.boot_id == 0xBEEF and info.protocol == P.VERSION
+    assert bench.answer(bench.send(C.GET_TELEMETRY)).boot_id == 0xBEEF
+    bench.sim.close()
+
+
+def test_a_1_0_device_is_read_without_the_appended_fields():
+    """A 1.0 device's INFO (128 bytes) and TELEMETRY (48) records parse with the boot id left
+    unknown (None) and no calibration; a 1.0 host reads the 1.1 records by their known prefix.
+    The offsets are docs/protocol.md's, written here by hand: INFO's boot id at 156, after the
+    calibration hash (128) and name (132), then (1.2) the model's hash (158) and name (162);
+    TELEMETRY's at 48."""
+    bench = Bench(rate_hz=500, boot_id=0x1234)
+    bench.sim.write(P.encode_command(C.GET_INFO, 9) + P.encode_command(C.GET_TELEMETRY, 10))
+    bench.sim.advance(0.02)                      # the answers leave at the baud rate
+    raw = bench.sim.read()
+    bench.sim.close()
+    payloads = [P.unframe(f) for f in raw.split(b"\x00")[:-1]]
+    info, telemetry = (P.parse_payload(p) for p in payloads)
+    assert [len(p) for p in payloads] == [186, 50]
+    assert payloads[0][158:186] == bytes(28) and info.model_hash == 0       # no model built in
+    assert payloads[0][156:158] == (0x1234).to_bytes(2, "little")   # u16, little-endian
+    assert payloads[1][48:50] == (0x1234).to_bytes(2, "little")
+    assert payloads[0][128:132] == bytes(4) and info.calibration_hash == 0   # none built in
+    old_info = P.parse_payload(payloads[0][:128])
+    old_telemetry = P.parse_payload(payloads[1][:48])
+    assert old_info == info._replace(boot_id=None)
+    assert old_telemetry == telemetry._replace(boot_id=None)
+    assert P.encode_record(old_info, minor=0) == P.frame(payloads[0][:128])
+    assert P.encode_record(old_telemetry) == P.frame(payloads[1][:48])
+    with pytest.raises(P.ProtocolError):
+        P.parse_payload(payloads[0][:127])

@@ -18,10 +18,10 @@ from delta6_codegen import solver_constants
 from conftest import DESIGN_FILES
 
 OK, OUT_OF_BOX = 0, 1
-#: The issue's tolerance: 0.01 % of full scale per axis.
-ISSUE_TOLERANCE_FS = 1e-4
+#: The required accuracy of the native solver: 0.01 % of full scale per axis.
+REQUIRED_TOLERANCE_FS = 1e-4
 #: What float32 reaches (worst seen ~5e-7 FS), with margin: catches a regression that the
-#: issue's tolerance would let through (a coarser table, a dropped term).
+#: required tolerance would let through (a coarser table, a dropped term).
 FLOAT32_TOLERANCE_FS = 2e-6
 
 
@@ -79,7 +79,7 @@ def test_sweep_over_the_box_within_tolerance(case):
     w, status = solver.solve_counts(counts)
     assert (status == OK).all()
     err = worst_error_fs(w, wrench(d, counts * ENCODER_COUNT_RAD), fs)
-    assert (err < ISSUE_TOLERANCE_FS).all(), err
+    assert (err < REQUIRED_TOLERANCE_FS).all(), err
     assert (err < FLOAT32_TOLERANCE_FS).all(), err
 
 

@@ -120,6 +120,8 @@ def test_a_non_editable_install_runs_the_analysis_commands(tmp_path):
     # What needs the firmware sources says so in one line, exit 2.
     shipped = subprocess.run([str(py), "-c", "from delta6.core.paths import DEFAULT_DESIGN as d; print(d)"],
                              cwd=work, capture_output=True, text=True, env=env).stdout.strip()
-    build = cli("codegen", shipped, "--build")
-    assert build.returncode == 2 and len(build.stderr.strip().splitlines()) == 1, build.stderr
-    assert "checkout" in build.stderr
+    for needs_sources in [("codegen", shipped, "--build"), ("codegen", "--wire"),
+                          ("info", "--port", "delta6sim://")]:
+        proc = cli(*needs_sources)
+        assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+        assert "checkout" in proc.stderr, proc.stderr

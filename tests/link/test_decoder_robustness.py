@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import random
 
+import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -198,3 +199,72 @@ def test_sequence_tracker_unwraps_and_counts():
     assert out == [(65534, 2**32 - 1000), (65535, 2**32 - 10), (65538, 2**32 + 5000), None,
                    (65539, 2**32 + 6000)]
     assert (tracker.gaps, tracker.lost, tracker.duplicates) == (1, 2, 1)
+
+
+@settings(max_examples=300)
+@given(st.binary(max_size=3000), st.integers(0, 2**32 - 1))
+def test_random_bytes_never_break_the_bulk_decoder(blob, seed):
+    """Random bytes with the lengths of data frames among them (what made _assemble index an
+    empty array): the bulk decoder returns a capture, never raises."""
+    rnd = random.Random(seed)
+    pieces = [blob]
+    for _ in range(rnd.randrange(4)):     # frames of exactly a data record's encoded length
+        pieces.append(bytes(rnd.randrange(1, 256) for _ in range(rnd.choice((24, 36)))) + b"\x00")
+    data = b"".join(pieces)
+    cap = decode_capture(data)
+    assert len(cap.seq) == len(cap.status) == len(cap.session) <= data.count(0)
+    assert cap.stats.bytes_received == len(data)
+
+
+def test_random_bytes_the_size_of_data_frames_decode_to_nothing():
+    """Regression: frames of a data record's length that fail COBS or CRC, and nothing else."""
+    junk = bytes([5, 7] * 12) + b"\x00"            # 24 bytes: a wrench frame's length
+    cap = decode_capture(junk * 3)
+    # The first frame may be the tail of one sent before we listened: startup bytes.
+    assert len(cap) == 0 and cap.stats.crc_errors + cap.stats.cobs_errors == 2
+    assert cap.stats.startup_bytes == 24 and cap.sessions == []
+
+
+def test_a_record_of_unknown_type_is_counted_not_damage():
+    """Records of a newer minor version are intact: ignored and counted, not 'damaged'."""
+    frames, records = make_frames(20, 5, data_only=True)
+    newer = P.frame(bytes([0x42]) + bytes(range(1, 30)))
+    stream = b"".join(frames[:10]) + newer + b"".join(frames[10:])
+    for stats in (decode_capture(stream).stats, _incremental_stats(stream)):
+        assert stats.unknown_types == 1
+        assert stats.resyncs == 0 and stats.bytes_discarded == 0 and stats.errors == 0
+    assert len(decode_capture(stream)) == 20
+
+
+def _incremental_stats(stream: bytes):
+    decoder = StreamDecoder()
+    decoder.feed(stream)
+    return decoder.stats
+
+
+def test_a_restart_without_its_boot_event_is_a_new_session():
+    """The counters running backwards (or more missing records than the time could hold) are
+    a restart, not a 71-minute clock wrap with 65,000 records missing."""
+    tracker = SequenceTracker(max_rate_hz=2000)
+    for seq, t in [(500, 1_000_000), (501, 1_002_000)]:
+        tracker.update(seq, t)
+    assert tracker.update(3, 6_000) == (3, 6_000)                 # back: a new session
+    assert (tracker.session, tracker.restarts, tracker.gaps, tracker.lost) == (1, 1, 0, 0)
+    assert tracker.update(4, 8_000) == (4, 8_000) and tracker.session == 1
+    # Forward in both, but 40,000 records cannot fit into 2 s at 2 kHz: a new session too.
+    assert tracker.update(40_005, 2_008_000) == (40_005, 2_008_000) and tracker.session == 2
+    # A real gap that fits the time is a gap.
+    assert tracker.update(40_105, 2_210_000) == (40_105, 2_210_000)
+    assert (tracker.session, tracker.gaps, tracker.lost) == (2, 1, 99)
+
+
+@given(st.integers(0, 65535), st.integers(0, 2**32 - 1), st.integers(1, 2000),
+       st.integers(100, 5000))
+def test_a_continuous_stream_is_one_session_across_both_wraps(seq0, t0, rate, n):
+    period = 1_000_000 // rate
+    seq = (seq0 + np.arange(n)) % 65536
+    t = (t0 + period * np.arange(n)) % 2**32
+    frames = [P.encode_wrench(int(s), int(u), 0, (0,) * 6) for s, u in zip(seq, t)]
+    cap = decode_capture(b"".join(frames), max_rate_hz=rate)
+    assert len(cap.sessions) == 1 and cap.gaps == 0
+    assert np.array_equal(cap.time_us, t0 + period * np.arange(n))

@@ -33,7 +33,9 @@ def test_start_stop_rate_and_sample_fields():
         assert np.all(np.diff([s.seq for s in samples]) == 1)
         assert np.all(np.diff([s.host_t for s in samples]) >= 0)
         assert all(s.valid and np.isfinite(s.wrench).all() and s.theta is None for s in samples)
-        assert samples[0].flags == P.Status.CONFIG_DEFAULTS
+        # The first record after START carries the mark of a changed stream; none after it.
+        assert samples[0].flags == P.Status.CONFIG_DEFAULTS | P.Status.STREAM_CHANGED
+        assert all(s.flags == P.Status.CONFIG_DEFAULTS for s in samples[1:])
         dev.stop()
         time.sleep(0.05)
         dev.flush()
@@ -58,7 +60,7 @@ def test_raw_mode_gives_angles_and_the_reference_wrench():
 
 
 def test_commands_are_answered_while_streaming_without_losing_samples():
-    """At a pace the link's spare 10 % carries (a burst of 188-byte info records faster than
+    """At a pace the link's spare 10 % carries (a burst of 190-byte info records faster than
     that makes data records give way, counted as gaps: the next test)."""
     with Device("delta6sim://") as dev:
         dev.start(1000)
@@ -107,12 +109,54 @@ def test_configuration_persists_in_the_eeprom_across_power_cycles(tmp_path):
         assert (info.rate_hz, info.mode) == (300, P.Mode.WRENCH_RAW)
         assert info.status & P.Status.TARE_ACTIVE and not info.status & P.Status.CONFIG_DEFAULTS
     blob = bytearray(eeprom.read_bytes())
-    blob[30] ^= 0x10
+    blob[P.CONFIG_LAYOUT.offsets["tare"] + 2] ^= 0x10          # a bit of a tare offset
     eeprom.write_bytes(bytes(blob))
     with Device(url) as dev:
         dev.start()                     # any command; the boot records went out before
         info = dev.info(refresh=True)
         assert info.status & P.Status.CONFIG_DEFAULTS and info.rate_hz == 200
+
+
+def test_zero_here_takes_the_resting_pose_as_zero_and_clears_the_tare():
+    with Device(f"delta6sim://?motion=static&pose={POSE}") as dev:
+        dev.set_mode("raw")
+        dev.start(500)
+        dev.tare(10)
+        resting = take(dev, 5)[-1].counts
+        assert np.abs(take(dev, 1)[0].theta).max() > 0.01          # deflected from zero
+        zero = dev.zero_here(50)
+        assert zero == dev.info().zero_counts == tuple(resting)
+        assert not dev.info().status & P.Status.TARE_ACTIVE
+        dev.flush()
+        after = take(dev, 20)
+        assert all(np.array_equal(s.theta, np.zeros(6)) for s in after)
+        assert not any(s.flags & P.Status.TARE_ACTIVE for s in after)
+        for bad in (0, 70000):
+            with pytest.raises(DeviceError, match="zero capture takes 1..65535 samples"):
+                dev.zero_here(bad)
+
+
+def test_load_defaults_restores_the_factory_configuration_in_ram_only(tmp_path):
+    eeprom = tmp_path / "eeprom.bin"
+    url = f"delta6sim://?rate=200&eeprom={eeprom}&motion=static&pose={POSE}"
+    with Device(url) as dev:
+        factory = dev.info()
+        dev.set_mode("raw")
+        dev.start(300)
+        dev.tare(10)
+        dev.set_zero([100, 200, 300, 400, 500, 600])
+        dev.save_config()
+        dev.load_defaults()
+        info = dev.info()
+        assert (info.rate_hz, info.mode, info.zero_counts, info.tare) == (
+            factory.rate_hz, factory.mode, factory.zero_counts, (0.0,) * 6)
+        assert not info.status & P.Status.TARE_ACTIVE
+        dev.flush()
+        later = take(dev, 3)[1:]                # wrench-only records at the factory rate
+        assert later[0].theta is None and later[1].t - later[0].t == pytest.approx(1 / 200)
+    with Device(url) as dev:                 # the saved configuration is still what boots
+        info = dev.info()
+        assert (info.rate_hz, info.zero_counts) == (300, (100, 200, 300, 400, 500, 600))
 
 
 def test_a_vanishing_port_ends_iteration_with_a_clear_error_after_the_last_sample():
@@ -131,10 +175,10 @@ def test_a_vanishing_port_ends_iteration_with_a_clear_error_after_the_last_sampl
 
 
 def test_sequence_gaps_match_what_the_device_dropped():
-    with Device("delta6sim://?tx_capacity=198") as dev:
+    with Device("delta6sim://?tx_capacity=200") as dev:
         dev.start(1600)
         for _ in range(15):
-            dev.info(refresh=True)       # 188-byte answers push data records out of the way
+            dev.info(refresh=True)       # 190-byte answers push data records out of the way
         first = take(dev, 1)[0].seq
         time.sleep(0.05)
         dropped = dev.telemetry().tx_dropped
@@ -278,3 +322,140 @@ def test_device_over_socket_url():
         assert np.all(np.diff([s.seq for s in samples]) == 1)
     thread.join(timeout=2)
     assert not thread.is_alive()
+
+
+def test_a_port_in_use_is_refused_as_busy():
+    """A second program on the same port would take half of the bytes: refused at open."""
+    import os
+    master, slave = os.openpty()
+    path = os.ttyname(slave)
+    try:
+        with Device(path, handshake=False):
+            with pytest.raises(DeviceError) as info:
+                Device(path, handshake=False).open()
+            assert str(info.value) == (f"port busy: {path} is open in another program "
+                                       "(another delta6 log or stream?)")
+        with Device(path, handshake=False):     # free again once the first one closed
+            pass
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_a_capture_is_never_appended_to(tmp_path):
+    capture = tmp_path / "old.bin"
+    capture.write_bytes(b"an earlier session")
+    with pytest.raises(DeviceError, match="the capture .*old.bin exists: a capture holds one "
+                                          "session"):
+        Device("delta6sim://", capture=capture).open()
+    assert capture.read_bytes() == b"an earlier session"
+    fresh = tmp_path / "new.bin"
+    with Device("delta6sim://", capture=fresh) as dev:
+        dev.start(500)
+        take(dev, 20)
+    assert fresh.stat().st_size > 20 * 25
+
+
+def test_times_are_the_nearest_double_to_the_microsecond():
+    """t = 14000 us is 0.014 s, not 0.013999999999999999."""
+    sim = SimulatedDevice(rate_hz=500)
+    info = P.parse_payload(P.unframe(sim.read().split(b"\x00")[2]))
+    sim.close()
+    frames = [P.encode_info(info)] + [P.encode_wrench(k, 14_000 * k, 0, (0,) * 6)
+                                      for k in range(1, 4)]
+    with Device("loop://", handshake=False, timeout=0.1, retries=0) as dev:
+        dev._serial.write(b"".join(frames))
+        samples = take(dev, 3)
+    assert [repr(s.t) for s in samples] == ["0.014", "0.028", "0.042"]
+
+
+def test_an_unusable_info_record_is_never_used_for_scaling():
+    """An info record with a scale the protocol does not allow (mantissa 3) or of another major
+    version: the samples wait for a usable one instead of being scaled with it."""
+    from delta6.link.infocheck import info_problem
+    sim = SimulatedDevice(rate_hz=500)
+    info = P.parse_payload(P.unframe(sim.read().split(b"\x00")[2]))
+    sim.close()
+    assert info_problem(info) is None
+    bad_scale = info._replace(lsb_mantissa=(3, 1, 1, 2, 2, 2))
+    newer = info._replace(protocol=(2, 0))
+    assert "axis 1 has a wrench step of 3e-3" in info_problem(bad_scale)
+    assert info_problem(newer) == "protocol 2.0; this delta6 reads 1.x: update the host"
+    assert "zero count" in info_problem(info._replace(zero_counts=(16384, 0, 0, 0, 0, 0)))
+    assert "finite" in info_problem(info._replace(tare=(float("nan"),) * 6))
+    with Device("loop://", handshake=False, timeout=0.1, retries=0) as dev:
+        dev._serial.write(P.encode_info(bad_scale) + P.encode_wrench(1, 1000, 0, (1,) * 6))
+        with pytest.raises(DeviceError, match="no device info"):
+            take(dev, 1)
+
+
+def test_no_sample_older_than_a_command_is_handed_out_after_it():
+    """After tare() returns, every sample is tared; after set_mode('raw'), every sample has
+    angles: the samples queued before the answer are dropped (counted), not handed out."""
+    with Device("delta6sim://?motion=static&pose=0.1,0,0,0,0.05,0") as dev:
+        dev.start(1000)
+        time.sleep(0.2)                          # untared samples pile up in the queue
+        dev.tare(20)
+        after = take(dev, 50)
+        assert all(s.status & P.Status.TARE_ACTIVE for s in after)
+        assert after[0].status & P.Status.STREAM_CHANGED
+        assert dev.latest().status & P.Status.TARE_ACTIVE
+        time.sleep(0.1)
+        dev.set_mode("raw")
+        raw = take(dev, 50)
+        assert all(s.counts is not None for s in raw) and raw[0].status & P.Status.STREAM_CHANGED
+        assert dev.health.stale_dropped >= 100
+
+
+def test_an_interrupted_tare_is_aborted_on_the_device():
+    """Ctrl-C in a long tare: the device is told to stop averaging, and is not left busy."""
+    import os
+    import signal
+    with Device("delta6sim://?rate=500") as dev:
+        dev.start(500)
+        timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))   # a real Ctrl-C
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            dev.tare(65535)                       # would take over two minutes
+        assert not dev.info(refresh=True).status & P.Status.TARE_BUSY
+        assert dev.abort() is False               # nothing left to abort
+        assert np.all(np.isfinite(dev.tare(5)))   # and it takes commands again
+
+
+def test_a_new_boot_id_starts_a_new_session_even_with_counters_that_fit():
+    """A restart whose BOOT event was lost and whose counters happen to continue: the boot id
+    of the next INFO or TELEMETRY record tells the sessions apart."""
+    sim = SimulatedDevice(rate_hz=500)
+    info = P.parse_payload(P.unframe(sim.read().split(b"\x00")[2]))._replace(boot_id=7)
+    telemetry = P.parse_payload(P.unframe(P.encode_record(P.Telemetry(
+        0, 0, 0, 0, 0, (0,) * 6, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, boot_id=8))[:-1]))
+    sim.close()
+
+    def records(first):
+        return b"".join(P.encode_wrench(k, 2000 * k, 0, (k,) * 6) for k in range(first, first + 10))
+
+    stream = P.encode_info(info) + records(0) + P.encode_record(telemetry) + records(10)
+    with Device("loop://", handshake=False, timeout=0.1, retries=0) as dev:
+        dev._serial.write(stream)
+        samples = take(dev, 20)
+        assert [s.session for s in samples] == [0] * 10 + [1] * 10
+        assert dev.health.restarts == 1 and dev.health.samples_lost == 0
+    from delta6.link.bulkdecode import decode_capture
+    cap = decode_capture(stream)
+    assert [s.stop - s.start for s in cap.sessions] == [10, 10]
+    same = stream.replace(P.encode_record(telemetry), P.encode_record(telemetry._replace(boot_id=7)))
+    assert len(decode_capture(same).sessions) == 1
+
+
+def test_a_1_0_device_has_no_abort():
+    sim = SimulatedDevice(rate_hz=500)
+    info = P.parse_payload(P.unframe(sim.read().split(b"\x00")[2]))
+    sim.close()
+    old = info._replace(protocol=(1, 0), boot_id=None)
+    with Device("loop://", handshake=False, timeout=0.1, retries=0) as dev:
+        dev._serial.write(P.encode_info(old))
+        deadline = time.monotonic() + 2
+        while dev._info is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        with pytest.raises(DeviceError, match="protocol 1.0, which has no abort command"):
+            dev.abort()

@@ -42,7 +42,7 @@ def test_partial_file_until_clean_close(tmp_path):
     partial = tmp_path / ("run.csv" + PARTIAL_SUFFIX)
     assert partial.exists() and not path.exists()
     # What a crash leaves behind is readable up to the last row.
-    assert partial.read_text().strip().splitlines()[-1].startswith("0,0,0")
+    assert partial.read_text().strip().splitlines()[-1].startswith("0.000000,0,0,0")
     log.close()
     assert path.exists() and not partial.exists()
     assert len(read_log(path)) == 1
@@ -65,13 +65,14 @@ def test_blocks_reach_the_os_at_once_and_the_disk_every_flush_every_rows(tmp_pat
     assert len(synced) == 4 and len(read_log(path)) == 100
 
 
-def test_exception_inside_context_still_keeps_the_data(tmp_path):
+def test_exception_inside_context_keeps_the_data_in_the_partial_file(tmp_path):
     path = tmp_path / "run.csv"
     with pytest.raises(RuntimeError):
         with LogWriter(path) as log:
             log.write(0.0, [0] * 6, [0] * 6)
-            raise RuntimeError("port vanished")
-    assert len(read_log(path)) == 1
+            raise RuntimeError("interrupted")
+    # The rows are kept, but a file without .partial is complete, and this one is not.
+    assert not path.exists() and len(read_log(path.with_name("run.csv.partial"))) == 1
 
 
 def test_missing_values_allowed_when_asked(tmp_path):
@@ -136,3 +137,86 @@ def test_fuzzed_rows_after_a_valid_header(tmp_path_factory, rows):
         return
     assert np.isfinite(data.t).all() and (np.diff(data.t) > 0).all()
     assert not np.isnan(data.theta).any()
+
+
+def test_times_are_written_exactly_at_any_length_of_run(tmp_path):
+    """Device times are whole microseconds: after 28 h at 1800 Hz neighbouring rows still
+    differ, and every microsecond survives (9 significant digits lost them past 1000 s)."""
+    t_us = np.array([100_000_000_000 + k * 555 for k in range(5)] + [123_456_789_012])
+    path = tmp_path / "long.csv"
+    with LogWriter(path, optional=("host_t",)) as log:
+        log.write_block(t_us / 1e6, np.zeros((6, 6)), np.zeros((6, 6)),
+                        host_t=np.full(6, 98765.4321))
+    back = read_log(path)
+    assert np.array_equal(np.round(back.t * 1e6).astype(np.int64), t_us)
+    assert np.all(np.diff(back.t[:5]) > 0) and back.host_t[0] == 98765.4321
+    assert path.read_text().splitlines()[-1].startswith("123456.789012,")
+
+
+def test_infinite_values_are_refused_with_their_line(tmp_path):
+    path = tmp_path / "inf.csv"
+    path.write_text(good_text(5).replace("0.06,0.1,0.1,0.1", "0.06,0.1,inf,0.1"))
+    with pytest.raises(LogError, match="line 6: infinite value in column theta_e2"):
+        read_log(path)
+    path.write_text(good_text(5).replace("0.04,", "-inf,"))
+    with pytest.raises(LogError, match="line 5: infinite value in column t"):
+        read_log(path, require_complete_rows=False)
+
+
+def test_a_cut_last_row_of_a_partial_file_is_not_read(tmp_path):
+    """A writer killed in the middle of a row leaves a cut number, which is a made-up number:
+    the reader of a .partial file drops an unterminated last row."""
+    text = good_text(4)
+    partial = tmp_path / "run.csv.partial"
+    partial.write_text(text[:-5])                      # "0.06,0.1,...,0." : cut
+    data = read_log(partial)
+    assert len(data) == 3 and data.meta["cut_row_dropped"] == "1"
+    complete = tmp_path / "run.csv"                    # a complete file keeps its last row
+    complete.write_text(text[:-1])
+    assert len(read_log(complete)) == 4
+
+
+def test_a_full_disk_leaves_only_whole_rows(tmp_path, monkeypatch):
+    """A write that fails half way (ENOSPC) is undone to the last whole row, the error names
+    the file and the rows kept, and what is on disk reads back as exactly those rows."""
+    import errno
+    import os
+
+    real_write = os.write
+    budget = {"bytes": 2000}
+
+    def disk_with_room(fd, data):
+        if budget["bytes"] <= 0:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        n = min(len(data), budget["bytes"])
+        budget["bytes"] -= n
+        return real_write(fd, bytes(data[:n]))        # a short write, then ENOSPC
+
+    path = tmp_path / "full.csv"
+    log = LogWriter(path, optional=("seq",))
+    monkeypatch.setattr("delta6.link.logfile.os.write", disk_with_room)
+    with pytest.raises(LogError) as info:
+        for k in range(100):
+            t = np.arange(10) * 0.001 + k * 0.01
+            log.write_block(t, np.full((10, 6), 0.123456789), np.full((10, 6), -1.5),
+                            seq=np.arange(10) + 10 * k)
+    message = str(info.value)
+    assert "No space left on device" in message and str(log.partial) in message
+    kept = log.rows
+    assert f"keeps the {kept} rows written before" in message and kept % 10 == 0
+    monkeypatch.undo()
+    back = read_log(log.close(complete=False))
+    assert len(back) == kept and np.array_equal(back.seq, np.arange(kept))
+    assert np.all(back.theta.astype(np.float32) == np.float32(0.123456789))
+
+
+def test_refusing_to_overwrite(tmp_path):
+    path = tmp_path / "keep.csv"
+    path.write_text("precious")
+    with pytest.raises(LogError, match="keep.csv exists"):
+        LogWriter(path, overwrite=False)
+    path.unlink()
+    (tmp_path / "keep.csv.partial").write_text("left by a crash")
+    with pytest.raises(LogError, match="keep.csv.partial exists"):
+        LogWriter(path, overwrite=False)
+    assert (tmp_path / "keep.csv.partial").read_text() == "left by a crash"

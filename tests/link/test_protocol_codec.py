@@ -158,7 +158,8 @@ def test_info_round_trips_through_its_encoder():
     info = P.Info(request_id=9, protocol=(1, 0), firmware=(0, 1, 2), mode=P.Mode.WRENCH_RAW,
                   design_hash=0x535534AF, design_name="delta6", full_scale=(1.5,) * 6,
                   lsb_mantissa=(1, 2, 5, 1, 2, 5), lsb_exponent=(-3, -3, -3, -5, -5, -5),
-                  rate_hz=500, max_rate_hz=2000, status=P.Status.TARE_ACTIVE, streaming=True, baud=500000,
+                  rate_hz=500, max_rate_hz=2000, status=P.Status.TARE_ACTIVE, streaming=True,
+                  config_problem=P.ConfigProblem.BAD_CRC, baud=500000,
                   serial_number=7, zero_counts=(1, 2, 3, 4, 5, 16383), tare=(0.5,) * 6,
                   joint_limit_rad=0.5)
     payload = P.unframe(P.encode_info(info)[:-1])

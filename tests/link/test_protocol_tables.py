@@ -168,7 +168,7 @@ def test_record_tuples_name_the_layout_fields():
               P.RecordType.WRENCH_RAW: P.WrenchRecord}
     for kind, cls in tuples.items():
         names = [f.name for f in P.RECORD_LAYOUTS[kind].fields]
-        assert [n for n in names if n not in ("type", "reserved")] == list(cls._fields), kind
+        assert [n for n in names if n != "type"] == list(cls._fields), kind
 
 
 @pytest.mark.parametrize("layout", [*P.RECORD_LAYOUTS.values(), *P.COMMAND_LAYOUTS.values(),
@@ -194,3 +194,24 @@ def test_pack_names_missing_and_unknown_fields():
         layout.pack(type=4, request_id=1, command=2, x=3)
     with pytest.raises(ValueError, match="twice"):
         Layout("BAD", [Field("a", "B"), Field("a", "H")])
+
+
+def test_the_framing_examples_in_the_docs_are_what_the_encoders_send():
+    text = section("2. Framing")
+    wire = bytes.fromhex(re.search(r"^wire\s+([0-9a-f ]+?)\s+\(", text, re.M).group(1))
+    assert wire == P.encode_wrench(1, 1000, P.Status.TARE_ACTIVE, (1234, -5, 0, 100, -100, 7))
+    rate, request, frame = re.search(r"start streaming at (\d+) Hz with request id (\d+): "
+                                     r"`([0-9a-f ]+)`", text).groups()
+    assert bytes.fromhex(frame) == P.encode_command(P.Command.START, int(request), int(rate))
+
+
+def test_the_start_examples_use_a_rate_a_board_accepts():
+    """README, docs and the Device docstring show ``dev.start(N)``: N must be a rate the
+    firmware's START takes at 16 MHz (DELTA6_MAX_RATE_HZ), or the example fails on a board."""
+    app = (ROOT / "firmware" / "src" / "app.cpp").read_text(encoding="utf-8")
+    board_max = int(re.search(r"#define DELTA6_MAX_RATE_HZ \((\d+)UL \* \(F_CPU / 1000000UL\) "
+                              r"/ 16UL\)", app).group(1))
+    examples = []
+    for path in ("README.md", "docs/protocol.md", "host/delta6/link/device.py"):
+        examples += [int(n) for n in re.findall(r"dev\.start\((\d+)\)", (ROOT / path).read_text())]
+    assert examples and all(0 < n <= board_max for n in examples), (examples, board_max)

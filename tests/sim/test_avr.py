@@ -7,6 +7,8 @@ cycles are deterministic, so the requirement (<= 40,000 per solve) is also check
 """
 from __future__ import annotations
 
+import subprocess
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -14,16 +16,18 @@ from hypothesis import strategies as st
 
 from delta6.build import avrbuild
 from delta6.cli import main
+from delta6.core.calibrated import CalibratedModel
 from delta6.core.design import load
 from delta6.core.model import ENCODER_COUNT_RAD, wrench
 from delta6.core.spec import full_scale
-from delta6.sim import avrsim, solverbench
-from delta6_codegen import render
+from delta6.sim import avrsim, solverbench, virtualboard
+from delta6_codegen import render, render_calibration
 
 from conftest import DESIGNS
+from support.calibrations import random_calibration
 
 REQUIRED_CYCLES = 40_000
-AVR_TOLERANCE_FS = 5e-4       # the issue's 0.05 % FS
+AVR_TOLERANCE_FS = 5e-4       # the required accuracy on the AVR: 0.05 % FS
 FLOAT32_TOLERANCE_FS = 2e-6   # what float32 reaches natively; the AVR must match it
 
 
@@ -136,3 +140,51 @@ def test_simulator_reports_firmware_that_never_finishes():
                                           name="test-unfinished")
     with pytest.raises(avrsim.SimulatorError, match="no stop marker"):
         avrsim.run(image.elf, max_cycles=100_000)
+
+
+@pytest.mark.parametrize("tool", ["runner", "virtual_board"])
+@pytest.mark.parametrize("args, message", [
+    (["--bogus", "x.elf"], "unknown option --bogus"),
+    (["x.elf", "--freq"], "--freq needs a value"),
+    (["a.elf", "b.elf"], "more than one firmware file given"),
+    ([], "no firmware file given"),
+])
+def test_the_c_harnesses_reject_bad_arguments_in_one_line(tool, args, message):
+    """Both simavr programs parse options with getopt_long: a bad command line is one line on
+    stderr and exit status 2, before any simulation starts."""
+    exe = avrsim.harness() if tool == "runner" else virtualboard.harness()
+    proc = subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=30)
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    words = message.split()
+    assert all(w.strip(":") in proc.stderr for w in words), proc.stderr
+
+
+def test_the_runner_takes_options_in_any_order_and_the_equals_form():
+    image = solverbench.build_bench_image(avrbuild.COMMITTED_DESIGN_INCLUDE, solves=4,
+                                          name="test-unfinished")
+    for args in ([str(image.elf), "--max-cycles", "1000"],
+                 ["--max-cycles=1000", str(image.elf)]):
+        proc = subprocess.run([str(avrsim.harness()), *args], capture_output=True, text=True,
+                              timeout=30)
+        assert proc.returncode == 3, proc.stderr             # ran, hit the cycle limit
+
+
+@pytest.mark.parametrize("seed", [5, 6])
+def test_simulated_avr_calibrated_solver_matches_the_python_model(tmp_path, baseline, seed):
+    # The calibrated solver compiled for the ATmega328P, along the bench's random walk (history
+    # included), against delta6.core.calibrated: the same 0.01 % FS as the native check.
+    cal = random_calibration(baseline, seed)
+    generated = tmp_path / "generated"
+    generated.mkdir()
+    (generated / "delta6_design.h").write_text(render(baseline, "designs/delta6.toml"))
+    (generated / "delta6_calibration.h").write_text(
+        render_calibration(baseline, cal, "designs/delta6.toml", "random.toml"))
+    run = solverbench.run_bench(tmp_path, solves=200, name="calibrated-bench-test",
+                                calibrated=True)
+    report = run.report
+    assert report.design_hash == baseline.hash32() and (report.status == 0).all()
+    assert len(np.unique(report.delta, axis=0)) > 150     # a walk, not one pose
+    python, _ = CalibratedModel(baseline, cal).run(report.delta.astype(float),
+                                                   solverbench.CALIBRATED_PERIOD_S)
+    err = np.abs(report.wrench.astype(float) - python) / full_scale(baseline) * 100
+    assert err.max() < 0.01, err.max(axis=0)

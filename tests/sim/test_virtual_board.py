@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import random
+import time
 
 import numpy as np
 import pytest
@@ -27,7 +28,7 @@ from delta6.sim.virtualboard import (
 )
 
 from conftest import DESIGNS
-from support.vboard import drain, pair, read_reads, wait_board_time
+from support.vboard import F_CPU, drain, pair, read_reads, wait_board_time
 
 ZERO = np.array([1200, 5400, 9800, 14100, 300, 16000])   # mechanism zero, wraps for joint 6
 STATUS_QUIET = P.Status.TARE_ACTIVE | P.Status.CONFIG_DEFAULTS
@@ -92,7 +93,7 @@ def test_replayed_trajectory_streams_the_reference_wrench(image, design, motion,
     assert np.array_equal(counts, reads.counts[index])
     assert np.all(reads.complete[index] == 0x3F)
     # ... which are the replay's counts in force at that board time (sample and hold).
-    read_t = reads.cycle[index] / 16e6
+    read_t = reads.cycle[index] / F_CPU
     row = np.searchsorted(t, read_t, side="right") - 1
     assert np.array_equal(counts, served[row])
 
@@ -109,7 +110,7 @@ def test_replayed_trajectory_streams_the_reference_wrench(image, design, motion,
     assert sum(enc["violations"].values()) == 0 and enc["contention"] == 0
     assert enc["aborted"] == 0 and enc["bad_commands"] == 0
     assert stats["timing"]["missed_ticks"] == 0 and stats["timing"]["marker_errors"] == 0
-    assert stats["timing"]["latency_cycles"]["max"] < 5e-3 * 16e6
+    assert stats["timing"]["latency_cycles"]["max"] < 5e-3 * F_CPU
 
 
 def test_injected_faults_flag_exactly_the_affected_samples(image, motion, tmp_path):
@@ -144,7 +145,7 @@ def test_injected_faults_flag_exactly_the_affected_samples(image, motion, tmp_pa
     assert np.all(counts[flagged] == 0)                       # never a made-up angle
     assert np.array_equal(counts[~flagged], reads.counts[index][~flagged])
     for f in faults:                                          # every window hit some samples
-        in_window = (reads.cycle[index] >= f.start * 16e6) & (reads.cycle[index] < f.stop * 16e6)
+        in_window = (reads.cycle[index] >= f.start * F_CPU) & (reads.cycle[index] < f.stop * F_CPU)
         assert in_window.sum() >= round((f.stop - f.start) * 250) - 1
         assert np.all(flagged[in_window, f.encoder - 1])
     # The device's per-encoder counters saw every faulty read, streamed or not.
@@ -263,11 +264,64 @@ def test_configuration_survives_a_restart_and_a_corrupt_one_falls_back(image, tm
     assert sample.status & P.Status.CONFIG_DEFAULTS
 
 
+def test_an_eeprom_image_that_cannot_be_saved_fails_the_run(image, tmp_path):
+    """A configuration the firmware saved and acknowledged must not vanish silently."""
+    folder = tmp_path / "gone"
+    folder.mkdir()
+    board = VirtualBoard(image=image, speed=0, eeprom=folder / "e.bin").start()
+    try:
+        with Device(board.port) as dev:
+            dev.tare(5)
+            dev.save_config()
+        folder.rmdir()                       # the folder went away while the board ran
+        status = board.stop()
+    finally:
+        board.close()
+    assert status == 2
+    assert "error: could not save the EEPROM image" in board.stderr
+
+
+def test_the_emulator_dies_with_the_program_that_started_it(tmp_path):
+    """SIGKILL of the program that runs the board: the emulator notices and ends (it used to
+    run on at half a core, its encoders frozen, its stream still saying ok)."""
+    import signal
+    import subprocess
+    import sys
+    script = ("from delta6.sim.virtualboard import VirtualBoard\n"
+              "import time\n"
+              "board = VirtualBoard(speed=1, wait_for_client=False).start()\n"
+              "print(board.proc.pid, flush=True)\n"
+              "time.sleep(60)\n")
+    parent = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    try:
+        emulator = int(parent.stdout.readline())
+        assert _alive(emulator)
+        parent.send_signal(signal.SIGKILL)
+        parent.wait(timeout=10)
+        deadline = time.monotonic() + 5
+        while _alive(emulator) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not _alive(emulator)
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+
+
+def _alive(pid: int) -> bool:
+    """Whether pid runs (a zombie, dead but not yet reaped by init, does not)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
 def test_watchdog_resets_a_hung_loop(tmp_path):
     image = firmware(test_hooks=True)
     with VirtualBoard(image=image, speed=0, live=True) as board:
         with Device(board.port) as dev:
             first_boot = [e.arg for e in dev.events if e.code == P.EventCode.BOOT]
+            first_id = dev.info().boot_id
             dev.start(250)
             drain(dev, dev.get(timeout=10).t + 0.1)
             hung_at = board.live.time()
@@ -284,6 +338,8 @@ def test_watchdog_resets_a_hung_loop(tmp_path):
     assert len(boots) >= 2 and all(arg == 0x08 for arg in boots[1:])   # watchdog
     assert resets == len(boots) and stats["timing"]["boots"] == len(boots)
     assert not info.streaming                                 # a fresh start, not streaming
+    # The boot id survives a reset in RAM and steps: the restart is known without BOOT.
+    assert first_id is not None and info.boot_id == (first_id + len(boots) - 1) % 65536
 
 
 def test_late_data_is_caught_by_the_sensor_timing(image, motion):
@@ -330,7 +386,7 @@ def test_the_twin_drives_the_board_through_the_live_channel(image, design, tmp_p
     reads = read_reads(reads_path)
     t_us, _, status, wrench, counts = samples_as_arrays(samples)
     index = pair(t_us, reads, 4000)
-    latch = reads.cycle[index] / 16e6
+    latch = reads.cycle[index] / F_CPU
     driven = latch >= t0 + 0.002
     assert driven.sum() > 500
     # Each sample latched the twin's angles due at that board time (zero-order hold) ...

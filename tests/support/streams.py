@@ -33,7 +33,8 @@ def make_frames(n: int, seed: int = 0, data_only: bool = False) -> tuple[list[by
             record = P.Nack(rnd.randrange(1, 256), P.Command.START, P.NackReason.RATE_TOO_HIGH, 2000)
             frame = P.encode_nack(*record)
         else:
-            record = P.Event(P.EventCode.BOOT, rnd.randrange(256))
+            # Not BOOT: that one says the counters start again, which these do not.
+            record = P.Event(P.EventCode.CONFIG_DEFAULTS, rnd.randrange(1, 5))
             frame = P.encode_event(*record)
         frames.append(frame)
         records.append(record)

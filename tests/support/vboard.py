@@ -8,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-F_CPU = 16_000_000
+from delta6.build.avrbuild import NANO
+
+F_CPU = NANO.f_cpu           # the clock the virtual board emulates
 
 
 @dataclass

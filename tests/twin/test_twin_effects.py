@@ -18,7 +18,7 @@ from support.twinkit import CLEAN, residual
 HISTORY = ("spring_hysteresis", "joint_friction", "backlash")
 
 
-def test_vocabulary_is_the_issues():
+def test_the_effect_vocabulary_is_the_documented_one():
     assert twin.EFFECT_NAMES == ("encoder_offset", "stiffness_mismatch", "geometry_error",
                                  "spring_hysteresis", "joint_friction", "backlash",
                                  "link_compliance", "sensor_latency", "thermal_drift")

@@ -105,7 +105,7 @@ def test_measurement_settings_round_trip_through_the_truth_record(quantize, bits
     assert twin.Measurement.from_dict(json.loads(json.dumps(m.as_dict()))) == m
 
 
-def test_truth_holds_what_the_issue_asks(baseline):
+def test_truth_holds_the_run_effects_and_their_parameters(baseline):
     result = run(baseline, twin.scenario_effects("paper", 2), seed=2, duration=10,
                  scenario="paper")
     t = result.truth

@@ -17,6 +17,7 @@
  * pattern (IRQ callbacks on pins and the UART), see docs/firmware.md.
  */
 #include <errno.h>
+#include <getopt.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -85,33 +86,48 @@ int main(int argc, char **argv)
 	unsigned long long freq = 16000000ULL, max_cycles = 2000000000ULL;
 	run_state_t st = {NULL, NULL, 0xFF, 0};
 
-	for (int i = 1; i < argc; i++) {
-		const char *a = argv[i];
-		const char *next = (i + 1 < argc) ? argv[i + 1] : NULL;
-		if (a[0] != '-') {
-			if (elf_path)
-				die_usage("more than one firmware file given", a);
-			elf_path = a;
-			continue;
+	enum { OPT_MCU = 1, OPT_FREQ, OPT_MAX_CYCLES, OPT_STOP_MARKER, OPT_UART, OPT_MARKERS };
+	static const struct option options[] = {
+		{"mcu", required_argument, NULL, OPT_MCU},
+		{"freq", required_argument, NULL, OPT_FREQ},
+		{"max-cycles", required_argument, NULL, OPT_MAX_CYCLES},
+		{"stop-marker", required_argument, NULL, OPT_STOP_MARKER},
+		{"uart", required_argument, NULL, OPT_UART},
+		{"markers", required_argument, NULL, OPT_MARKERS},
+		{NULL, 0, NULL, 0},
+	};
+	opterr = 0; /* our own one-line messages */
+	for (int opt; (opt = getopt_long(argc, argv, ":", options, NULL)) != -1;) {
+		switch (opt) {
+		case OPT_MCU:
+			mcu = optarg;
+			break;
+		case OPT_FREQ:
+			freq = parse_number(optarg, "--freq needs a number");
+			break;
+		case OPT_MAX_CYCLES:
+			max_cycles = parse_number(optarg, "--max-cycles needs a number");
+			break;
+		case OPT_STOP_MARKER:
+			st.stop_marker = (int)parse_number(optarg, "--stop-marker needs a number");
+			break;
+		case OPT_UART:
+			st.uart = open_output(optarg);
+			break;
+		case OPT_MARKERS:
+			st.markers = open_output(optarg);
+			break;
+		case ':':
+			die_usage("option needs a value", argv[optind - 1]);
+			break;
+		default:
+			die_usage("unknown option", argv[optind - 1]);
 		}
-		if (!next)
-			die_usage("option needs a value", a);
-		i++;
-		if (!strcmp(a, "--mcu"))
-			mcu = next;
-		else if (!strcmp(a, "--freq"))
-			freq = parse_number(next, "--freq needs a number");
-		else if (!strcmp(a, "--max-cycles"))
-			max_cycles = parse_number(next, "--max-cycles needs a number");
-		else if (!strcmp(a, "--stop-marker"))
-			st.stop_marker = (int)parse_number(next, "--stop-marker needs a number");
-		else if (!strcmp(a, "--uart"))
-			st.uart = open_output(next);
-		else if (!strcmp(a, "--markers"))
-			st.markers = open_output(next);
-		else
-			die_usage("unknown option", a);
 	}
+	if (optind < argc)
+		elf_path = argv[optind];
+	if (optind + 1 < argc)
+		die_usage("more than one firmware file given", argv[optind + 1]);
 	if (!elf_path)
 		die_usage("no firmware file given", NULL);
 

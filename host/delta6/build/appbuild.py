@@ -51,4 +51,4 @@ def size_check_app(mcu: str = "avrxmega3", include_dir: Path | None = None,
     return avrbuild.size_check(f"{name}-{mcu}", sources,
                                include_dirs=[include, APP_DIR,
                                              avrbuild.CORE_LIB],
-                               defines=["F_CPU=16000000UL"], mcu=mcu)
+                               defines=[f"F_CPU={avrbuild.NANO.f_cpu}UL"], mcu=mcu)

@@ -7,26 +7,24 @@ platform file, and links an ELF; ``size_check`` compiles and links portable sour
 ``-mmcu=avrxmega3`` (the ATmega4809's instruction set, which Debian's avr-libc cannot build
 a full image for) to report what they cost in flash and RAM there.
 
-Everything is cached under ``build/avr/`` by a hash of the sources, the headers in the
-include directories, the flags and the compiler version, so a second build is a lookup and
-any change rebuilds. Builds of different designs land in different directories.
+Everything is cached under ``build/avr/`` by :mod:`delta6.build.compilecache` (a key over the
+compiler version, the flags, the sources and every header they may include), so a second
+build is a lookup and any change rebuilds. Builds of different designs land in different
+directories.
 """
 from __future__ import annotations
 
-import functools
 import hashlib
 import os
 import re
-import shutil
 import subprocess
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
-from delta6.core.errors import UserError
+from delta6.build import compilecache
+from delta6.core.paths import REPO_ROOT
 
-from delta6.core.paths import REPO_ROOT  # noqa: E402
-BUILD_ROOT = REPO_ROOT / "build" / "avr"
 FIRMWARE = REPO_ROOT / "firmware"
 CORE_LIB = FIRMWARE / "lib" / "delta6_core" / "src"
 COMMITTED_DESIGN_INCLUDE = FIRMWARE / "include"
@@ -42,12 +40,11 @@ CXX_FLAGS = ("-fno-exceptions", "-fno-threadsafe-statics", "-fno-rtti")
 CORE_FIX = ("-DDECIMAL_DIG=__DECIMAL_DIG__",)
 
 
-class ToolchainMissing(UserError):
+BuildError = compilecache.BuildError
+
+
+class ToolchainMissing(BuildError):
     """avr-gcc, avr-libc or the Arduino core is not installed."""
-
-
-class BuildError(UserError):
-    """A compiler or linker step failed; the message carries its command and output."""
 
 
 @dataclass(frozen=True)
@@ -94,33 +91,10 @@ class Image:
 
 
 def _tool(name: str) -> str:
-    path = shutil.which(name)
-    if not path:
-        raise ToolchainMissing(f"{name} not found; {APT_HINT}")
-    return path
+    return compilecache.find_tool(name, APT_HINT, ToolchainMissing)
 
 
-def _run(cmd: list[str], what: str) -> None:
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise BuildError(f"{what} failed:\n  {' '.join(cmd)}\n{proc.stderr.strip()}")
-
-
-@functools.cache   # one `--version` per process, not one per build_image call
-def _compiler_version(cc: str) -> str:
-    return subprocess.run([cc, "--version"], capture_output=True, text=True).stdout
-
-
-def _digest(parts: list[str], files: list[Path], include_dirs: list[Path]) -> str:
-    h = hashlib.sha256()
-    for part in parts:
-        h.update(part.encode() + b"\0")
-    for f in files:
-        h.update(str(f).encode() + b"\0" + f.read_bytes())
-    for d in include_dirs:
-        for header in sorted(d.rglob("*.h")):
-            h.update(str(header).encode() + b"\0" + header.read_bytes())
-    return h.hexdigest()[:16]
+_run = compilecache.run
 
 
 def _object_name(src: Path) -> str:
@@ -157,8 +131,8 @@ def arduino_core(board: Board = NANO) -> Path:
     sources = sorted(p for p in cores.iterdir() if p.suffix in (".c", ".cpp", ".S"))
     defines = _board_defines(board)
     flags = [*defines, *CORE_FIX, "-w", f"-I{cores}", f"-I{variant}"]
-    key = _digest([_compiler_version(_tool("avr-gcc")), *flags], sources, [])
-    out = BUILD_ROOT / f"core-{board.name}-{key}"
+    key = compilecache.cache_key(_tool("avr-gcc"), [board.mcu, *flags], sources, [cores, variant])
+    out = compilecache.build_dir("avr") / f"core-{board.name}-{key}"
     archive = out / "core.a"
     if archive.exists():
         return archive
@@ -173,11 +147,8 @@ def arduino_core(board: Board = NANO) -> Path:
         jobs.append(_compile_cmd(src, obj, board.mcu, [*extra, *flags]))
         objects.append(obj)
     _compile_all(jobs, "compiling the Arduino core")
-    tmp = out / "core.a.tmp"
-    tmp.unlink(missing_ok=True)
-    _run([_tool("avr-gcc-ar"), "rcs", str(tmp), *map(str, objects)], "archiving the Arduino core")
-    tmp.replace(archive)
-    return archive
+    return compilecache.write_atomically(archive, lambda tmp: _run(
+        [_tool("avr-gcc-ar"), "rcs", str(tmp), *map(str, objects)], "archiving the Arduino core"))
 
 
 def _board_defines(board: Board) -> list[str]:
@@ -206,18 +177,16 @@ def build_image(name: str, sources, include_dirs=(), defines=(), *, board: Board
     """
     sources = [Path(s).resolve() for s in sources]
     includes = [Path(d).resolve() for d in include_dirs]
-    for src in sources:
-        if not src.is_file():
-            raise BuildError(f"source file not found: {src}")
+    compilecache.check_sources(name, sources)
     core_flags = []
     if arduino:
         core_flags = [*_board_defines(board), f"-I{ARDUINO_AVR / 'cores' / 'arduino'}",
                       f"-I{ARDUINO_AVR / 'variants' / board.variant}"]
     flags = [*(f"-I{d}" for d in includes), *_define_flags(defines), *core_flags, *extra_flags]
     cc = _tool("avr-gcc")
-    key = _digest([_compiler_version(cc), board.mcu, cxx_std, *flags, *link_flags, str(arduino)],
-                  sources, includes)
-    out = Path(out_dir) if out_dir else BUILD_ROOT / f"{name}-{key}"
+    key = compilecache.cache_key(cc, [board.mcu, cxx_std, *flags, *link_flags, str(arduino)],
+                                 sources, includes)
+    out = Path(out_dir) if out_dir else compilecache.build_dir("avr") / f"{name}-{key}"
     elf = out / f"{name}.elf"
     hex_path = out / f"{name}.hex"
     stamp = out / ".key"
@@ -234,15 +203,16 @@ def build_image(name: str, sources, include_dirs=(), defines=(), *, board: Board
         jobs.append(_compile_cmd(src, obj, board.mcu, [*std, *OWN_WARNINGS, *flags]))
         objects.append(obj)
     _compile_all(jobs, f"compiling {name}")
+    stamp.unlink(missing_ok=True)    # out_dir may hold another key's image: never mix them
     link = [cc, "-Os", "-g", "-flto", "-fuse-linker-plugin", "-Wl,--gc-sections",
-            f"-mmcu={board.mcu}", *link_flags, "-o", str(elf), *map(str, objects)]
-    if core:
-        link.append(str(core))
-    link += [f"-L{out}", "-lm"]
-    _run(link, f"linking {name}")
-    _run([_tool("avr-objcopy"), "-O", "ihex", "-R", ".eeprom", str(elf), str(hex_path)],
-         f"making the HEX file of {name}")
-    stamp.write_text(key)
+            f"-mmcu={board.mcu}", *link_flags, *map(str, objects), *([str(core)] if core else []),
+            f"-L{out}", "-lm"]
+    compilecache.write_atomically(elf, lambda tmp: _run([*link, "-o", str(tmp)],
+                                                        f"linking {name}"))
+    compilecache.write_atomically(hex_path, lambda tmp: _run(
+        [_tool("avr-objcopy"), "-O", "ihex", "-R", ".eeprom", str(elf), str(tmp)],
+        f"making the HEX file of {name}"))
+    compilecache.write_atomically(stamp, lambda tmp: tmp.write_text(key))
     return Image(elf, hex_path, elf_sizes(elf), board.mcu)
 
 
@@ -277,7 +247,7 @@ def design_build_dir(design_name: str) -> Path:
     """``build/designs/NAME``: where ``delta6 codegen --build`` puts a design's header and
     image, one directory per design, so building a variant never touches the committed
     header."""
-    return REPO_ROOT / "build" / "designs" / design_name
+    return compilecache.build_dir("designs") / design_name
 
 
 def design_include_dir(design_name: str) -> Path:

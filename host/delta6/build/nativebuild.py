@@ -3,22 +3,18 @@ test executables.
 
 The firmware core is plain C++ with no Arduino headers, so the same source files that go into
 the AVR image compile here: the tests check them against the Python reference, and the
-simulated device (``delta6sim://``) runs them. Outputs are cached under ``build/native/`` by a
-hash of sources, headers and flags, so each is built once and a changed source always rebuilds.
+simulated device (``delta6sim://``) runs them. Outputs are cached under ``build/native/`` by
+:mod:`delta6.build.compilecache`, so each is built once and any change rebuilds.
 """
 from __future__ import annotations
 
 import ctypes
-import hashlib
-import os
 import shutil
-import subprocess
 from pathlib import Path
 
-from delta6.core.errors import UserError
+from delta6.build import compilecache
+from delta6.core.paths import REPO_ROOT as ROOT
 
-from delta6.core.paths import REPO_ROOT as ROOT  # noqa: E402
-BUILD = ROOT / "build" / "native"
 FIRMWARE_CORE = ROOT / "firmware" / "lib" / "delta6_core" / "src"
 FIRMWARE_NATIVE = ROOT / "firmware" / "native"
 CXX = shutil.which("g++") or "g++"
@@ -29,39 +25,16 @@ SHARED_FLAGS = ("-fPIC", "-shared")
 BASE_FLAGS = COMMON_FLAGS[:2] + SHARED_FLAGS + COMMON_FLAGS[2:]
 
 
-class NativeBuildError(UserError):
+class NativeBuildError(compilecache.BuildError):
     """The C++ compiler is missing or the sources do not build; the message says which."""
 
 
 def _build(name: str, suffix: str, flags: tuple[str, ...], sources, include_dirs) -> Path:
-    sources = [Path(s) for s in sources]
-    includes = [Path(d) for d in include_dirs]
-    missing = [str(s) for s in sources if not s.exists()]
-    if missing:
-        raise NativeBuildError(f"native build of {name}: source {missing[0]} not found (the "
-                               "simulated device needs a checkout of the repository)")
-    digest = hashlib.sha256()
-    for part in (*flags, *map(str, includes)):
-        digest.update(part.encode())
-    for src in sources:
-        digest.update(src.read_bytes())
-    for inc in includes:
-        for header in sorted(inc.rglob("*.h")):
-            digest.update(header.read_bytes())
-    out = BUILD / f"{name}-{digest.hexdigest()[:16]}{suffix}"
-    if out.exists():
-        return out
-    if not shutil.which(CXX):
-        raise NativeBuildError(f"native build of {name} needs a C++ compiler: {CXX} not found "
-                               "(apt-get install g++)")
-    BUILD.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")   # concurrent builds do not collide
-    cmd = [CXX, *flags, *(f"-I{d}" for d in includes), *map(str, sources), "-o", str(tmp)]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise NativeBuildError(f"native build of {name} failed:\n{' '.join(cmd)}\n{proc.stderr}")
-    tmp.replace(out)
-    return out
+    cxx = compilecache.find_tool(CXX, "install it with: sudo apt-get install g++",
+                                 NativeBuildError)
+    return compilecache.build_program(name, sources, compiler=cxx, flags=flags,
+                                      include_dirs=include_dirs, area="native", suffix=suffix,
+                                      error=NativeBuildError)
 
 
 def build_library(name: str, sources, include_dirs=(), flags: tuple[str, ...] = ()) -> Path:

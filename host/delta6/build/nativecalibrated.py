@@ -25,12 +25,12 @@ _F = ctypes.c_float
 _I = ctypes.c_int32
 _FP = ctypes.POINTER(ctypes.c_float)
 _TYPES = {
-    "kx": _I * 6, "kw": (_I * MAX_RADII) * 6, "kd": _I * 6, "k0": _F * 6,
+    "kx": _I * 6, "kw": (_I * MAX_RADII) * 6, "kd": _I * 6, "k0": _I * 6,
     "direction_half": ctypes.c_int16, "radii": ctypes.c_uint8,
     "radius": ctypes.c_int16 * MAX_RADII, "speed_tau": _F, "speeds": ctypes.c_uint8,
     "breakpoint": _F * MAX_SPEEDS, "slope": (_F * (MAX_SPEEDS + 1)) * 6,
-    "offset": (_F * (MAX_SPEEDS + 1)) * 6,
-    "table": _FP * 6, "ed": _F * 6, "elbow": _F * 3, "ux": _F * 3, "uy": _F * 3, "d": _F * 3,
+    "offset": (_I * (MAX_SPEEDS + 1)) * 6,
+    "table": _FP * 6, "ed": _F * 6, "eh": _F * 6, "elbow": _F * 3, "ux": _F * 3, "uy": _F * 3, "d": _F * 3,
     "lb_sq": _F * 3, "half_dlb_sq": _F * 3, "gimbal": _F * 3, "tilt": _F, "c": _F,
     "min_det": _F,
 }

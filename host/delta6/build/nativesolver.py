@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from delta6.core.design import Design
-from delta6_codegen import SolverConstants, render, solver_constants
 from delta6.build.nativebuild import FIRMWARE_CORE, FIRMWARE_NATIVE, load_library
+from delta6.core.design import Design
+from delta6_codegen import SolverConstants, render
 
 CORE = FIRMWARE_CORE
 SHIM = FIRMWARE_NATIVE / "solver_shim.cpp"

@@ -3,13 +3,21 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
+
+import numpy as np
 
 from delta6.core.model import AXES  # noqa: F401 - the axis names the subcommands print
-from delta6.link.device import DEFAULT_BAUD, Device
-from delta6.link.protocol import Info, Mode, Status
+from delta6.link.device import DEFAULT_BAUD, Device, SampleBlock, SampleTimeout
+from delta6.link.protocol import ENCODER_MASK, Info, Mode, Status
 
 #: Status bits that inform rather than warn: left out of the short display.
-QUIET_FLAGS = Status.TARE_ACTIVE | Status.CONFIG_DEFAULTS
+QUIET_FLAGS = Status.TARE_ACTIVE | Status.CONFIG_DEFAULTS | Status.STREAM_CHANGED
+#: Status bits that flag a sample as faulty or doubtful (counted as "flagged").
+FAULT_FLAGS = (ENCODER_MASK | Status.OVERRANGE | Status.JOINT_LIMIT | Status.SOLVER_ERROR
+               | Status.WRENCH_INVALID | Status.LOOP_OVERRUN | Status.TX_OVERFLOW)
+#: How often a streaming loop looks for a stop request, s.
+POLL_S = 0.1
 
 
 def number(option: str, kind: type = float, low: float | None = None,
@@ -51,7 +59,31 @@ def add_stream_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def open_device(args: argparse.Namespace, **kwargs) -> Device:
-    return Device(args.port, baud=args.baud, timeout=args.timeout, **kwargs).open()
+    return Device(args.port, baud=args.baud, timeout=args.timeout, exclusive=True,
+                  **kwargs).open()
+
+
+def next_block(dev: Device, stop, patience: float | None = None) -> SampleBlock | None:
+    """The next samples, or None once ``stop`` is set (checked every :data:`POLL_S`);
+    SampleTimeout after ``patience`` s without a sample (default: 20 periods, at least 1 s),
+    and the device's failure (PortLost) as soon as it happens."""
+    if patience is None:
+        rate = dev.info().rate_hz or 1
+        patience = max(1.0, 20.0 / rate)
+    deadline = time.monotonic() + patience
+    while not stop.is_set():
+        try:
+            return dev.read_block(timeout=min(POLL_S, max(deadline - time.monotonic(), 0.0)))
+        except SampleTimeout:
+            if time.monotonic() >= deadline:
+                raise SampleTimeout(f"no sample from {dev.port} for {patience:g} s "
+                                    "(did the device stop streaming?)") from None
+    return None
+
+
+def flagged(status) -> int:
+    """How many of the samples carry a fault flag (FAULT_FLAGS)."""
+    return int(np.count_nonzero(np.asarray(status, dtype=np.int64) & int(FAULT_FLAGS)))
 
 
 def start_stream(dev: Device, args: argparse.Namespace) -> int:
@@ -66,15 +98,18 @@ def flag_names(status: int, quiet: int = QUIET_FLAGS) -> str:
 
 
 def log_meta(info: Info, port: str, command: str) -> dict:
-    """The header lines of a device log (docs/protocol.md, "Logs")."""
+    """The header lines of a device log (docs/protocol.md, "Logs"). The wrench of a device log
+    is the device's own model output, not a reference sensor's (``wrench_source``)."""
     return {
         "design": info.design_name, "design_hash": f"0x{info.design_hash:08x}",
-        "source": f"{command} {port}", "firmware": info.firmware_version,
+        "source": f"{command} {port}", "wrench_source": "device",
+        "firmware": info.firmware_version,
         "protocol": info.protocol_version, "serial_number": f"0x{info.serial_number:08x}",
         "baud": info.baud, "mode": Mode(info.mode).name.lower(),
         "lsb": " ".join(f"{v:g}" for v in info.lsb),
         "zero_counts": " ".join(map(str, info.zero_counts)),
         "tare": " ".join(f"{v:.9g}" for v in info.tare),
+        "rate_hz": info.rate_hz,
         # The calibration the board applies (docs/calibration.md), when there is one: a host
         # refuses to evaluate the log against another.
         **({"calibration": info.calibration_name,

@@ -11,8 +11,10 @@ from delta6.core import calibration as calibration_mod
 from delta6.core.calibration import CORRECTED, NAME_LIMIT
 from delta6.core.errors import UserError
 from delta6.core.model import AXES
+from delta6.core.outputs import check_output_file, check_output_folder
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
+from delta6.link.logdata import wrench_from_device
 from delta6.link.logfile import read_log
 
 NAME = "calibrate"
@@ -40,12 +42,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    out = check_output_file(args.output, "-o")       # before the fit, not after it
+    if args.report:
+        check_output_folder(args.report, "--report")
     design = load_checked(args.design)
-    out = Path(args.output)
-    if not out.parent.is_dir():
-        raise UserError(f"cannot write {out}: directory {out.parent} does not exist")
     name = args.name or out.name.removesuffix(".toml")[:NAME_LIMIT]
     log = read_log(args.log)
+    if wrench_from_device(log.meta):
+        raise UserError(f"{args.log}: the wrench in this log is the device's own model output "
+                        "(a device log), not a reference sensor's: a calibration is fitted "
+                        "against a reference (docs/calibration.md)")
     calibration_mod.check_log_meta(log.meta, design, source=str(args.log))
 
     def progress(message: str) -> None:

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from delta6.core.errors import UserError
+from delta6.core.outputs import check_output_file
 from delta6.link.logfile import OPTIONAL_COLUMNS, open_log_writer, read_log
 
 NAME = "convert"
@@ -25,6 +26,7 @@ def run(args: argparse.Namespace) -> int:
     source, output = Path(args.source), Path(args.output)
     if output.exists() and source.exists() and output.resolve() == source.resolve():
         raise UserError(f"{output}: the output would overwrite the log being read")
+    check_output_file(output, "OUT")
     log = read_log(source, require_complete_rows=False)
     meta = {k: v for k, v in log.meta.items() if k != "schema"}   # the writer writes its own
     if args.frame_id is not None:

@@ -4,17 +4,21 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
+from delta6.core.design import load, shipped_design
 from delta6.core.errors import UserError
 from delta6.core.model import AXES
+from delta6.core.outputs import check_output_file, check_output_folder
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.report import write_report
 from delta6.diagnosis.run import diagnose_data
-from delta6.link.logfile import read_log
+from delta6.link.logdata import wrench_from_device
+from delta6.link.logfile import LogData, read_log
 
 NAME = "diagnose"
 HELP = "diagnose the gap between the analytical model and a log of reference wrenches"
@@ -23,8 +27,11 @@ HELP = "diagnose the gap between the analytical model and a log of reference wre
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", metavar="LOG.csv", help="log with t, theta_e1..6, Fx..Mz "
                         "(docs/log-format.md); temp_c optional")
-    parser.add_argument("--design", default=str(DEFAULT_DESIGN), metavar="DESIGN.toml",
-                        help="the design the log was recorded with")
+    parser.add_argument("--design", metavar="DESIGN.toml",
+                        help="the design the log was recorded with (default: the shipped "
+                             "design the log's header names by its hash, else designs/delta6.toml)")
+    parser.add_argument("--force", action="store_true",
+                        help="diagnose even when --design is not the design the log names")
     parser.add_argument("--json", metavar="OUT.json", help="write the full result as JSON")
     parser.add_argument("--report", metavar="OUT_DIR",
                         help="write a Markdown report with plots into this directory")
@@ -33,18 +40,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    design = load_checked(args.design)
+    if args.json:
+        check_output_file(args.json, "--json")
+    if args.report:
+        check_output_folder(args.report, "--report")
     log = read_log(args.log)
+    refuse_device_log(log, args.log)
+    design = load_checked(choose_design(log, args.log, args.design, args.force))
 
     def progress(message: str) -> None:
         if not args.quiet:
             print(f"  {message}", file=sys.stderr, flush=True)
 
     data = GapData.from_log(log, design)
-    result = diagnose_data(data, seed=args.seed, progress=progress)
+    result = json_safe(diagnose_data(data, seed=args.seed, progress=progress))
     if args.json:
         try:
-            Path(args.json).write_text(json.dumps(result, indent=1))
+            Path(args.json).write_text(json.dumps(result, indent=1, allow_nan=False))
         except OSError as exc:
             raise UserError(f"cannot write {args.json}: {exc.strerror}") from None
     if args.report:
@@ -54,9 +66,58 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def refuse_device_log(log: LogData, name) -> None:
+    """A device log's wrench is the device's own model output: diagnosing it compares the
+    model with itself."""
+    if wrench_from_device(log.meta):
+        raise UserError(f"{name}: the wrench in this log is the device's own model output "
+                        "(a device log), not a reference sensor's: the diagnosis compares the "
+                        "model with a reference (docs/diagnosis.md)")
+
+
+def choose_design(log: LogData, name, given: str | None, force: bool):
+    """The design file to diagnose with: ``given`` if it is the one the log names (or
+    ``force``), else the shipped design with the log's hash, else the default."""
+    recorded = log.meta.get("design_hash")
+    try:
+        recorded = int(recorded, 16) if recorded else None
+    except ValueError:
+        raise UserError(f"{name}: design_hash {recorded!r} in the header is not a hex "
+                        "number") from None
+    label = f"design '{log.meta.get('design', '?')}' (hash 0x{recorded or 0:08x})"
+    if given is not None:
+        if recorded is not None and not force and load(given).hash32() != recorded:
+            raise UserError(f"{name} was recorded with {label}, but {given} has hash "
+                            f"0x{load(given).hash32():08x}: pass the log's design, or --force "
+                            "to diagnose against this one")
+        return given
+    if recorded is None:
+        return DEFAULT_DESIGN
+    path = shipped_design(recorded)
+    if path is None:
+        raise UserError(f"{name} was recorded with {label}, which is not a shipped design: "
+                        "pass its file with --design")
+    return path
+
+
+def json_safe(value):
+    """The result with every non-finite number as null: JSON has no NaN (and strict readers
+    refuse it)."""
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 def summary(result: dict) -> str:
+    def cell(v, width=8):
+        return f"{v:>{width}.2f}" if v is not None else f"{'-':>{width}}"
+
     def row(label, values):
-        return f"  {label:<28}" + "".join(f"{v:>8.2f}" for v in values)
+        return f"  {label:<28}" + "".join(cell(v) for v in values)
 
     lines = [f"Diagnosis of {result['samples']} samples ({result['seconds']:.1f} s); "
              "held-out p99 error, % FS:",
@@ -68,6 +129,8 @@ def summary(result: dict) -> str:
         lines.append("Present (strongest first): " + ", ".join(result["present"]))
     else:
         lines.append("No significant unmodelled effect.")
-    top = ", ".join(f"{c['name']} {c['score']:.3f}" for c in result["candidates"][:4])
+    top = ", ".join(f"{c['name']} {c['score']:.3f}" if c["score"] is not None
+                    else f"{c['name']} -" for c in result["candidates"][:4])
     lines.append(f"Best candidates alone (share of held-out error removed): {top}")
+    lines += [f"Warning: {w}" for w in result.get("warnings", [])]
     return "\n".join(lines)

@@ -10,6 +10,7 @@ from pathlib import Path
 from delta6.core import calibration as calibration_mod
 from delta6.core.calibrated import CalibratedModel
 from delta6.core.errors import UserError
+from delta6.core.outputs import check_output_file
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.spec import full_scale
 from delta6.core.workspace import load_checked
@@ -74,6 +75,8 @@ class Computed:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.json:
+        check_output_file(args.json, "--json")
     design = load_checked(args.design)
     log = read_log(args.log)
     if len(log) == 0:

@@ -5,7 +5,7 @@ import argparse
 import json
 
 from delta6.commands._port import AXES, add_port_arguments, flag_names, open_device
-from delta6.link.protocol import Mode, Status, link_rate_limit
+from delta6.link.protocol import Mode, Status, config_problem_text, link_rate_limit
 
 NAME = "info"
 HELP = "print the device's identity, scaling, configuration and health"
@@ -21,10 +21,17 @@ def run(args: argparse.Namespace) -> int:
         info = dev.info()
         rtt, _ = dev.ping()
         telemetry = dev.telemetry()
+    # Why the EEPROM configuration was rejected at boot (a protocol 1.0 board says 0: unknown).
+    problem = (config_problem_text(info.config_problem)
+               if info.status & Status.CONFIG_DEFAULTS and info.config_problem else None)
     if args.json:
-        out = {**info._asdict(), "lsb": list(info.lsb), "ping_s": rtt,
-               "telemetry": telemetry._asdict()}
-        print(json.dumps(out, indent=2))
+        # No sentinels in JSON: an unknown temperature is null, not 32767.
+        health = {**telemetry._asdict(), "temperature_c": telemetry.temperature_c}
+        if telemetry.temperature_c is None:
+            health["temperature_centi"] = None
+        out = {**info._asdict(), "lsb": list(info.lsb), "ping_s": rtt, "telemetry": health,
+               "config_problem_text": problem}
+        print(json.dumps(out, indent=2, allow_nan=False))
         return 0
     unit = ("N",) * 3 + ("N*m",) * 3
     lines = [
@@ -54,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
                  f"{t.loop_time_mean_us}/{t.loop_time_max_us} us mean/max"
                  + (f", {t.temperature_c:.1f} degC" if t.temperature_c is not None else ""))
     if info.status & Status.CONFIG_DEFAULTS:
-        lines.append("  note: the EEPROM holds no valid configuration; defaults are in use "
+        why = f" ({problem})" if problem else ""
+        lines.append(f"  note: the EEPROM holds no valid configuration{why}; defaults are in use "
                      "(delta6 tare --save, or Device.save_config(), stores one)")
     print("\n".join(lines))
     return 0

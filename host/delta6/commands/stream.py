@@ -16,10 +16,13 @@ from delta6.commands._port import (
     add_port_arguments,
     add_stream_arguments,
     flag_names,
+    flagged,
+    next_block,
     number,
     open_device,
     start_stream,
 )
+from delta6.commands._signals import stop_requests
 from delta6.commands._termplot import RollingPlot
 from delta6.core import calibration as calibration_mod
 from delta6.core.design import load
@@ -30,7 +33,8 @@ from delta6.link.logfile import THETA_COLUMNS, WRENCH_COLUMNS
 from delta6.link.ros2msg import DEFAULT_FRAME_ID
 
 NAME = "stream"
-HELP = "show the wrench live: readout, plots, CSV or JSON lines; serve it to Foxglove (Ctrl-C ends)"
+HELP = ("show the wrench live: readout, plots, CSV or JSON lines; serve it to Foxglove "
+        "(Ctrl-C, SIGTERM or SIGHUP end it)")
 FORMATS = ("table", "csv", "jsonl")
 
 
@@ -83,14 +87,16 @@ def csv_header(raw: bool) -> str:
 
 
 def csv_rows(block, raw: bool) -> str:
-    """Every sample of a block as the log format's columns (9 significant digits, NaN empty)."""
+    """Every sample of a block as the log format's columns (times with 6 decimals, values with
+    9 significant digits, NaN empty)."""
     cols = [block.t[:, None]] + ([block.theta] if raw else []) + [
         block.wrench, block.seq[:, None], block.status[:, None], block.host_t[:, None]]
     table = np.hstack([np.asarray(c, float) for c in cols])
     lines = []
     n_float = table.shape[1] - 3
     for row in table:
-        cells = ["" if not np.isfinite(v) else f"{v:.9g}" for v in row[:n_float]]
+        cells = [f"{row[0]:.6f}"]
+        cells += ["" if not np.isfinite(v) else f"{v:.9g}" for v in row[1:n_float]]
         cells += [str(int(row[n_float])), str(int(row[n_float + 1])), f"{row[-1]:.6f}"]
         lines.append(",".join(cells))
     return "\n".join(lines) + "\n"
@@ -102,7 +108,7 @@ def jsonl_rows(block, raw: bool) -> str:
         return [_short(x) for x in v]
     out = []
     for i in range(len(block.t)):
-        record = {"t": _short(block.t[i]), "seq": int(block.seq[i]),
+        record = {"t": round(float(block.t[i]), 6), "seq": int(block.seq[i]),
                   "status": int(block.status[i]), "flags": flag_names(int(block.status[i]), 0),
                   "wrench": values(block.wrench[i])}
         if raw:
@@ -163,7 +169,8 @@ def run(args: argparse.Namespace) -> int:
     live = None
     learned = learned_estimator(args)
     raw = bool(args.raw)
-    with open_device(args) as dev:
+    flags = 0
+    with stop_requests() as stop, open_device(args) as dev:
         if learned is not None:
             learned.check_device(dev.info())
         rate = start_stream(dev, args)
@@ -185,7 +192,10 @@ def run(args: argparse.Namespace) -> int:
         window = []          # device times of the samples since the last update
         try:
             while args.duration is None or time.monotonic() - started < args.duration:
-                block = dev.read_block()
+                block = next_block(dev, stop)
+                if block is None:
+                    break
+                flags += flagged(block.status)
                 if learned is not None:
                     block = dataclasses.replace(
                         block, wrench=learned.update_block(block.t, block.theta))
@@ -212,14 +222,16 @@ def run(args: argparse.Namespace) -> int:
                     display.show(plot.render() + "\n" + line if plot is not None else line)
                     window = [block.t[-1:]]
                     next_show = now + args.interval
-        except KeyboardInterrupt:
+        except KeyboardInterrupt:       # a second stop signal
             pass
         finally:
             if display is not None:
                 display.end()
             if live is not None:
                 live.close()
-        print(dev.health.summary()
-              + (f"; {live.published} samples served to Foxglove" if live else ""),
-              file=sys.stderr)
+        health = dev.health
+    how = f" (stopped by {stop.name})" if stop.signum else ""
+    print(f"{health.summary()}, {flags} flagged"
+          + (f"; {live.published} samples served to Foxglove" if live else "") + how,
+          file=sys.stderr)
     return 0

@@ -5,15 +5,19 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import signal
 import sys
 import tempfile
 import threading
 from pathlib import Path
 
+from delta6.build.avrbuild import NANO
 from delta6.commands._port import number
+from delta6.commands._signals import STOP_SIGNALS
 from delta6.core.design import DEFAULT_DESIGN
 from delta6.core.errors import UserError
+from delta6.core.outputs import check_output_file
 from delta6.link.protocol import theta_to_counts, valid_counts
 from delta6.sim import virtualboard as vb
 
@@ -87,6 +91,13 @@ def parse_zero(text: str | None):
 
 
 def run(args: argparse.Namespace) -> int:
+    # Checked now: the board saves both only when it ends, maybe hours later.
+    if args.eeprom is not None:
+        check_output_file(args.eeprom, "--eeprom")
+        if args.eeprom.exists() and not os.access(args.eeprom, os.R_OK):
+            raise UserError(f"--eeprom {args.eeprom}: cannot be read (permission denied)")
+    if args.stats is not None:
+        check_output_file(args.stats, "--stats")
     faults = [vb.Fault.parse(spec) for spec in args.fault]
     zero = parse_zero(args.zero)
     if args.loop and args.replay is None:
@@ -143,7 +154,7 @@ def _drive(board: vb.VirtualBoard, run_of_twin, speed: float, stop: threading.Ev
 def _serve(board: vb.VirtualBoard, args: argparse.Namespace, what: str | None,
            run_of_twin=None) -> int:
     stop = threading.Event()
-    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in STOP_SIGNALS}
     try:
         board.start()
         if run_of_twin is not None:
@@ -151,7 +162,7 @@ def _serve(board: vb.VirtualBoard, args: argparse.Namespace, what: str | None,
                              daemon=True).start()
         print(board.port, flush=True)
         notes = [f"virtual board on {board.port}: firmware {board.image.elf.name} on an emulated "
-                 f"ATmega328P at 16 MHz, {board.baud} baud"]
+                 f"ATmega328P at {NANO.f_cpu / 1e6:g} MHz, {board.baud} baud"]
         if what:
             notes.append(f"encoders: {what}")
         if board.live_path is not None:
@@ -177,7 +188,11 @@ def _serve(board: vb.VirtualBoard, args: argparse.Namespace, what: str | None,
     if stats is not None:
         print(summary(stats), file=sys.stderr)
         if args.stats is not None:
-            args.stats.write_text(json.dumps(stats, indent=2) + "\n")
+            try:
+                args.stats.write_text(json.dumps(stats, indent=2) + "\n")
+            except OSError as exc:
+                board.close()
+                raise UserError(f"cannot write --stats {args.stats}: {exc.strerror}") from None
     board.close()
     return 0
 

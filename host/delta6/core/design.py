@@ -9,18 +9,20 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from delta6.core.paths import DEFAULT_DESIGN  # noqa: F401  (re-exported: the default design)
+from delta6.core.paths import DEFAULT_DESIGN, DESIGNS_DIR  # noqa: F401  (re-exported: the default design)
 
 #: The design the tools use when none is given: the paper's Delta6.
 #: Joint range of every encoder, both signs, in radians (the paper samples [-pi/6, pi/6]).
 DEFAULT_JOINT_LIMIT_RAD = math.pi / 6
 
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
 LENGTH_KEYS = ("a_mm", "b_mm", "c_mm", "la_mm", "lb_mm")
 REQUIRED_KEYS = ("name",) + LENGTH_KEYS + ("theta_offset_rad", "k_nm_per_rad")
 OPTIONAL_KEYS = ("joint_limit_rad", "description")
@@ -128,6 +130,10 @@ def validate(raw: dict, source: str | None = None) -> Design:
     if len(name.encode()) > 23 or not name.isascii():
         # The device-info record carries the name in 24 bytes (NUL-terminated, ASCII).
         raise DesignError("name", "must be ASCII and at most 23 characters", source)
+    if not _NAME.fullmatch(name):
+        # The name becomes folder and file names (build/designs/NAME/) and a C string.
+        raise DesignError("name", f"{name!r} may hold only letters, digits, '-', '_' and '.', "
+                                  "and starts with a letter or digit", source)
 
     lengths = {}
     for key in LENGTH_KEYS:
@@ -193,3 +199,11 @@ def load(path: str | Path) -> Design:
     except tomllib.TOMLDecodeError as exc:
         raise DesignError("file", f"is not valid TOML ({exc})", source) from None
     return validate(raw, source)
+
+
+def shipped_design(design_hash: int) -> Path | None:
+    """The shipped design file (``designs/``) whose physics hashes to ``design_hash``."""
+    for path in sorted(DESIGNS_DIR.glob("*.toml")):
+        if load(path).hash32() == design_hash:
+            return path
+    return None

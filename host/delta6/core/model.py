@@ -196,13 +196,6 @@ def wrench_in_e(theta_e456: np.ndarray, force_e0: np.ndarray, moment_e0: np.ndar
     return np.concatenate([force, moment], axis=-1)
 
 
-def tool_point(p: Params | Design, theta_e: np.ndarray) -> np.ndarray:
-    """Origin of {E} in {B}: P + c z_B, m, shape (..., 3)."""
-    p = as_params(p)
-    pos = forward_kinematics(p, np.asarray(theta_e, dtype=float)[..., :3])
-    return pos + np.array([0.0, 0.0, p.c])
-
-
 # --- eq. (14): the reference sensor's frame {T} and frame {E} -------------------------------
 
 def sensor_to_e(wrench_t: np.ndarray, r_te: np.ndarray, p_t: np.ndarray) -> np.ndarray:

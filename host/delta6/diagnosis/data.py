@@ -9,13 +9,16 @@ import numpy as np
 
 from delta6.core.design import Design
 from delta6.core.errors import UserError
-from delta6.core.model import Params, forward_kinematics, wrench
+from delta6.core.model import AXES, Params, forward_kinematics, wrench
 from delta6.core.spec import full_scale
 from delta6.diagnosis import sensitivity
 from delta6.link.logfile import LogData
 
 #: Temperature at which the design's spring rates and the encoder zeros are taken to hold.
 DEFAULT_REF_TEMP_C = 23.0
+#: A reference wrench beyond this many full scales of the design on any axis is no load the
+#: mechanism can have carried inside its joint box: a corrupt row, a unit error, another design.
+MAX_FULL_SCALES = 3.0
 #: Below this many samples the held-out scoring has too few independent blocks to mean much.
 MIN_SAMPLES = 2000
 
@@ -50,6 +53,17 @@ class GapData:
         temp = log.temp_c
         if temp is not None and not np.all(np.isfinite(temp)):
             raise DiagnosisInputError("NaN or infinite temp_c values in the log")
+        fs = full_scale(design)
+        over = np.abs(log.wrench) > MAX_FULL_SCALES * fs
+        if over.any():
+            row, axis = (int(v) for v in np.argwhere(over)[0])
+            unit = "N" if axis < 3 else "N*m"
+            raise DiagnosisInputError(
+                f"{int(over.any(axis=1).sum())} samples have a reference wrench far outside "
+                f"the design's range, the first at t = {log.t[row]:g} s: {AXES[axis]} = "
+                f"{log.wrench[row, axis]:.4g} {unit} (full scale {fs[axis]:.4g} {unit}; up to "
+                f"{MAX_FULL_SCALES:g}x is accepted): a corrupt log, a unit error or the wrong "
+                "design")
         limit = design.joint_limit_rad
         outside = np.abs(log.theta) > 1.5 * limit
         if outside.mean() > 0.01:
@@ -60,7 +74,7 @@ class GapData:
         data = cls(design=design, params=Params.from_design(design), t=np.asarray(log.t, float),
                    theta=np.asarray(log.theta, float), reference=np.asarray(log.wrench, float),
                    temp_c=None if temp is None else np.asarray(temp, float),
-                   fs=full_scale(design), ref_temp_c=ref_temp_c)
+                   fs=fs, ref_temp_c=ref_temp_c)
         if not np.all(np.isfinite(data.model)):
             raise DiagnosisInputError("the analytical model has no solution for some logged "
                                       "angles: wrong design for this log?")

@@ -8,7 +8,7 @@ import numpy as np
 
 from delta6.core.design import Design
 from delta6.core.model import AXES
-from delta6.diagnosis import gap, selection
+from delta6.diagnosis import gap, physics, selection
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.terms import TERMS
 from delta6.link.logfile import LogData
@@ -59,6 +59,7 @@ def diagnose_data(data: GapData, *, seed: int = 0, progress=None,
     candidates.sort(key=lambda c: c["score"], reverse=True)
 
     steps = []
+    notes: list[str] = []
     chosen: list[str] = []
     final_pct = data.residual_pct
     for step in ladder:
@@ -72,6 +73,7 @@ def diagnose_data(data: GapData, *, seed: int = 0, progress=None,
             width = len(term.param_names)
             params[name] = term.summarize(coef[cols:cols + width])
             cols += width
+        notes += physics.warnings(step.added, params[step.added])
         steps.append({"added": step.added, "heldout_p99_pct": _p99(final_pct),
                       "gain": step.gain, "gain_lower": step.gain_low,
                       "params": params[step.added], "all_params": params})
@@ -92,6 +94,7 @@ def diagnose_data(data: GapData, *, seed: int = 0, progress=None,
         },
         "where": where,
         "skipped": skipped,
+        "warnings": notes,
         "axes": list(AXES),
         "full_scale": data.fs.tolist(),
         "samples": len(data),

@@ -269,5 +269,4 @@ TERMS: tuple[Term, ...] = (
                for kind in ("k_ratio_per_degc", "offset_rad_per_degc") for j in JOINTS),
          "1/degC, rad/degC", _thermal, needs_temperature=True, summary=_thermal_summary),
 )
-TERM_BY_NAME = {t.name: t for t in TERMS}
 EFFECT_NAMES = tuple(t.name for t in TERMS)

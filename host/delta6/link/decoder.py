@@ -10,10 +10,14 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+import numpy as np
+
 from delta6.link import cobs
 from delta6.link.protocol import (
     ENCODED_SIZES,
     MAX_RECORD_SIZE,
+    MIN_RECORD_SIZES,
+    RECORD_SIZES,
     ProtocolError,
     checked_payload,
     parse_payload,
@@ -22,7 +26,10 @@ from delta6.link.protocol import (
 
 #: Frames longer than this are discarded without decoding (largest record + slack).
 MAX_FRAME = MAX_RECORD_SIZE + 64
-_TAIL_LENGTHS = sorted(set(ENCODED_SIZES.values()))
+#: Encoded lengths of the records of each type: this version's and the shortest accepted (the
+#: record of an older minor version).
+_LENGTHS = {t: {n, MIN_RECORD_SIZES[t] + n - RECORD_SIZES[t]} for t, n in ENCODED_SIZES.items()}
+_TAIL_LENGTHS = sorted(set().union(*_LENGTHS.values()))
 
 
 @dataclass
@@ -61,13 +68,15 @@ def decode_frame(encoded: bytes, stats: DecoderStats, first: bool = False):
     decoded = cobs.decode(encoded) if len(encoded) <= MAX_FRAME else None
     payload = None if decoded is None else checked_payload(decoded)
     if payload is not None:
+        if payload[0] not in _KNOWN_TYPES:
+            # A record of a newer minor version (or a command echoed back): intact, so not
+            # damage; ignored and counted (docs/protocol.md, "Versioning").
+            stats.unknown_types += 1
+            return None
         try:
             record = parse_payload(payload)
         except ProtocolError:
-            if payload[0] in _KNOWN_TYPES:
-                stats.length_errors += 1
-            else:
-                stats.unknown_types += 1
+            stats.length_errors += 1
             stats.bytes_discarded += len(encoded)
             stats.resyncs += 1
             return None
@@ -101,7 +110,7 @@ def _recover_tail(encoded: bytes):
         if length >= len(encoded):
             break
         payload = unframe(encoded[-length:])
-        if payload is None or ENCODED_SIZES.get(payload[0]) != length:
+        if payload is None or length not in _LENGTHS.get(payload[0], ()):
             continue
         return parse_payload(payload), length
     return None, 0
@@ -147,21 +156,57 @@ class StreamDecoder:
         return len(self._partial)
 
 
+#: The highest sample rate a Delta6 can be asked for (the rate is a u16 in START).
+MAX_PROTOCOL_RATE_HZ = 0xFFFF
+
+
+def continues(seq_step, time_step_us, max_rate_hz: float = MAX_PROTOCOL_RATE_HZ):
+    """Whether a data record can follow the previous one of the same device session, from the
+    steps (modulo 2^16 and 2^32) between them; works on scalars and numpy arrays.
+
+    Neither counter runs backwards within a session, and the records missing in a gap must
+    have fitted into the time it spans at the board's highest rate. A step that breaks either
+    rule is a new session (the device restarted, or two captures were joined): unwrapping
+    across it would make up a jump of up to 71 minutes and thousands of "missing" records."""
+    if isinstance(seq_step, int) and isinstance(time_step_us, int):    # the live path: fast
+        return (0 < seq_step < 1 << 15 and time_step_us < 1 << 31
+                and seq_step - 1 <= time_step_us * max_rate_hz * 1.01e-6 + 1)
+    seq_step = np.asarray(seq_step, dtype=np.int64)
+    time_step_us = np.asarray(time_step_us, dtype=np.int64)
+    forward = (seq_step > 0) & (seq_step < 1 << 15) & (time_step_us < 1 << 31)
+    # seq_step - 1 records fell between the two, each at least one period apart.
+    return forward & (seq_step - 1 <= time_step_us * max_rate_hz * 1.01e-6 + 1)
+
+
 class SequenceTracker:
-    """Unwraps 16-bit sequence numbers and 32-bit device times; counts gaps.
+    """Unwraps 16-bit sequence numbers and 32-bit device times; counts gaps and sessions.
 
     A gap is a jump of more than one in the sequence; ``lost`` sums the missing records. The
     sequence counts every data record the device produced, sent or not, so a gap means a
-    record was lost on the device (transmit queue full), on the link, or in the decoder."""
+    record was lost on the device (transmit queue full), on the link, or in the decoder.
+    A record that cannot follow the previous one (:func:`continues`) starts a new session:
+    ``session`` counts up, ``restarts`` counts those found that way, and unwrapping starts
+    again from that record (a lost BOOT event must not turn a restart into a clock wrap)."""
 
-    def __init__(self):
-        self.reset()
+    def __init__(self, max_rate_hz: float = MAX_PROTOCOL_RATE_HZ):
+        self.max_rate_hz = max_rate_hz
+        self._seq = None
+        self._time = None
+        self.session = 0
         self.gaps = 0
         self.lost = 0
         self.duplicates = 0
+        self.restarts = 0
+
+    @property
+    def in_session(self) -> bool:
+        """Whether a record of the current session was seen (False right after a reset)."""
+        return self._seq is not None
 
     def reset(self) -> None:
-        """Forget the history (the device rebooted: its counters restart)."""
+        """Start a new session (the device announced a reboot: its counters restart)."""
+        if self._seq is not None:
+            self.session += 1
         self._seq = None
         self._time = None
 
@@ -171,12 +216,17 @@ class SequenceTracker:
             self._seq, self._time = seq16, time32
             return self._seq, self._time
         step = (seq16 - self._seq) & 0xFFFF
-        if step == 0:
+        time_step = (time32 - self._time) & 0xFFFFFFFF
+        if step == 0 and time_step == 0:
             self.duplicates += 1
             return None
+        if not continues(step, time_step, self.max_rate_hz):
+            self.restarts += 1
+            self.reset()
+            return self.update(seq16, time32)
         if step > 1:
             self.gaps += 1
             self.lost += step - 1
         self._seq += step
-        self._time += (time32 - self._time) & 0xFFFFFFFF
+        self._time += time_step
         return self._seq, self._time

@@ -2,7 +2,7 @@
 
     with Device("/dev/ttyACM0") as dev:        # or "delta6sim://", "socket://host:port"
         print(dev.info().design_name)
-        dev.start(500)
+        dev.start(250)                           # Hz (a board takes up to 350)
         dev.tare(200)
         for sample in dev:                       # or dev.on_sample(callback), dev.latest()
             print(sample.t, sample.wrench)
@@ -28,7 +28,13 @@ import serial
 from delta6.core.errors import UserError
 from delta6.link import protocol as P
 from delta6.link.decoder import DecoderStats, SequenceTracker, StreamDecoder
+from delta6.link.infocheck import info_problem
 from delta6.link.protocol import DEFAULT_BAUD
+
+#: Commands after whose answer the records mean something else (mode, rate, tare, zero).
+STREAM_CHANGING = frozenset({P.Command.START, P.Command.SET_MODE, P.Command.TARE,
+                             P.Command.CLEAR_TARE, P.Command.SET_ZERO, P.Command.ZERO_HERE,
+                             P.Command.LOAD_DEFAULTS})
 
 
 class DeviceError(UserError):
@@ -55,6 +61,10 @@ class ProtocolMismatch(DeviceError):
     """The device speaks an incompatible protocol version."""
 
 
+class CaptureFailed(DeviceError):
+    """The capture file could not take the bytes received (a full disk)."""
+
+
 class SampleTimeout(DeviceError):
     """No sample arrived in time."""
 
@@ -68,6 +78,7 @@ class Sample:
     wrench: np.ndarray       # Fx Fy Fz (N), Mx My Mz (N*m) in frame {E}; NaN if invalid
     counts: np.ndarray | None = None   # raw encoder counts (wrench + raw mode)
     theta: np.ndarray | None = None    # encoder angles theta_e (rad), from counts and zero
+    session: int = 0         # device session: counts up when the device restarted
 
     @property
     def flags(self) -> P.Status:
@@ -88,6 +99,7 @@ class SampleBlock:
     status: np.ndarray
     wrench: np.ndarray           # (n, 6)
     theta: np.ndarray | None     # (n, 6), NaN rows where no counts were sent
+    session: np.ndarray | None = None   # (n,) device session of each sample
 
     def __len__(self) -> int:
         return len(self.t)
@@ -95,7 +107,8 @@ class SampleBlock:
     def head(self, n: int) -> "SampleBlock":
         """The first ``n`` samples."""
         return SampleBlock(self.t[:n], self.host_t[:n], self.seq[:n], self.status[:n],
-                           self.wrench[:n], None if self.theta is None else self.theta[:n])
+                           self.wrench[:n], None if self.theta is None else self.theta[:n],
+                           None if self.session is None else self.session[:n])
 
 
 @dataclass
@@ -109,7 +122,9 @@ class Health:
     duplicates: int = 0
     queue_drops: int = 0
     callback_errors: int = 0
-    device_resets: int = 0
+    device_resets: int = 0   # BOOT events seen
+    restarts: int = 0        # new sessions seen without a BOOT event (counters, boot id)
+    stale_dropped: int = 0   # samples queued before a command changed what they mean
     commands: int = 0
     command_retries: int = 0
     telemetry: P.Telemetry | None = field(default=None)
@@ -149,19 +164,22 @@ class Device:
 
     ``timeout`` (s) bounds each command attempt; ``retries`` repeats it. ``handshake`` asks
     for the device info on open (turn it off only for a port that is not a device, e.g. to
-    replay recorded frames over ``loop://``). ``capture`` is a file to which every received
-    byte is appended (``delta6 decode`` reads it).
+    replay recorded frames over ``loop://``). ``capture`` is a new file (an existing one is
+    refused: two sessions in one capture would be decoded as one) or a binary file object to
+    which every received byte is written (``delta6 decode`` reads it). ``exclusive`` locks a
+    serial port so that a second program cannot open it and steal its bytes ("port busy").
     """
 
     def __init__(self, port: str, *, baud: int = DEFAULT_BAUD, timeout: float = 0.5,
                  retries: int = 2, queue_size: int = 100_000, handshake: bool = True,
-                 capture=None):
+                 capture=None, exclusive: bool = True):
         self.port = port
         self.baud = baud
         self.timeout = timeout
         self.retries = retries
         self.queue_size = queue_size
         self.handshake = handshake
+        self.exclusive = exclusive
         self._capture_target = capture
         self._capture = None
         self._serial = None
@@ -179,6 +197,7 @@ class Device:
         self._tracker = SequenceTracker()
         self._health = Health(decoder=self._decoder.stats)
         self._info: P.Info | None = None
+        self._boot_id: int | None = None      # the device's boot session (protocol 1.1)
         self._lsb: np.ndarray | None = None       # self._info.lsb, parsed once per info
         self._failure: DeviceError | None = None
         self._started = False
@@ -194,16 +213,26 @@ class Device:
         self._failure = None
         self._decoder = StreamDecoder()          # every session counts afresh
         self._tracker = SequenceTracker()
+        self._boot_id = None
         self._health = Health(decoder=self._decoder.stats)
         try:
             self._serial = serial.serial_for_url(self.port, baudrate=self.baud, timeout=0.05,
-                                                 write_timeout=2.0)
+                                                 write_timeout=2.0,
+                                                 exclusive=self.exclusive or None)
         except (serial.SerialException, OSError, ValueError) as exc:
+            if "exclusively lock" in str(exc):
+                raise DeviceError(f"port busy: {self.port} is open in another program "
+                                  "(another delta6 log or stream?)") from None
             raise DeviceError(f"cannot open {self.port}: {_reason(exc)}") from None
         target = self._capture_target
         if isinstance(target, (str, os.PathLike)):
             try:
-                self._capture = open(target, "ab")
+                # Unbuffered: every byte read is in the file at once, even if we are killed.
+                self._capture = open(target, "xb", buffering=0)
+            except FileExistsError:
+                self._serial.close()
+                raise DeviceError(f"the capture {target} exists: a capture holds one session "
+                                  "(remove it or choose another name)") from None
             except OSError as exc:
                 self._serial.close()
                 raise DeviceError(f"cannot write the capture {target}: {exc.strerror}") from None
@@ -242,9 +271,12 @@ class Device:
             pass
         self._serial = None
         if self._capture is not None:
-            self._capture.flush()
-            if self._capture is not self._capture_target:
-                self._capture.close()
+            try:
+                self._capture.flush()
+                if self._capture is not self._capture_target:
+                    self._capture.close()
+            except OSError:
+                pass            # a failed write already ended the session with its reason
             self._capture = None
 
     def __enter__(self) -> "Device":
@@ -263,10 +295,10 @@ class Device:
         """The device info record (identity, scaling, rate, mode, zero counts, tare)."""
         if refresh or self._info is None:
             info = self._request(P.Command.GET_INFO)
-            if info.protocol[0] != P.VERSION[0]:
-                raise ProtocolMismatch(
-                    f"{self.port} speaks protocol {info.protocol_version}; this delta6 reads "
-                    f"{P.VERSION[0]}.x: update the {'host' if info.protocol[0] > P.VERSION[0] else 'firmware'}")
+            problem = info_problem(info)
+            if problem is not None:
+                kind = ProtocolMismatch if info.protocol[0] != P.VERSION[0] else DeviceError
+                raise kind(f"{self.port} sent an unusable device-info record: {problem}")
         return self._info
 
     def ping(self) -> tuple[float, int]:
@@ -305,7 +337,7 @@ class Device:
         Returns the offsets (N, N*m). Fails if a sample during averaging is flagged."""
         if not 1 <= samples <= 0xFFFF:
             raise DeviceError(f"tare takes 1..65535 samples, got {samples}")
-        self._request(P.Command.TARE, samples, timeout=self._averaging_timeout(samples))
+        self._averaging(P.Command.TARE, samples)
         return np.array(self.info(refresh=True).tare)
 
     def clear_tare(self) -> None:
@@ -317,8 +349,31 @@ class Device:
         Only with no load on the tool. Returns the new zero counts."""
         if not 1 <= samples <= 0xFFFF:
             raise DeviceError(f"zero capture takes 1..65535 samples, got {samples}")
-        self._request(P.Command.ZERO_HERE, samples, timeout=self._averaging_timeout(samples))
+        self._averaging(P.Command.ZERO_HERE, samples)
         return self.info(refresh=True).zero_counts
+
+    def abort(self) -> bool:
+        """Stop a tare or zero capture that is averaging (its command is answered NACK
+        ABORTED, nothing changes). Returns whether one was running. Protocol 1.1."""
+        info = self._require_info()
+        if tuple(info.protocol) < (1, 1):
+            raise DeviceError(f"{self.port} speaks protocol {info.protocol_version}, which has "
+                              "no abort command (update the firmware)")
+        return bool(self._request(P.Command.ABORT).value)
+
+    def _averaging(self, command: P.Command, samples: int) -> None:
+        """A tare or zero capture; if it is interrupted (Ctrl-C, a signal, no answer in time)
+        the device is told to stop averaging, instead of staying busy for minutes."""
+        try:
+            self._request(command, samples, timeout=self._averaging_timeout(samples))
+        except (KeyboardInterrupt, CommandTimeout):
+            if self._failure is None and self._info is not None \
+                    and tuple(self._info.protocol) >= (1, 1):
+                try:
+                    self._request(P.Command.ABORT)
+                except DeviceError:
+                    pass
+            raise
 
     def set_zero(self, counts) -> None:
         counts = [int(c) for c in counts]
@@ -360,15 +415,15 @@ class Device:
         """Everything queued (at most ``max_samples``), waiting up to ``timeout`` for one."""
         items = self._take(max_samples or self.queue_size, timeout)
         info = self._require_info()
-        t_us, host_t, seq, status, w, counts = zip(*items)
+        t_us, host_t, seq, status, w, counts, session = zip(*items)
         status = np.array(status, dtype=np.int64)
         wrench = P.wrench_values(np.array(w, dtype=np.int64), status, self._lsb)
         theta = None
         if any(c is not None for c in counts):
             theta = P.theta_values(P.raw_counts(counts), status, info.zero_counts)
-        return SampleBlock(t=np.array(t_us) * 1e-6, host_t=np.array(host_t),
+        return SampleBlock(t=np.array(t_us, dtype=np.int64) / 1e6, host_t=np.array(host_t),
                            seq=np.array(seq, dtype=np.int64), status=status, wrench=wrench,
-                           theta=theta)
+                           theta=theta, session=np.array(session, dtype=np.int64))
 
     def latest(self) -> Sample | None:
         """The newest sample received (whether or not it was read from the queue)."""
@@ -398,6 +453,7 @@ class Device:
             h.sequence_gaps = self._tracker.gaps
             h.samples_lost = self._tracker.lost
             h.duplicates = self._tracker.duplicates
+            h.restarts += self._tracker.restarts
         return h
 
     @property
@@ -424,6 +480,8 @@ class Device:
         # The scale first: whoever sees the new info (another thread) sees its scale too.
         self._lsb = info.lsb
         self._info = info
+        if info.max_rate_hz:      # bounds how many records a gap can hide
+            self._tracker.max_rate_hz = info.max_rate_hz
 
     def _next_request_id(self) -> int:
         self._request_id = self._request_id % 255 + 1    # 1..255; 0 means unsolicited
@@ -498,7 +556,12 @@ class Device:
                 continue
             host_t = time.monotonic()
             if self._capture is not None:
-                self._capture.write(data)
+                try:
+                    self._capture.write(data)
+                except (OSError, ValueError) as exc:
+                    self._fail(CaptureFailed(f"cannot write the capture on {self.port}: "
+                                             f"{getattr(exc, 'strerror', None) or exc}"))
+                    return
             records = self._decoder.feed(data)
             if records:
                 self._dispatch(records, host_t)
@@ -511,7 +574,8 @@ class Device:
                     unwrapped = self._tracker.update(r.seq, r.time_us)
                     if unwrapped is None:
                         continue
-                    item = (unwrapped[1], host_t, unwrapped[0], r.status, r.wrench, r.counts)
+                    item = (unwrapped[1], host_t, unwrapped[0], r.status, r.wrench, r.counts,
+                            self._tracker.session)
                     if len(self._queue) >= self.queue_size:
                         self._queue.popleft()
                         self._health.queue_drops += 1
@@ -521,12 +585,21 @@ class Device:
                     if self._callbacks:
                         fresh.append(item)
                 elif isinstance(r, (P.Ack, P.Nack)):
-                    self._resolve(r.request_id, r.command, r)
+                    answered = self._resolve(r.request_id, r.command, r)
+                    if answered and isinstance(r, P.Ack) and r.command in STREAM_CHANGING:
+                        # The device sends answers and records in order: every record before
+                        # this answer predates the command. Never hand those out as new.
+                        self._health.stale_dropped += len(self._queue)
+                        self._queue.clear()
+                        self._latest = None
                 elif isinstance(r, P.Info):
-                    self._set_info(r)
+                    if info_problem(r) is None:     # never scale samples with a bad record
+                        self._set_info(r)
+                    self._note_boot(r.boot_id)
                     self._resolve(r.request_id, P.Command.GET_INFO, r)
                 elif isinstance(r, P.Telemetry):
                     self._health.telemetry = r
+                    self._note_boot(r.boot_id)
                     self._resolve(r.request_id, P.Command.GET_TELEMETRY, r)
                 elif isinstance(r, P.Event):
                     self.events.append(r)
@@ -537,11 +610,25 @@ class Device:
         for item in fresh:
             self._call_back(item)
 
-    def _resolve(self, request_id: int, command: int, response) -> None:
+    def _resolve(self, request_id: int, command: int, response) -> bool:
+        """Hand ``response`` to the command waiting for it; whether one was."""
         pending = self._pending.get(request_id)
         if request_id and pending is not None and pending.command == command:
             pending.response = response
             pending.event.set()
+            return True
+        return False
+
+    def _note_boot(self, boot_id: int | None) -> None:
+        """A boot id other than the last one seen: the device restarted (its BOOT event may
+        have been lost), so the records from here on are a new session."""
+        if boot_id is None:
+            return
+        if self._boot_id is not None and boot_id != self._boot_id \
+                and self._tracker.in_session:           # not already reset by a BOOT event
+            self._health.restarts += 1
+            self._tracker.reset()
+        self._boot_id = boot_id
 
     def _call_back(self, item) -> None:
         if self._info is None:
@@ -573,15 +660,16 @@ class Device:
 
     def _sample(self, item) -> Sample:
         info = self._require_info()
-        t_us, host_t, seq, status, w, counts = item
+        t_us, host_t, seq, status, w, counts, session = item
         wrench = P.wrench_values(np.array(w, dtype=np.int64)[None], np.array([status]),
                                  self._lsb)[0]
         raw = theta = None
         if counts is not None:
             raw = np.array(counts)
             theta = P.theta_values(raw[None], np.array([status]), info.zero_counts)[0]
-        return Sample(t=t_us * 1e-6, host_t=host_t, seq=seq, status=status, wrench=wrench,
-                      counts=raw, theta=theta)
+        # t_us / 1e6, not * 1e-6: the double nearest the decimal (0.014, not 0.01399...).
+        return Sample(t=t_us / 1e6, host_t=host_t, seq=seq, status=status, wrench=wrench,
+                      counts=raw, theta=theta, session=session)
 
 
 def _reason(exc: BaseException) -> str:

@@ -42,3 +42,11 @@ class LogData:
 
     def __len__(self) -> int:
         return len(self.t)
+
+
+def wrench_from_device(meta: dict) -> bool:
+    """Whether a log's wrench is the device's own model output (``wrench_source=device``; logs
+    written before the key existed: those that carry the device's ``firmware`` version), not a
+    reference sensor's. Fitting or diagnosing the model against it compares it with itself."""
+    source = meta.get("wrench_source")
+    return source == "device" or (source is None and "firmware" in meta)

@@ -35,6 +35,11 @@ from delta6.link.logdata import (  # noqa: F401 - re-exported: the log API is th
 
 MAGIC = "delta6-log"
 _FLOAT_FORMAT = "%.9g"      # float32 values survive the round trip exactly
+#: Times with fixed decimals: device times are whole microseconds, so they are written
+#: exactly at any length of run (9 significant digits lose microseconds past 1000 s).
+_TIME_FORMAT = "%.6f"
+_TIME_COLUMNS = ("t", "host_t")
+_COLUMN_FORMATS = {"t": _TIME_FORMAT, "host_t": _TIME_FORMAT, "seq": "%d", "status": "%d"}
 
 
 def header_lines(meta: dict, columns: tuple[str, ...]) -> list[str]:
@@ -53,32 +58,45 @@ class LogWriter:
     """Write samples to ``path`` through ``path.partial``; rename on :meth:`close`.
 
     ``meta`` goes into the header as ``# key=value`` lines (conventionally ``design``,
-    ``design_hash``, ``source``). ``optional`` picks the optional columns to write.
-    ``flush_every`` rows are forced to disk at a time (fsync); blocks are handed to the
-    operating system as they are written, so only a power cut can lose the rows since.
-    Use as a context manager: a clean exit renames the file, an exception still closes and
-    renames it (nothing received is lost) unless ``keep_partial_on_error`` is set.
+    ``design_hash``, ``source``, ``wrench_source``). ``optional`` picks the optional columns
+    to write. Rows reach the operating system as they are written (one write per block; single
+    rows every ``flush_every``) and the disk (fsync) every ``flush_every`` rows, so a crash of
+    the program loses no block and a power cut at most the rows since the last fsync.
+    A write that fails (a full disk) is undone to the last complete row and raises
+    :class:`LogError`: the file never ends in a cut row. ``overwrite=False`` refuses to replace
+    an existing file or an existing ``.partial`` (what an interrupted run left).
+    Use as a context manager: a clean exit renames the file; an exception leaves the
+    ``.partial`` file (its rows are good, but the run did not end) unless
+    ``keep_partial_on_error`` is False.
     """
 
     def __init__(self, path: str | Path, meta: dict | None = None,
                  optional: tuple[str, ...] = (), flush_every: int = 256,
-                 keep_partial_on_error: bool = False):
+                 keep_partial_on_error: bool = True, overwrite: bool = True):
         unknown = set(optional) - set(OPTIONAL_COLUMNS)
         if unknown:
             raise ValueError(f"unknown optional columns {sorted(unknown)}")
         self.path = Path(path)
-        self.partial = self.path.with_name(self.path.name + PARTIAL_SUFFIX)
+        self.partial = partial_path(self.path)
         self.columns = CORE_COLUMNS + tuple(c for c in OPTIONAL_COLUMNS if c in optional)
         self.flush_every = max(1, flush_every)
         self.keep_partial_on_error = keep_partial_on_error
-        self.rows = 0
-        self._pending = 0
+        self.rows = 0                # rows in the file (or, for write(), queued for it)
+        self._pending = 0            # rows since the last fsync
+        self._queued: list[str] = []  # rows from write() not yet handed to the OS
+        self._size = 0               # bytes of complete rows in the file
+        self._synced_rows = 0
+        if not overwrite:
+            for existing in (self.path, self.partial):
+                if existing.exists():
+                    raise LogError(f"{existing} exists (pass --force to replace it)")
+        self._row_format = ",".join(_COLUMN_FORMATS.get(c, _FLOAT_FORMAT) for c in self.columns)
         try:
-            self._file = open(self.partial, "w", encoding="ascii", newline="\n")
+            self._fd = os.open(self.partial, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         except OSError as exc:
             raise LogError(f"cannot create {self.partial}: {exc.strerror}") from None
-        self._file.write("\n".join(header_lines(dict(meta or {}), self.columns)) + "\n")
-        self._file.flush()
+        self._closed = False
+        self._append("\n".join(header_lines(dict(meta or {}), self.columns)) + "\n", 0)
 
     # -- writing ---------------------------------------------------------------------------
 
@@ -86,62 +104,130 @@ class LogWriter:
         """One sample. ``theta`` or ``wrench`` may be None (written as empty fields)."""
         values = [t, *(_six(theta)), *(_six(wrench))]
         values += [optional.get(c) for c in self.columns[len(CORE_COLUMNS):]]
-        self._file.write(",".join(_cell(v) for v in values) + "\n")
+        self._queued.append(",".join(_cell(v, c) for v, c in zip(values, self.columns)) + "\n")
         self.rows += 1
-        self._pending += 1
-        if self._pending >= self.flush_every:
+        if len(self._queued) >= self.flush_every:
             self.flush()
 
     def write_block(self, t: np.ndarray, theta: np.ndarray, wrench: np.ndarray,
                     **optional: np.ndarray) -> None:
         """Many samples at once (vectorised formatting, for the simulator and the decoder)."""
         n = len(t)
+        if n == 0:
+            return
         cols = [np.asarray(t, float)[:, None], _block(theta, n), _block(wrench, n)]
         for name in self.columns[len(CORE_COLUMNS):]:
             value = optional.get(name)
             cols.append(np.full((n, 1), np.nan) if value is None
                         else np.asarray(value, float).reshape(n, 1))
         table = np.hstack(cols)
+        fmt = self._row_format
+        if np.isnan(table).any():      # an integer column cannot print NaN: as floats
+            fmt = ",".join(_FLOAT_FORMAT if f == "%d" else f for f in fmt.split(","))
         buf = io.StringIO()
-        np.savetxt(buf, table, fmt=_FLOAT_FORMAT, delimiter=",")
-        text = buf.getvalue().replace("nan", "")
-        self._file.write(text)
-        self.rows += n
-        self._pending += n
-        if self._pending >= self.flush_every:
-            self.flush()
-        else:
-            self._file.flush()     # to the OS: a crash of this process loses none of it
+        np.savetxt(buf, table, fmt=fmt.split(","), delimiter=",")
+        self._append_rows(buf.getvalue().replace("nan", ""), n)
 
     def flush(self) -> None:
         """Everything written so far to the OS and on to the disk (fsync)."""
-        self._file.flush()
-        os.fsync(self._file.fileno())
+        if self._queued:
+            text, n = "".join(self._queued), len(self._queued)
+            self._queued = []
+            self.rows -= n               # counted again once they are in the file
+            self._append(text, n)
+        self._sync()
+
+    def _append_rows(self, text: str, n: int) -> None:
+        if self._queued:                 # keep the order of single rows and blocks
+            self.flush()
+        self._append(text, n)
+        if self._pending >= self.flush_every:
+            self._sync()
+
+    def _append(self, text: str, n: int) -> None:
+        """Hand ``text`` (whole rows) to the OS; on failure cut the file back to the rows
+        before it, so no row is ever half written."""
+        data = text.encode("ascii")
+        try:
+            view = memoryview(data)
+            while view:
+                written = os.write(self._fd, view)
+                view = view[written:]
+        except OSError as exc:
+            self._undo(exc)
+        self._size += len(data)
+        self.rows += n
+        self._pending += n
+
+    def _sync(self) -> None:
+        try:
+            os.fsync(self._fd)
+        except OSError as exc:
+            self._undo(exc)
         self._pending = 0
+        self._synced_rows = self.rows
+
+    def _undo(self, exc: OSError):
+        try:
+            os.ftruncate(self._fd, self._size)
+        except OSError:
+            pass
+        raise LogError(f"cannot write {self.partial}: {exc.strerror or exc}; it keeps the "
+                       f"{self.rows} rows written before") from None
 
     def close(self, complete: bool = True) -> Path:
         """Flush and close. A complete log is renamed to its final name; an incomplete one
-        keeps the ``.partial`` suffix. Returns the path of the file on disk."""
-        if self._file.closed:
+        keeps the ``.partial`` suffix. Returns the path of the file on disk. A failed final
+        write raises :class:`LogError` and leaves the ``.partial`` file."""
+        if self._closed:
             return self.path if complete else self.partial
-        self.flush()
-        self._file.close()
+        try:
+            self.flush()
+        except LogError:
+            self._release()
+            raise
+        self._release()
         if complete:
             os.replace(self.partial, self.path)
             return self.path
         return self.partial
 
+    def _release(self) -> None:
+        self._closed = True
+        try:
+            os.close(self._fd)
+        except OSError:
+            pass
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
     def __enter__(self) -> "LogWriter":
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        self.close(complete=exc_type is None or not self.keep_partial_on_error)
+        try:
+            self.close(complete=exc_type is None or not self.keep_partial_on_error)
+        except LogError:
+            if exc_type is None:
+                raise
+
+
+def partial_path(path: str | Path) -> Path:
+    """Where a writer streams ``path`` until it is complete."""
+    path = Path(path)
+    return path.with_name(path.name + PARTIAL_SUFFIX)
 
 
 def open_log_writer(path: str | Path, meta: dict | None = None, optional: tuple[str, ...] = (),
-                    **kwargs):
+                    overwrite: bool = True, **kwargs):
     """A :class:`LogWriter` or, for a ``.mcap`` file, a :class:`~delta6.link.mcaplog.McapLogWriter`
-    (the same interface)."""
+    (the same interface). ``overwrite=False`` refuses an existing file or ``.partial``."""
+    if not overwrite:
+        for existing in (Path(path), partial_path(path)):
+            if existing.exists():
+                raise LogError(f"{existing} exists (pass --force to replace it)")
     if Path(path).suffix.lower() == ".mcap":
         return mcaplog.McapLogWriter(path, meta, optional, **kwargs)
     return LogWriter(path, meta, optional, **kwargs)
@@ -165,13 +251,16 @@ def _block(values, n: int) -> np.ndarray:
     return values
 
 
-def _cell(value) -> str:
+def _cell(value, column: str) -> str:
     if value is None:
         return ""
-    if isinstance(value, (int, np.integer)):
+    if isinstance(value, (int, np.integer)) and column not in _TIME_COLUMNS:
         return str(int(value))
     value = float(value)
-    return "" if math.isnan(value) else _FLOAT_FORMAT % value
+    if math.isnan(value):
+        return ""
+    fmt = _COLUMN_FORMATS.get(column, _FLOAT_FORMAT)
+    return (_FLOAT_FORMAT if fmt == "%d" and not value.is_integer() else fmt) % value
 
 
 # --- reading ------------------------------------------------------------------------------
@@ -197,6 +286,11 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
 
     lines = text.splitlines()
     meta: dict[str, str] = {}
+    if path.name.endswith(PARTIAL_SUFFIX) and text and not text.endswith("\n"):
+        # What a killed writer left: its last row may be cut anywhere (a cut number is a
+        # made-up number), so it is not read. A complete file always ends its rows.
+        lines.pop()
+        meta["cut_row_dropped"] = "1"
     body_start = 0
     for body_start, line in enumerate(lines):
         if not line.startswith("#"):
@@ -225,24 +319,28 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
     if not rows:
         raise LogError(f"{path}: no samples")
     table = _parse_rows(path, rows, len(columns), body_start + 2)
+    infinite = np.isinf(table).any(axis=1)
+    if infinite.any():      # an empty field is a missing value; inf is never a measurement
+        line = int(np.argmax(infinite))
+        raise LogError(f"{path}: line {_line_number(lines, body_start, line)}: infinite value "
+                       f"in column {columns[int(np.argmax(np.isinf(table[line])))]}")
     col = {name: table[:, i] for i, name in enumerate(columns)}
 
     t = col["t"]
     theta = np.stack([col[c] for c in THETA_COLUMNS], axis=1)
     wrench = np.stack([col[c] for c in WRENCH_COLUMNS], axis=1)
     if np.isnan(t).any():
-        raise LogError(f"{path}: missing time value on line {_first_nan_line(t, body_start)}")
+        raise LogError(f"{path}: missing time value on line "
+                       f"{_line_number(lines, body_start, int(np.argmax(np.isnan(t))))}")
     if require_complete_rows:
         for name, values in (("theta_e", theta), ("wrench", wrench)):
             bad = np.isnan(values).any(axis=1)
             if bad.any():
                 raise LogError(f"{path}: missing or NaN {name} value on line "
-                               f"{_first_nan_line(bad, body_start)}")
-    if not np.all(np.isfinite(t)):
-        raise LogError(f"{path}: non-finite time value")
+                               f"{_line_number(lines, body_start, int(np.argmax(bad)))}")
     steps = np.diff(t)
     if (steps <= 0).any():
-        line = int(np.argmax(steps <= 0)) + body_start + 3
+        line = _line_number(lines, body_start, int(np.argmax(steps <= 0)) + 1)
         raise LogError(f"{path}: time is not strictly increasing at line {line}")
 
     def optional(name):
@@ -286,8 +384,11 @@ def _parse_rows(path: Path, rows: list[str], ncols: int, first_line: int) -> np.
     return table
 
 
-def _first_nan_line(mask_or_values: np.ndarray, body_start: int) -> int:
-    mask = np.isnan(mask_or_values) if mask_or_values.dtype != bool else mask_or_values
-    return int(np.argmax(mask)) + body_start + 2
-
-
+def _line_number(lines: list[str], body_start: int, row: int) -> int:
+    """The file line (1-based) of data row ``row``, counting past blank lines."""
+    seen = -1
+    for number, line in enumerate(lines[body_start + 1:], start=body_start + 2):
+        seen += bool(line.strip())
+        if seen == row:
+            return number
+    return len(lines)

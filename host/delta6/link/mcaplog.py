@@ -16,6 +16,7 @@ the same ``.partial`` discipline); :func:`read_mcap` returns the same :class:`Lo
 """
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 from pathlib import Path
@@ -74,7 +75,7 @@ class McapLogWriter:
 
     def __init__(self, path: str | Path, meta: dict | None = None,
                  optional: tuple[str, ...] = (), flush_every: int = 256,
-                 keep_partial_on_error: bool = False):
+                 keep_partial_on_error: bool = True):
         from delta6 import __version__
         unknown = set(optional) - set(OPTIONAL_COLUMNS)
         if unknown:
@@ -149,29 +150,46 @@ class McapLogWriter:
                 add(self._channels[R.TOPIC_STATUS], lt, data, lt, 0)
         self.rows += n
         self._pending += n
-        self._mcap.flush()       # the chunk to the OS: a crash of this process loses none of it
+        with self._writing():
+            self._mcap.flush()   # the chunk to the OS: a crash of this process loses none of it
         if self._pending >= self.flush_every:
             self.flush()
 
     def flush(self) -> None:
         """Everything written so far to the OS and on to the disk (fsync)."""
-        self._mcap.flush()
-        self._file.flush()
-        os.fsync(self._file.fileno())
+        with self._writing():
+            self._mcap.flush()
+            self._file.flush()
+            os.fsync(self._file.fileno())
         self._pending = 0
+
+    @contextlib.contextmanager
+    def _writing(self):
+        """A failed write (a full disk) as one line; the chunks before it stay readable (each
+        chunk has its own CRC, so a cut one is never read as data)."""
+        try:
+            yield
+        except OSError as exc:
+            raise LogError(f"cannot write {self.partial}: {exc.strerror or exc}") from None
 
     def close(self, complete: bool = True) -> Path:
         """Finish the file (summary and footer). A complete log is renamed to its final name;
         an incomplete one keeps the ``.partial`` suffix. Returns the path on disk."""
         if self._file.closed:
             return self.path if complete else self.partial
-        if self._diagnostics is not None:
-            for lt, data in self._diagnostics.finish():
-                self._mcap.add_message(self._channels[R.TOPIC_STATUS], lt, data, lt, 0)
-        self._mcap.finish()
-        self._file.flush()
-        os.fsync(self._file.fileno())
-        self._file.close()
+        try:
+            with self._writing():
+                if self._diagnostics is not None:
+                    for lt, data in self._diagnostics.finish():
+                        self._mcap.add_message(self._channels[R.TOPIC_STATUS], lt, data, lt, 0)
+                self._mcap.finish()
+                self._file.flush()
+                os.fsync(self._file.fileno())
+        finally:
+            try:
+                self._file.close()
+            except OSError:
+                pass
         if complete:
             os.replace(self.partial, self.path)
             return self.path
@@ -181,7 +199,11 @@ class McapLogWriter:
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        self.close(complete=exc_type is None or not self.keep_partial_on_error)
+        try:
+            self.close(complete=exc_type is None or not self.keep_partial_on_error)
+        except LogError:
+            if exc_type is None:
+                raise
 
 
 def _hardware_id(meta: dict) -> str:

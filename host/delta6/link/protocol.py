@@ -1,4 +1,4 @@
-"""The Delta6 wire protocol, version 1.0: every number and layout of ``docs/protocol.md``.
+"""The Delta6 wire protocol, version 1.1: every number and layout of ``docs/protocol.md``.
 
 The tables here (record types, commands, modes, status bits, NACK reasons, event codes,
 configuration problems, the field layouts of every record, command and the EEPROM blob) are
@@ -10,6 +10,8 @@ stale. This module packs and parses single frames; :mod:`delta6.link.decoder` an
 from __future__ import annotations
 
 import enum
+import functools
+import struct
 from fractions import Fraction
 from typing import NamedTuple
 
@@ -22,7 +24,7 @@ from delta6.link.layout import Field, Layout
 
 VERSION = (1, 2)
 
-#: The recommended UART rate (docs/protocol.md, "Baud rate"): exact on 16 MHz AVRs, carries
+#: The recommended UART rate (docs/protocol.md section 1, "Link"): exact on 16 MHz AVRs, carries
 #: 1 kHz of wrench records at half load.
 DEFAULT_BAUD = 500_000
 #: Frame bytes on the wire beyond the payload: CRC (2), COBS code (1), delimiter (1).
@@ -69,6 +71,7 @@ class Command(enum.IntEnum):
     SET_ZERO = 0x89
     ZERO_HERE = 0x8A
     GET_TELEMETRY = 0x8B
+    ABORT = 0x8C           # 1.1
 
 
 class Mode(enum.IntEnum):
@@ -92,6 +95,7 @@ class Status(enum.IntFlag):
     TARE_ACTIVE = 1 << 12
     TARE_BUSY = 1 << 13
     CONFIG_DEFAULTS = 1 << 14
+    STREAM_CHANGED = 1 << 15   # 1.1
 
 
 ENCODER_MASK = 0x3F
@@ -106,6 +110,7 @@ class NackReason(enum.IntEnum):
     BUSY = 6
     FAULT_DURING_AVERAGING = 7
     EEPROM_FAILED = 8
+    ABORTED = 9            # 1.1
 
 
 NACK_TEXT = {
@@ -115,10 +120,11 @@ NACK_TEXT = {
     NackReason.RATE_TOO_HIGH: "rate above the board's maximum of {detail} Hz",
     NackReason.LINK_TOO_SLOW: "the serial link carries at most {detail} Hz in this mode "
                               "(raise the baud rate or lower the rate)",
-    NackReason.BUSY: "a tare or zero capture is still running",
+    NackReason.BUSY: "a tare or zero capture is still running (delta6 tare --abort stops it)",
     NackReason.FAULT_DURING_AVERAGING: "a sample was flagged while averaging "
                                        "(status {detail:#06x}); nothing was changed",
     NackReason.EEPROM_FAILED: "the EEPROM did not read back what was written (byte {detail})",
+    NackReason.ABORTED: "aborted (an ABORT command stopped the averaging); nothing was changed",
 }
 
 
@@ -169,11 +175,13 @@ RECORD_LAYOUTS = {
         Field("mode", "B"), Field("design_hash", "I"), Field("design_name", "s", 24),
         Field("full_scale", "f", 6), Field("lsb_mantissa", "B", 6),
         Field("lsb_exponent", "b", 6), Field("rate_hz", "H"), Field("max_rate_hz", "H"),
-        Field("status", "H"), Field("streaming", "B"), Field("reserved", "B"),
+        Field("status", "H"), Field("streaming", "B"), Field("config_problem", "B"),
         Field("baud", "I"), Field("serial_number", "I"), Field("zero_counts", "H", 6),
         Field("tare", "f", 6), Field("joint_limit_rad", "f"),
-        # 1.1: the calibration the firmware applies (hash 0 and no name: none).
+        # 1.1: the calibration the firmware applies (hash 0 and no name: none), and the boot
+        # session.
         Field("calibration_hash", "I"), Field("calibration_name", "s", 24),
+        Field("boot_id", "H"),
         # 1.2: the on-chip residual model the firmware runs (hash 0 and no name: none).
         Field("model_hash", "I"), Field("model_name", "s", 24)]),
     RecordType.ACK: Layout("ACK", [_TYPE, _REQUEST, Field("command", "B"), Field("value", "I")]),
@@ -185,13 +193,22 @@ RECORD_LAYOUTS = {
         Field("rx_frames", "H"), Field("rx_crc_errors", "H"), Field("rx_bad_frames", "H"),
         Field("rx_overflows", "H"), Field("tx_dropped", "H"), Field("responses_dropped", "H"),
         Field("loop_time_max_us", "H"), Field("loop_time_mean_us", "H"),
-        Field("temperature_centi", "h"), Field("next_seq", "H")]),
+        Field("temperature_centi", "h"), Field("next_seq", "H"), Field("boot_id", "H")]),
     RecordType.EVENT: Layout("EVENT", [_TYPE, Field("code", "B"), Field("arg", "I")]),
 }
 RECORD_SIZES = {t: layout.size for t, layout in RECORD_LAYOUTS.items()}
-#: INFO as protocols 1.0 (without the calibration fields) and 1.1 (without the model's) sent
-#: it, still accepted.
-INFO_SIZE_1_0 = RECORD_LAYOUTS[RecordType.INFO].offsets["calibration_hash"]
+#: Fields a minor version appended: a host reads the shorter records of an older device, each
+#: missing field as the value here (1.1: the calibration and the boot id; 1.2: the model).
+APPENDED_FIELDS = {
+    RecordType.INFO: {"calibration_hash": 0, "calibration_name": "", "boot_id": None,
+                      "model_hash": 0, "model_name": ""},
+    RecordType.TELEMETRY: {"boot_id": None},
+}
+#: The shortest payload of each type a host accepts: the record as version 1.0 defined it.
+MIN_RECORD_SIZES = {t: min((layout.offsets[n] for n in APPENDED_FIELDS.get(t, ())),
+                           default=layout.size) for t, layout in RECORD_LAYOUTS.items()}
+INFO_SIZE_1_0 = MIN_RECORD_SIZES[RecordType.INFO]
+#: INFO as version 1.1 sent it (without the model).
 INFO_SIZE_1_1 = RECORD_LAYOUTS[RecordType.INFO].offsets["model_hash"]
 _WRENCH = RECORD_LAYOUTS[RecordType.WRENCH].struct
 _WRENCH_RAW = RECORD_LAYOUTS[RecordType.WRENCH_RAW].struct
@@ -208,6 +225,7 @@ COMMAND_LAYOUTS = {c: Layout(c.name, [_TYPE, _REQUEST, *args]) for c, args in {
     Command.TARE: [Field("samples", "H")], Command.CLEAR_TARE: [], Command.SAVE_CONFIG: [],
     Command.LOAD_DEFAULTS: [], Command.SET_ZERO: [Field("zero_counts", "H", 6)],
     Command.ZERO_HERE: [Field("samples", "H")], Command.GET_TELEMETRY: [],
+    Command.ABORT: [],
 }.items()}
 #: Argument format of each command (``struct``, after type and request id).
 COMMAND_ARGS = {c: "".join(f.fmt for f in layout.fields[2:])
@@ -276,6 +294,7 @@ class Info(NamedTuple):
     max_rate_hz: int
     status: int
     streaming: bool
+    config_problem: int    # a ConfigProblem while CONFIG_DEFAULTS is set (0: none)
     baud: int
     serial_number: int
     zero_counts: tuple
@@ -283,6 +302,7 @@ class Info(NamedTuple):
     joint_limit_rad: float
     calibration_hash: int = 0      # 1.1; 0: the analytical model, no calibration
     calibration_name: str = ""
+    boot_id: int | None = None      # 1.1: identifies the device's boot session
     model_hash: int = 0            # 1.2; 0: no on-chip residual model
     model_name: str = ""
 
@@ -338,6 +358,7 @@ class Telemetry(NamedTuple):
     loop_time_mean_us: int
     temperature_centi: int
     next_seq: int
+    boot_id: int | None = None      # 1.1
 
     @property
     def temperature_c(self) -> float | None:
@@ -367,17 +388,16 @@ class ProtocolError(ValueError):
 def parse_payload(payload: bytes):
     """A record from a decoded, CRC-checked payload (CRC bytes removed).
 
-    Longer payloads than version 1.0 defines are accepted and their known prefix parsed (newer
-    minor versions only append fields); shorter ones and unknown types raise ProtocolError."""
+    Longer payloads than this version defines are accepted and their known prefix parsed
+    (newer minor versions only append fields); the shorter records of an older minor version
+    are read without the fields appended since (None); shorter ones still and unknown types
+    raise ProtocolError."""
     if not payload:
         raise ProtocolError("empty frame")
     kind = payload[0]
-    size = RECORD_SIZES.get(kind)
+    size = MIN_RECORD_SIZES.get(kind)
     if size is None:
         raise ProtocolError(f"unknown record type 0x{kind:02x}")
-    if kind == RecordType.INFO and INFO_SIZE_1_0 <= len(payload) < size:
-        # A 1.0 or 1.1 device: no calibration, no model (the fields it lacks read as zero).
-        payload = bytes(payload) + bytes(size - len(payload))
     if len(payload) < size:
         raise ProtocolError(f"record type 0x{kind:02x} has {len(payload)} bytes, needs {size}")
     # Data records by position, twice as fast as by name (the order is checked at import):
@@ -388,14 +408,28 @@ def parse_payload(payload: bytes):
     if kind == RecordType.WRENCH_RAW:
         v = _WRENCH_RAW.unpack_from(payload)
         return WrenchRecord(v[1], v[2], v[3], v[4:10], v[10:16])
-    fields = RECORD_LAYOUTS[kind].unpack(payload)
+    layout = RECORD_LAYOUTS[kind]
+    if len(payload) < layout.size:       # an older minor version's record
+        fields = dict(APPENDED_FIELDS[kind])
+        fields.update(_older_layout(kind, len(payload)).unpack(payload))
+    else:
+        fields = layout.unpack(payload)
     del fields["type"]
     if kind == RecordType.INFO:
-        del fields["reserved"]
         for key in ("design_name", "calibration_name", "model_name"):
-            fields[key] = fields[key].split(b"\x00", 1)[0].decode("ascii", "replace")
+            if isinstance(fields[key], bytes):
+                fields[key] = fields[key].split(b"\x00", 1)[0].decode("ascii", "replace")
         fields["streaming"] = bool(fields["streaming"])
     return _RECORD_TUPLES[kind](**fields)
+
+
+@functools.cache
+def _older_layout(kind: RecordType, size: int) -> Layout:
+    """The fields of ``kind`` that fit ``size`` bytes: the record of an older minor version."""
+    layout = RECORD_LAYOUTS[kind]
+    fields = [f for f in layout.fields
+              if layout.offsets[f.name] + struct.calcsize("<" + f.fmt) <= size]
+    return Layout(f"{layout.name}<{size}>", fields)
 
 
 def frame(payload: bytes) -> bytes:
@@ -429,18 +463,30 @@ def encode_wrench(seq: int, time_us: int, status: int, wrench, counts=None) -> b
     return frame(_WRENCH_RAW.pack(RecordType.WRENCH_RAW, seq, time_us, status, *wrench, *counts))
 
 
-def encode_record(record) -> bytes:
-    """The frame of an INFO, ACK, NACK, TELEMETRY or EVENT record (the tuples above)."""
+def encode_record(record, minor: int | None = None) -> bytes:
+    """The frame of an INFO, ACK, NACK, TELEMETRY or EVENT record (the tuples above), as this
+    version sends it, or as minor version ``minor`` did (0: 1.0, without the appended fields;
+    1: 1.1, without the model).
+    An appended field the record does not have (None) is left off, with those after it."""
     kind = next(t for t, cls in _RECORD_TUPLES.items() if isinstance(record, cls))
     fields = record._asdict()
+    layout = RECORD_LAYOUTS[kind]
+    size = (MIN_RECORD_SIZES[kind] if minor == 0 else
+            INFO_SIZE_1_1 if minor == 1 and kind == RecordType.INFO else layout.size)
+    for name in APPENDED_FIELDS.get(kind, ()):
+        if fields[name] is None:
+            size = min(size, layout.offsets[name])
+    if size < layout.size:
+        layout = _older_layout(kind, size)
+        fields = {k: v for k, v in fields.items() if k in layout.offsets}
     if kind == RecordType.INFO:
         name_field = RECORD_LAYOUTS[kind].field("design_name")
         fields.update(design_name=record.design_name.encode("ascii")[:name_field.count - 1],
-                      calibration_name=record.calibration_name.encode("ascii")[
-                          :name_field.count - 1],
-                      model_name=record.model_name.encode("ascii")[:name_field.count - 1],
-                      streaming=int(record.streaming), reserved=0)
-    return frame(RECORD_LAYOUTS[kind].pack(type=kind, **fields))
+                      streaming=int(record.streaming))
+        for key in ("calibration_name", "model_name"):
+            if key in fields:
+                fields[key] = getattr(record, key).encode("ascii")[:name_field.count - 1]
+    return frame(layout.pack(type=kind, **fields))
 
 
 def encode_info(info: Info) -> bytes:

@@ -25,13 +25,13 @@ SCRIPT = [("samples", 20), ("command", (P.Command.START, 0x22, 500)), ("samples"
           ("command", (P.Command.GET_INFO, 0x20)), ("command", (P.Command.GET_TELEMETRY, 0x2B))]
 
 
-def run_on_avr() -> avrsim.SimResult:
+def run_on_avr() -> avrsim.AvrRun:
     image = avrbuild.build_image("protocol_session", [SOURCE, *nativebuild.core_sources()],
                                  [nativebuild.FIRMWARE_CORE], arduino=False)
     return avrsim.run(image.elf, max_cycles=50_000_000, timeout_s=60)
 
 
-def cycles(result: avrsim.SimResult) -> dict[str, float]:
+def cycles(result: avrsim.AvrRun) -> dict[str, float]:
     """Mean cycles of each timed call."""
     return {name: float(np.mean(result.spans(m, m + 1))) for m, name in SPANS.items()}
 

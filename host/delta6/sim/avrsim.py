@@ -1,25 +1,25 @@
 """Run AVR firmware in simavr and read back what it reported.
 
-The runner is a small C program on libsimavr (``tools/simavr/delta6_sim.c``), built here with
-the host compiler and cached under ``build/simavr/``. It records two channels, both stamped
+The runner is a small C program on libsimavr (``tools/simavr/delta6_sim.c``), built with the
+host compiler by the one compile helper and cached under ``build/simavr/``. It records two channels, both stamped
 by the simulator: GPIOR0 writes (cycle markers that bracket timed code) and the bytes the
 firmware sends on UART0. See the C file for the command line.
 """
 from __future__ import annotations
 
-import hashlib
-import os
 import shutil
 import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from delta6.build.avrbuild import REPO_ROOT
+from delta6.build import compilecache
+from delta6.build.avrbuild import NANO
 from delta6.core.errors import UserError
+from delta6.core.paths import REPO_ROOT
 
 HARNESS_SOURCE = REPO_ROOT / "tools" / "simavr" / "delta6_sim.c"
-BUILD_DIR = REPO_ROOT / "build" / "simavr"
+TOOL_FLAGS = ("-O2", "-Wall", "-Wextra", "-Werror", "-std=gnu11")
 SIMAVR_LIBS = ("-lsimavr", "-lsimavrparts", "-lutil", "-lpthread", "-lm")
 SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 APT_HINT = ("install it with: sudo apt-get install --no-install-recommends simavr "
@@ -31,7 +31,9 @@ class SimulatorError(UserError):
 
 
 @dataclass
-class SimResult:
+class AvrRun:
+    """One firmware run in simavr: its cycle markers and everything it sent on the UART."""
+
     markers: list[tuple[int, int]]   # (cycle, value) of every GPIOR0 write, in order
     uart: bytes                      # everything UART0 transmitted
     stderr: str
@@ -49,8 +51,9 @@ class SimResult:
 
 
 def build_tool(name: str, sources, depends=(), error=None) -> Path:
-    """Compile a C program on libsimavr with the host compiler into build/simavr/NAME-HASH
-    (rebuilt when a source or a file in ``depends`` changes). Raises ``error`` (default
+    """Compile a C program on libsimavr with the host compiler into build/simavr/NAME-KEY
+    (:mod:`delta6.build.compilecache`: rebuilt when a source, a header beside it, a file in
+    ``depends``, a flag or the compiler changes). Raises ``error`` (default
     :class:`SimulatorError`) with one line saying what to install."""
     error = error or SimulatorError
     cc = shutil.which("gcc") or shutil.which("cc")
@@ -58,25 +61,9 @@ def build_tool(name: str, sources, depends=(), error=None) -> Path:
         raise error("no host C compiler (gcc) found; install gcc")
     if not SIMAVR_HEADER.exists():
         raise error(f"simavr headers not found; {APT_HINT}")
-    sources = [Path(p) for p in sources]
-    compile_cmd = [cc, "-O2", "-Wall", "-Wextra", "-Werror", "-std=gnu11", *map(str, sources)]
-    # The key covers the command line (all but the output path) as well as the files, so a
-    # changed flag or compiler rebuilds too.
-    digest = hashlib.sha256("\0".join([*compile_cmd, *SIMAVR_LIBS]).encode() + b"\0")
-    for path in [*sources, *map(Path, depends)]:
-        digest.update(path.name.encode() + b"\0" + path.read_bytes())
-    exe = BUILD_DIR / f"{name}-{digest.hexdigest()[:12]}"
-    if exe.exists():
-        return exe
-    BUILD_DIR.mkdir(parents=True, exist_ok=True)
-    tmp = exe.with_name(f"{exe.name}.{os.getpid()}.tmp")   # concurrent builds do not collide
-    cmd = [*compile_cmd, "-o", str(tmp), *SIMAVR_LIBS]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise error(f"building {name} failed ({APT_HINT}):\n{' '.join(cmd)}\n"
-                    f"{proc.stderr.strip()}")
-    tmp.replace(exe)
-    return exe
+    return compilecache.build_program(name, sources, compiler=cc, flags=TOOL_FLAGS,
+                                      libs=SIMAVR_LIBS, depends=depends, area="simavr",
+                                      error=error)
 
 
 def harness() -> Path:
@@ -84,9 +71,9 @@ def harness() -> Path:
     return build_tool("delta6_sim", [HARNESS_SOURCE])
 
 
-def run(elf: Path, *, mcu: str = "atmega328p", freq: int = 16_000_000,
+def run(elf: Path, *, mcu: str = NANO.mcu, freq: int = NANO.f_cpu,
         max_cycles: int = 200_000_000, stop_marker: int = 0xFF,
-        timeout_s: float | None = 300.0) -> SimResult:
+        timeout_s: float | None = 300.0) -> AvrRun:
     """Run ``elf`` until it writes ``stop_marker`` to GPIOR0; raise if it never does."""
     exe = harness()
     with tempfile.TemporaryDirectory(prefix="delta6-sim-") as tmp:
@@ -105,4 +92,4 @@ def run(elf: Path, *, mcu: str = "atmega328p", freq: int = 16_000_000,
         for line in markers.read_text().splitlines():
             cycle, value = line.split()
             pairs.append((int(cycle), int(value)))
-        return SimResult(markers=pairs, uart=uart.read_bytes(), stderr=proc.stderr)
+        return AvrRun(markers=pairs, uart=uart.read_bytes(), stderr=proc.stderr)

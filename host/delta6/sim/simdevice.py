@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import random
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,7 +48,7 @@ def native_library() -> ctypes.CDLL:
                                       c.c_uint32, c.c_uint16, c.c_uint16, c.c_void_p,
                                       c.c_uint32, c.c_uint16]),
         "d6sim_destroy": (None, [c.c_void_p]),
-        "d6sim_begin": (None, [c.c_void_p, c.c_uint8]),
+        "d6sim_begin": (None, [c.c_void_p, c.c_uint8, c.c_uint16]),
         "d6sim_set_time": (None, [c.c_void_p, c.c_uint32]),
         "d6sim_feed": (None, [c.c_void_p, c.c_char_p, c.c_uint32]),
         "d6sim_samples": (None, [c.c_void_p, c.c_uint32] + [c.c_void_p] * 7 + [c.c_int16]),
@@ -95,6 +96,7 @@ class NativeCore:
     def __init__(self, *, design_name: str, design_hash: int, full_scale, joint_limit_rad: float,
                  joint_limit_counts: int, baud: int, max_rate_hz: int, default_rate_hz: int, zero_counts,
                  serial_number: int = 0, tx_capacity: int = 256):
+        self._h = None     # close() and __del__ work even if building the library fails
         self._lib = native_library()
         fs = np.ascontiguousarray(full_scale, dtype=np.float32)
         zero = np.ascontiguousarray(zero_counts, dtype=np.uint16)
@@ -111,8 +113,8 @@ class NativeCore:
     def __del__(self):
         self.close()
 
-    def begin(self, reset_cause: int = 0) -> None:
-        self._lib.d6sim_begin(self._h, reset_cause)
+    def begin(self, reset_cause: int = 0, boot_id: int = 0) -> None:
+        self._lib.d6sim_begin(self._h, reset_cause, boot_id)
 
     def set_time(self, time_us: int) -> None:
         self._lib.d6sim_set_time(self._h, int(time_us) & 0xFFFFFFFF)
@@ -237,7 +239,8 @@ class SimulatedDevice:
                  encoder_faults: dict | None = None, solver_fail: float = 0.0,
                  overrun: float = 0.0, loop_time_us: int = 600,
                  temperature_c: float | None = None, start_us: int = 0, seed: int = 0,
-                 serial_number: int = 0xD6000001, reset_cause: int = 0):
+                 serial_number: int = 0xD6000001, reset_cause: int = 0,
+                 boot_id: int | None = None):
         if design is None or isinstance(design, (str, Path)):
             design = load(design or DEFAULT_DESIGN)
         self.design = design
@@ -266,7 +269,10 @@ class SimulatedDevice:
         self._next_sample_us = float(start_us)
         self.samples_taken = 0
         self.core.set_time(start_us)
-        self.core.begin(reset_cause)
+        # Each simulated power-on is a boot session of its own, as on a board (random: the
+        # board's counter starts from whatever its RAM held).
+        self.boot_id = random.SystemRandom().randrange(65536) if boot_id is None else boot_id
+        self.core.begin(reset_cause, self.boot_id)
 
     def close(self) -> None:
         self.core.close()

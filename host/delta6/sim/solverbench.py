@@ -17,6 +17,7 @@ from delta6.sim import avrsim
 BENCH_SOURCE = avrbuild.FIRMWARE / "bench" / "solver_bench.cpp"
 PROBE_SOURCE = avrbuild.FIRMWARE / "bench" / "solver_probe.cpp"
 SOLVER_SOURCES = (avrbuild.CORE_LIB / "delta6_solver.cpp",)
+CALIBRATED_SOURCES = (*SOLVER_SOURCES, avrbuild.CORE_LIB / "delta6_calibrated.cpp")
 SYNC = 0xD6
 FRAMES = {  # type byte -> payload layout (little-endian, as the AVR stores it)
     ord("I"): struct.Struct("<IH24s"),
@@ -30,6 +31,12 @@ STAGES = ((11, "joint terms: table trig, torques"), (12, "kinematics: linear eli
           (13, "kinematics: quadratic, sqrt"), (14, "statics: levers, 3 divisions"),
           (15, "statics: link force sum"), (16, "rotation into {E}"),
           (MARK_STOP, "checks, output"))
+#: The calibrated solver's stage markers (delta6_calibrated.cpp).
+CALIBRATED_STAGES = ((21, "history, joint torques"), (22, "table trig, angle corrections"),
+                     (23, "general trilateration"), (24, "statics"), (25, "gimbal, tilt"),
+                     (MARK_STOP, "rotation into {E}, checks, output"))
+#: The calibrated bench's sample period (kBenchPeriodS in solver_bench.cpp).
+CALIBRATED_PERIOD_S = 0.004
 #: The emulator's UART runs at 1 Mbaud (exact at 16 MHz with U2X) to keep runs short.
 SIM_BAUD = 1_000_000
 
@@ -54,17 +61,22 @@ class BenchRun:
 
 
 def build_bench_image(include_dir: Path, *, name: str = "solver-bench", solves: int = 512,
-                      baud: int = 115200, profile: bool = False,
+                      baud: int = 115200, profile: bool = False, calibrated: bool = False,
                       out_dir: Path | None = None) -> avrbuild.Image:
     """The ATmega328P benchmark image for the design whose generated header lives under
-    ``include_dir``/generated/. ``profile`` adds the solver's stage markers; ``out_dir``
-    (default: a cache directory under build/avr/) is where the ELF and HEX go."""
+    ``include_dir``/generated/. ``profile`` adds the solver's stage markers; ``calibrated``
+    runs the calibrated solver with the calibration header next to the design header along a
+    random walk; ``out_dir`` (default: a cache directory under build/avr/) is where the ELF
+    and HEX go."""
     defines = [f"DELTA6_BENCH_SOLVES={solves}", f"DELTA6_BENCH_BAUD={baud}"]
+    if calibrated:
+        defines.append("DELTA6_BENCH_CALIBRATED")
     includes = [include_dir, avrbuild.CORE_LIB]
     if profile:
         defines.append("DELTA6_SOLVER_PROFILE")
         includes.append(BENCH_SOURCE.parent)
-    return avrbuild.build_image(name, [BENCH_SOURCE, *SOLVER_SOURCES], include_dirs=includes,
+    sources = CALIBRATED_SOURCES if calibrated else SOLVER_SOURCES
+    return avrbuild.build_image(name, [BENCH_SOURCE, *sources], include_dirs=includes,
                                 defines=defines, out_dir=out_dir)
 
 
@@ -103,12 +115,13 @@ def decode(data: bytes) -> BenchReport:
 
 
 def run_bench(include_dir: Path, *, solves: int = 512, name: str = "solver-bench-sim",
-              profile: bool = False) -> BenchRun:
+              profile: bool = False, calibrated: bool = False) -> BenchRun:
     """Build the benchmark for the design under ``include_dir``, run it in simavr, decode.
     With ``profile`` the solver carries stage markers (a few cycles each) and the run also
-    returns the cycles of each stage of every successful solve."""
+    returns the cycles of each stage of every successful solve; ``calibrated``: the
+    calibrated solver (see :func:`build_bench_image`)."""
     image = build_bench_image(include_dir, name=name, solves=solves, baud=SIM_BAUD,
-                              profile=profile)
+                              profile=profile, calibrated=calibrated)
     result = avrsim.run(image.elf, mcu=image.mcu)
     try:
         report = decode(result.uart)
@@ -119,13 +132,14 @@ def run_bench(include_dir: Path, *, solves: int = 512, name: str = "solver-bench
     if len(spans) != solves or len(overhead) != 1:
         raise avrsim.SimulatorError(f"expected {solves} timed solves, the simulator saw "
                                     f"{len(spans)}")
-    stages = _stage_spans(result.markers) if profile else None
+    stages = (_stage_spans(result.markers, CALIBRATED_STAGES if calibrated else STAGES)
+              if profile else None)
     return BenchRun(report, spans - overhead[0], image, stages)
 
 
-def _stage_spans(markers: list[tuple[int, int]]) -> dict[str, np.ndarray]:
+def _stage_spans(markers: list[tuple[int, int]], stages=STAGES) -> dict[str, np.ndarray]:
     """Cycles between consecutive stage markers within each solve that ran every stage."""
-    order = [MARK_START] + [m for m, _ in STAGES]
+    order = [MARK_START] + [m for m, _ in stages]
     per_solve, current = [], None
     for cycle, value in markers:
         if value == MARK_START:
@@ -135,5 +149,5 @@ def _stage_spans(markers: list[tuple[int, int]]) -> dict[str, np.ndarray]:
             if len(current) == len(order):
                 per_solve.append(np.diff(current))
                 current = None
-    table = np.array(per_solve, dtype=np.int64).reshape(-1, len(STAGES))
-    return {label: table[:, i] for i, (_, label) in enumerate(STAGES)}
+    table = np.array(per_solve, dtype=np.int64).reshape(-1, len(stages))
+    return {label: table[:, i] for i, (_, label) in enumerate(stages)}

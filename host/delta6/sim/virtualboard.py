@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import signal
 import socket
 import struct
@@ -219,9 +220,11 @@ class VirtualBoard:
         self._tmp = tempfile.TemporaryDirectory(prefix="delta6-vboard-")
         tmp = Path(self._tmp.name)
         self.stats_path = tmp / "stats.json"
-        cmd = [str(exe), str(self.image.elf), "--baud", str(self.baud), "--speed",
+        # --parent: the emulator ends when this process is gone, however it ended.
+        cmd = [str(exe), str(self.image.elf), "--freq", str(avrbuild.NANO.f_cpu),
+               "--baud", str(self.baud), "--speed",
                repr(float(self.speed)), "--stats", str(self.stats_path),
-               "--rest", ",".join(str(int(z)) for z in self.zero)]
+               "--rest", ",".join(str(int(z)) for z in self.zero), "--parent", str(os.getpid())]
         if self.replay is not None:
             cmd += ["--replay", str(self._replay_file(tmp))]
             if self.loop:

@@ -18,7 +18,8 @@ from delta6.twin.effects import (
                       registry_info,
 )
 from delta6.twin.measurement import Measurement
-from delta6.twin.realtime import EncoderSample, EncoderTrack, iter_realtime, to_counts, write_log
+from delta6.twin.realtime import EncoderSample, EncoderTrack, iter_realtime, to_counts
+from delta6.twin.runlog import write_log
 from delta6.twin.scenarios import (
                       SCENARIOS,
                       EffectRequest,

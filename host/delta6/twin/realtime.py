@@ -1,48 +1,18 @@
-"""Getting a simulated run out: the log file (also the replay file of the virtual board) and a
-real-time stream of encoder angles for driving a virtual board live."""
+"""A simulated run (or a log read back) as a real-time stream of encoder angles, for driving a
+virtual board live; the log file itself is written by :mod:`delta6.twin.runlog`."""
 from __future__ import annotations
 
 import time
-from pathlib import Path
 from typing import Callable, Iterator, NamedTuple
 
 import numpy as np
 
-from delta6.link.logfile import open_log_writer
 from delta6.link.protocol import theta_to_counts
-from delta6.twin.truth import truth_path, write_truth
-
-#: Rows per write (and per progress report).
-WRITE_BLOCK = 10_000
 
 
 class EncoderSample(NamedTuple):
     t: float               # sample time of the run, s
     theta: np.ndarray      # (6,) encoder angles, rad
-
-
-def write_log(result, path: str | Path, *, progress: Callable[[float], None] | None = None,
-              extra_meta: dict | None = None) -> tuple[Path, Path]:
-    """Write the run as a log (``docs/log-format.md``) and its truth file next to it
-    (``data.csv`` -> ``data.truth.json``). The log, with its ``t`` and ``theta_e1..6``
-    columns, is also the replay file of the virtual board. Returns both paths."""
-    truth = result.truth
-    meta = {"design": result.design.name, "design_hash": truth["design"]["hash"],
-            "source": "delta6 simulate (digital twin)", "seed": truth["seed"],
-            "rate_hz": f"{truth['rate_hz']:g}", "truth": truth_path(path).name,
-            **(extra_meta or {})}
-    if truth.get("scenario"):
-        meta["scenario"] = truth["scenario"]
-    optional = ("temp_c",) if result.temp_c is not None else ()
-    n = len(result)
-    with open_log_writer(path, meta, optional=optional) as log:
-        for start in range(0, n, WRITE_BLOCK):
-            part = slice(start, min(n, start + WRITE_BLOCK))
-            extra = {"temp_c": result.temp_c[part]} if result.temp_c is not None else {}
-            log.write_block(result.t[part], result.theta[part], result.wrench[part], **extra)
-            if progress:
-                progress(part.stop / n)
-    return Path(path), write_truth(truth_path(path), truth)
 
 
 def iter_realtime(source, *, speed: float = 1.0, loop: bool = False,

@@ -21,15 +21,19 @@
  *     --no-wait             start at once instead of waiting for a client on the pty
  *     --bus-timing H,S,V    sensor timing in ns: clock half period, select setup, data valid
  *                           (board_contract.h's D6_BUS_*_NS: the firmware's own)
+ *     --parent PID          end the run (as on SIGTERM) when the process PID is gone: the
+ *                           board dies with the program that started it, even on SIGKILL
  *
  * stdout carries exactly one line, "pty PATH", once the port exists. The simulation starts when
  * a client opens it (and either sends a byte or has had 0.5 s to flush its input), so nothing
  * the board says at boot is flushed away. SIGINT/SIGTERM end the run: the client gets what is
  * queued, the EEPROM and the statistics are saved, exit status 0. Bad options or files exit 2
- * with one line on stderr; a firmware crash exits 4.
+ * with one line on stderr, and so does an EEPROM image that cannot be saved at the end; a
+ * firmware crash exits 4.
  */
 #define _GNU_SOURCE
 #include <errno.h>
+#include <getopt.h>
 #include <math.h>
 #include <poll.h>
 #include <signal.h>
@@ -121,6 +125,7 @@ void vb_report_json(FILE *f)
 typedef struct {
 	const char *elf, *replay, *live, *eeprom, *stats, *read_log, *ram_dump;
 	uint32_t freq, baud;
+	long parent;
 	int loop, no_wait;
 	double speed, duration;
 	uint16_t rest[VB_ENCODERS];
@@ -196,50 +201,75 @@ static void parse_options(options_t *o, int argc, char **argv)
 	o->speed = 1.0;
 	o->timing = (vb_bus_timing_t){D6_BUS_HALF_PERIOD_NS, D6_BUS_SELECT_SETUP_NS,
 	                              D6_BUS_DATA_VALID_NS};
-	for (int i = 1; i < argc; i++) {
-		const char *a = argv[i];
-		if (a[0] != '-') {
-			if (o->elf)
-				vb_die("more than one firmware file given: %s", a);
-			o->elf = a;
-			continue;
-		}
-		if (!strcmp(a, "--loop")) {
+	enum {
+		OPT_LOOP = 1, OPT_NO_WAIT, OPT_FREQ, OPT_BAUD, OPT_REPLAY, OPT_LIVE, OPT_EEPROM,
+		OPT_STATS, OPT_READ_LOG, OPT_RAM_DUMP, OPT_SPEED, OPT_DURATION, OPT_REST, OPT_FAULT,
+		OPT_BUS_TIMING, OPT_PARENT,
+	};
+	static const struct option options[] = {
+		{"loop", no_argument, NULL, OPT_LOOP},
+		{"no-wait", no_argument, NULL, OPT_NO_WAIT},
+		{"freq", required_argument, NULL, OPT_FREQ},
+		{"baud", required_argument, NULL, OPT_BAUD},
+		{"replay", required_argument, NULL, OPT_REPLAY},
+		{"live", required_argument, NULL, OPT_LIVE},
+		{"eeprom", required_argument, NULL, OPT_EEPROM},
+		{"stats", required_argument, NULL, OPT_STATS},
+		{"read-log", required_argument, NULL, OPT_READ_LOG},
+		{"ram-dump", required_argument, NULL, OPT_RAM_DUMP},
+		{"speed", required_argument, NULL, OPT_SPEED},
+		{"duration", required_argument, NULL, OPT_DURATION},
+		{"rest", required_argument, NULL, OPT_REST},
+		{"fault", required_argument, NULL, OPT_FAULT},
+		{"bus-timing", required_argument, NULL, OPT_BUS_TIMING},
+		{"parent", required_argument, NULL, OPT_PARENT},
+		{NULL, 0, NULL, 0},
+	};
+	opterr = 0; /* our own one-line messages */
+	for (int opt; (opt = getopt_long(argc, argv, ":", options, NULL)) != -1;) {
+		char *v = optarg;
+		switch (opt) {
+		case OPT_LOOP:
 			o->loop = 1;
-			continue;
-		}
-		if (!strcmp(a, "--no-wait")) {
+			break;
+		case OPT_NO_WAIT:
 			o->no_wait = 1;
-			continue;
-		}
-		if (i + 1 >= argc)
-			vb_die("%s needs a value", a);
-		char *v = argv[++i];
-		if (!strcmp(a, "--freq")) {
-			o->freq = (uint32_t)parse_double(v, a);
-		} else if (!strcmp(a, "--baud")) {
-			o->baud = (uint32_t)parse_double(v, a);
-		} else if (!strcmp(a, "--replay")) {
+			break;
+		case OPT_FREQ:
+			o->freq = (uint32_t)parse_double(v, "--freq");
+			break;
+		case OPT_BAUD:
+			o->baud = (uint32_t)parse_double(v, "--baud");
+			break;
+		case OPT_REPLAY:
 			o->replay = v;
-		} else if (!strcmp(a, "--live")) {
+			break;
+		case OPT_LIVE:
 			o->live = v;
-		} else if (!strcmp(a, "--eeprom")) {
+			break;
+		case OPT_EEPROM:
 			o->eeprom = v;
-		} else if (!strcmp(a, "--stats")) {
+			break;
+		case OPT_STATS:
 			o->stats = v;
-		} else if (!strcmp(a, "--read-log")) {
+			break;
+		case OPT_READ_LOG:
 			o->read_log = v;
-		} else if (!strcmp(a, "--ram-dump")) {
+			break;
+		case OPT_RAM_DUMP:
 			o->ram_dump = v;
-		} else if (!strcmp(a, "--speed")) {
-			o->speed = parse_double(v, a);
+			break;
+		case OPT_SPEED:
+			o->speed = parse_double(v, "--speed");
 			if (o->speed < 0)
 				vb_die("--speed must be >= 0");
-		} else if (!strcmp(a, "--duration")) {
-			o->duration = parse_double(v, a);
+			break;
+		case OPT_DURATION:
+			o->duration = parse_double(v, "--duration");
 			if (!(o->duration > 0))
 				vb_die("--duration must be positive");
-		} else if (!strcmp(a, "--rest")) {
+			break;
+		case OPT_REST: {
 			long c[VB_ENCODERS];
 			if (parse_list(v, c, VB_ENCODERS, ','))
 				vb_die("--rest takes six counts separated by commas");
@@ -248,17 +278,32 @@ static void parse_options(options_t *o, int argc, char **argv)
 					vb_die("--rest: count %ld is not 0..16383", c[j]);
 				o->rest[j] = (uint16_t)c[j];
 			}
-		} else if (!strcmp(a, "--fault")) {
+			break;
+		}
+		case OPT_FAULT:
 			parse_fault(o, v);
-		} else if (!strcmp(a, "--bus-timing")) {
+			break;
+		case OPT_PARENT:
+			o->parent = (long)parse_double(v, "--parent");
+			break;
+		case OPT_BUS_TIMING: {
 			long t[3];
 			if (parse_list(v, t, 3, ',') || t[0] <= 0 || t[1] <= 0 || t[2] <= 0)
 				vb_die("--bus-timing takes three positive times in ns: HALF,SETUP,VALID");
 			o->timing = (vb_bus_timing_t){(uint32_t)t[0], (uint32_t)t[1], (uint32_t)t[2]};
-		} else {
-			vb_die("unknown option %s", a);
+			break;
+		}
+		case ':':
+			vb_die("%s needs a value", argv[optind - 1]);
+			break;
+		default:
+			vb_die("unknown option %s", argv[optind - 1]);
 		}
 	}
+	if (optind < argc)
+		o->elf = argv[optind];
+	if (optind + 1 < argc)
+		vb_die("more than one firmware file given: %s", argv[optind + 1]);
 	if (!o->elf)
 		vb_die("no firmware file given");
 	if (o->baud < 1000 || o->freq < 1000000)
@@ -293,14 +338,29 @@ static void load_eeprom(const char *path)
 	memcpy(eeprom_memory(), image, EEPROM_SIZE);
 }
 
-static void save_eeprom(const char *path)
+/* Returns 0, or -1 (said on stderr): a configuration the firmware saved must not be lost
+ * without the run failing. */
+static int save_eeprom(const char *path)
 {
 	char tmp[4096];
 	snprintf(tmp, sizeof tmp, "%s.partial", path);
 	FILE *f = fopen(tmp, "wb");
 	if (!f || fwrite(eeprom_memory(), 1, EEPROM_SIZE, f) != EEPROM_SIZE || fclose(f) != 0 ||
-	    rename(tmp, path) != 0)
-		vb_warn("could not save the EEPROM image %s: %s", path, strerror(errno));
+	    rename(tmp, path) != 0) {
+		vb_warn("error: could not save the EEPROM image %s: %s", path, strerror(errno));
+		return -1;
+	}
+	return 0;
+}
+
+/* The program that started us is gone (killed, even by SIGKILL): stop as on SIGTERM. A
+ * getppid() per millisecond of board time costs nothing next to the emulation. */
+static long parent_pid;
+
+static void check_parent(void)
+{
+	if (parent_pid > 0 && getppid() != parent_pid)
+		stop_requested = 1;
 }
 
 static void write_ram(const char *path)
@@ -330,13 +390,16 @@ static void write_stats(const char *path)
  * the master while no client is there returns at once with a hang-up: sleep instead.) */
 static void wait_for_client(void)
 {
-	while (!stop_requested && !link_client_present())
+	while (!stop_requested && !link_client_present()) {
 		usleep(20000);
+		check_parent();
+	}
 	double settle_until = vb_now_wall() + 0.5;
 	while (!stop_requested && vb_now_wall() < settle_until) {
 		struct pollfd p = {link_fd(), POLLIN, 0};
 		if (poll(&p, 1, 10) > 0 && (p.revents & POLLIN))
 			break;
+		check_parent();
 	}
 }
 
@@ -408,6 +471,8 @@ int main(int argc, char **argv)
 	sigaction(SIGINT, &sa, NULL);
 	sigaction(SIGTERM, &sa, NULL);
 	signal(SIGPIPE, SIG_IGN);
+	parent_pid = o.parent;
+	check_parent();   /* gone before we got here */
 
 	fprintf(protocol_out, "pty %s\n", link_pty_name());
 	fflush(protocol_out);
@@ -435,6 +500,7 @@ int main(int argc, char **argv)
 		}
 		link_service(o.speed == 0);
 		live_service();
+		check_parent();
 		if (duration_cycles && vb_avr->cycle >= duration_cycles)
 			break;
 		if (o.speed > 0)
@@ -443,8 +509,8 @@ int main(int argc, char **argv)
 
 	link_flush(1.0);
 	usleep(200000);   /* let the client read the last bytes before the pty goes away */
-	if (o.eeprom)
-		save_eeprom(o.eeprom);
+	if (o.eeprom && save_eeprom(o.eeprom) != 0 && status == 0)
+		status = 2;
 	if (o.stats)
 		write_stats(o.stats);
 	if (o.ram_dump)

@@ -16,6 +16,18 @@
 #define DELTA6_PROFILE_MARK(stage) ((void)0)
 #endif
 
+// The stages are separate functions (see below); the attribute keeps LTO from merging them.
+#if defined(__GNUC__)
+#define DELTA6_NOINLINE __attribute__((noinline))
+#else
+#define DELTA6_NOINLINE
+#endif
+// -O2 for this file on the AVR (the image is built -Os): about 1,000 cycles less per sample
+// for about 650 bytes of flash.
+#if defined(__AVR__)
+#pragma GCC optimize("O2")
+#endif
+
 namespace delta6 {
 namespace {
 
@@ -83,6 +95,152 @@ inline void rotate_back(float c, float s, float& a, float& b) {
     a = a1;
 }
 
+// The stages below are separate functions on purpose: inlined into one, the AVR build runs
+// out of registers and reaches most of its values through a frame larger than the 64 bytes
+// a single load or store can address (two extra instructions around each access).
+
+// 1-3: the history, the joint torques (the count terms, the constant and the friction
+// offset summed in int32) and the varying part of each angle's correction (dir2 = 2x - y2,
+// the direction of motion in half counts).
+DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationState& st,
+                                   const int16_t delta[6], float tau[6], int16_t dir2[6]) {
+    const uint8_t radii = flash_u8(&cc.radii);
+    const uint8_t speeds = flash_u8(&cc.speeds);
+    const int16_t half = flash_i16(&cc.direction_half);
+    const float speed_a = st.speed_a, speed_g = st.speed_g;
+    for (uint8_t j = 0; j < 6; ++j) {
+        const int16_t x = delta[j];
+        const int16_t x2 = static_cast<int16_t>(2 * x);
+        const int16_t y2 = clamp_play(st.direction2[j], x2, half);
+        st.direction2[j] = y2;
+        const int16_t d2 = static_cast<int16_t>(x2 - y2);
+        dir2[j] = d2;
+        int32_t sum = flash_i32(&cc.kx[j]) * x + flash_i32(&cc.kd[j]) * d2
+                      + flash_i32(&cc.k0[j]);
+        int16_t* play = st.play[j];
+        const int32_t* kw = cc.kw[j];
+        for (uint8_t r = 0; r < radii; ++r) {
+            const int16_t y = clamp_play(play[r], x, flash_i16(&cc.radius[r]));
+            play[r] = y;
+            sum += flash_i32(&kw[r]) * static_cast<int16_t>(x - y);
+        }
+        // A joint standing still (often, at the board's rates) costs one multiply, not three.
+        const int16_t step = static_cast<int16_t>(x - st.last[j]);
+        float v = speed_a * st.speed[j];
+        if (step != 0) v += speed_g * static_cast<float>(step);
+        st.speed[j] = v;
+        st.last[j] = x;
+        // Friction: the segment of |v| among the breakpoints; its offset joins the int32 sum,
+        // its slope takes one multiply.
+        const float av = absf(v);
+        uint8_t seg = 0;
+        while (seg < speeds && fastmath::at_least(av, flash_float(&cc.breakpoint[seg]))) ++seg;
+        const int32_t off = flash_i32(&cc.offset[j][seg]);
+        sum += negative(v) ? -off : off;
+        tau[j] = scale_down(static_cast<float>(sum), kTorqueShift)
+                 + flash_float(&cc.slope[j][seg]) * v;
+    }
+}
+
+// 4: trig from each joint's table (constant corrections included), turned by the varying
+// part e: on the branches (backlash and the elbow's turn, |e| < 0.05 rad) to second order,
+// cos e = 1 - e^2/2, sin e = e; on the gimbal (backlash alone, |e| < 0.01 rad) to first
+// order; within 2e-6 of the amplitude either way.
+// (The solver's constants come in as scalars: a pointer to them would keep a copy in RAM.)
+DELTA6_NOINLINE void joint_trig(const CalibrationConstants& cc, int16_t origin,
+                                const float* fine, const int16_t delta[6],
+                                const int16_t dir2[6], const float tau[6], float cs[6],
+                                float sn[6]) {
+    const int16_t half = flash_i16(&cc.direction_half);
+    for (uint8_t j = 0; j < 6; ++j) {
+        const uint16_t biased = static_cast<uint16_t>(delta[j] + origin);
+        float c0, s0;
+        fastmath::table_cos_sin(flash_table(&cc.table[j]), fine, biased, &c0, &s0);
+        // The direction is +-H (the play saturated) but during a reversal: no multiply then.
+        const int16_t d2 = dir2[j];
+        float e = d2 == half ? flash_float(&cc.eh[j])
+                  : d2 == -half ? -flash_float(&cc.eh[j])
+                  : flash_float(&cc.ed[j]) * static_cast<float>(d2);
+        if (j < 3) e += flash_float(&cc.elbow[j]) * tau[j];
+        if ((fastmath::bits_of(e) & 0x7FFFFFFFul) != 0) {
+            // c' = c m - s e, s' = s m + c e with m = cos e: 1 - e^2/2 on the branches, 1 on
+            // the gimbal.
+            if (j < 3) {
+                const float m = 1.0f - fastmath::scale2(e * e, -1);
+                const float c1 = c0 * m - s0 * e;
+                s0 = s0 * m + c0 * e;
+                c0 = c1;
+            } else {
+                const float c1 = c0 - s0 * e;
+                s0 += c0 * e;
+                c0 = c1;
+            }
+        }
+        cs[j] = c0;
+        sn[j] = s0;
+    }
+}
+
+// 5: sphere centres c_i = r_i u_i + h_i z and the general trilateration: P (x, y, z) and the
+// centres' x, y. Returns a SolveStatus.
+DELTA6_NOINLINE uint8_t trilaterate(const CalibrationConstants& cc, float min_height_sq,
+                                    const float cs[6], const float sn[6], float cx[3],
+                                    float cy[3], float p[3]) {
+    float r[3];
+    for (uint8_t i = 0; i < 3; ++i) {
+        r[i] = flash_float(&cc.d[i]) + cs[i];
+        cx[i] = r[i] * flash_float(&cc.ux[i]);
+        cy[i] = r[i] * flash_float(&cc.uy[i]);
+    }
+    const float h1 = sn[0];
+    // P . A_j = e_j with A_j = c_j - c_1, e_j = (|c_j|^2 - |c_1|^2 - lb_j^2 + lb_1^2) / 2,
+    // and |c_i|^2 = r_i^2 + h_i^2 (u_i is a unit vector).
+    const float a2x = cx[1] - cx[0], a2y = cy[1] - cy[0], a2z = sn[1] - h1;
+    const float a3x = cx[2] - cx[0], a3y = cy[2] - cy[0], a3z = sn[2] - h1;
+    const float h1_sq = h1 * h1;
+    const float c1_sq = r[0] * r[0] + h1_sq;
+    const float e2 = fastmath::scale2(r[1] * r[1] + sn[1] * sn[1] - c1_sq, -1)
+                     - flash_float(&cc.half_dlb_sq[1]);
+    const float e3 = fastmath::scale2(r[2] * r[2] + sn[2] * sn[2] - c1_sq, -1)
+                     - flash_float(&cc.half_dlb_sq[2]);
+    const float det = a2x * a3y - a2y * a3x;
+    if (!fastmath::at_least(det, flash_float(&cc.min_det))) return kSolveSingular;
+    const float inv = 1.0f / det;
+    const float ax = (a2y * a3z - a3y * a2z) * inv, bx = (a3y * e2 - a2y * e3) * inv;
+    const float ay = (a3x * a2z - a2x * a3z) * inv, by = (a2x * e3 - a3x * e2) * inv;
+    const float ex = bx - cx[0], ey = by - cy[0];
+    const float qa = ax * ax + ay * ay + 1.0f;
+    const float qb = ax * ex + ay * ey - h1;
+    const float qc = ex * ex + ey * ey + h1_sq - flash_float(&cc.lb_sq[0]);
+    const float disc = qb * qb - qa * qc;
+    if (!fastmath::at_least(disc, min_height_sq * qa)) return kSolveNoSolution;
+    const float z = (fastmath::sqrt32(disc) - qb) / qa;
+    p[0] = ax * z + bx;
+    p[1] = ay * z + by;
+    p[2] = z;
+    return kSolveOk;
+}
+
+// Statics: link i carries tau_i v_i / G_i, G_i = (u_i . v_i) h_i - v_iz rho_i; the force on
+// the platform is F = -sum tau_i v_i / G_i. Returns a SolveStatus.
+DELTA6_NOINLINE uint8_t statics(const CalibrationConstants& cc, float min_lever,
+                                const float cs[6], const float sn[6], const float tau[6],
+                                const float cx[3], const float cy[3], const float p[3],
+                                float f[3]) {
+    f[0] = f[1] = f[2] = 0.0f;
+    for (uint8_t i = 0; i < 3; ++i) {
+        const float vx = p[0] - cx[i], vy = p[1] - cy[i], vz = p[2] - sn[i];
+        const float uv = flash_float(&cc.ux[i]) * vx + flash_float(&cc.uy[i]) * vy;
+        const float g = uv * sn[i] - vz * cs[i];
+        if (!fastmath::at_least(absf(g), min_lever)) return kSolveSingular;
+        const float s = tau[i] / g;
+        f[0] -= s * vx;
+        f[1] -= s * vy;
+        f[2] -= s * vz;
+    }
+    return kSolveOk;
+}
+
 }  // namespace
 
 void calibration_reset(CalibrationState& s) { s.started = 0; }
@@ -101,9 +259,6 @@ void calibration_set_period(const CalibrationConstants& c, float period_s,
 
 uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& cc,
                          CalibrationState& st, const int16_t delta[6], float wrench[6]) {
-    const uint8_t radii = flash_u8(&cc.radii);
-    const uint8_t speeds = flash_u8(&cc.speeds);
-    const int16_t half = flash_i16(&cc.direction_half);
     if (!st.started) {
         for (uint8_t j = 0; j < 6; ++j) {
             st.last[j] = delta[j];
@@ -113,35 +268,9 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
         }
         st.started = 1;
     }
-    // 1-3: the history, the joint torques (count terms in int32) and the varying part of
-    // each angle's correction (dir2: 2x - y2, the direction of motion in half counts).
     float tau[6];
     int16_t dir2[6];
-    for (uint8_t j = 0; j < 6; ++j) {
-        const int16_t x = delta[j];
-        const int16_t x2 = static_cast<int16_t>(2 * x);
-        const int16_t y2 = clamp_play(st.direction2[j], x2, half);
-        st.direction2[j] = y2;
-        dir2[j] = static_cast<int16_t>(x2 - y2);
-        int32_t sum = flash_i32(&cc.kx[j]) * x + flash_i32(&cc.kd[j]) * dir2[j];
-        for (uint8_t r = 0; r < radii; ++r) {
-            const int16_t y = clamp_play(st.play[j][r], x, flash_i16(&cc.radius[r]));
-            st.play[j][r] = y;
-            sum += flash_i32(&cc.kw[j][r]) * static_cast<int16_t>(x - y);
-        }
-        const float v = st.speed_a * st.speed[j]
-                        + st.speed_g * static_cast<float>(x - st.last[j]);
-        st.speed[j] = v;
-        st.last[j] = x;
-        // Friction: the segment of |v| among the breakpoints, then one multiply.
-        const float av = absf(v);
-        uint8_t seg = 0;
-        while (seg < speeds && fastmath::at_least(av, flash_float(&cc.breakpoint[seg]))) ++seg;
-        const float off = flash_float(&cc.offset[j][seg]);
-        const float t = scale_down(static_cast<float>(sum), kTorqueShift) + flash_float(&cc.k0[j])
-                        + flash_float(&cc.slope[j][seg]) * v + (negative(v) ? -off : off);
-        tau[j] = t;
-    }
+    joint_torques(cc, st, delta, tau, dir2);
     DELTA6_PROFILE_MARK(21);
     // The joint box, on the counts as the analytical solver has it.
     for (uint8_t i = 0; i < 6; ++i) {
@@ -149,76 +278,16 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
             return fail(kSolveOutOfBox, wrench);
         }
     }
-    // 4: trig from each joint's table (constant corrections included), turned by the varying
-    // part e: on the branches (backlash and the elbow's turn, |e| < 0.05 rad) to second
-    // order, cos e = 1 - e^2/2, sin e = e; on the gimbal (backlash alone, |e| < 0.01 rad) to
-    // first order; within 2e-6 of the amplitude either way.
     float cs[6], sn[6];
-    for (uint8_t j = 0; j < 6; ++j) {
-        const uint16_t biased = static_cast<uint16_t>(delta[j] + k.table_origin);
-        float c0, s0;
-        fastmath::table_cos_sin(flash_table(&cc.table[j]), k.fine_table, biased, &c0, &s0);
-        float e = flash_float(&cc.ed[j]) * static_cast<float>(dir2[j]);
-        if (j < 3) e += flash_float(&cc.elbow[j]) * tau[j];
-        if ((fastmath::bits_of(e) & 0x7FFFFFFFul) != 0) {
-            // c' = c (1 - e^2/2) - s e, s' = s (1 - e^2/2) + c e; the e^2 term on the branches.
-            float c1 = c0 - s0 * e, s1 = s0 + c0 * e;
-            if (j < 3) {
-                const float h = fastmath::scale2(e * e, -1);
-                c1 -= c0 * h;
-                s1 -= s0 * h;
-            }
-            c0 = c1;
-            s0 = s1;
-        }
-        cs[j] = c0;
-        sn[j] = s0;
-    }
+    joint_trig(cc, k.table_origin, k.fine_table, delta, dir2, tau, cs, sn);
     DELTA6_PROFILE_MARK(22);
-    // 5: sphere centres c_i = r_i u_i + h_i z and the general trilateration.
-    float cx[3], cy[3], r[3];
-    for (uint8_t i = 0; i < 3; ++i) {
-        r[i] = flash_float(&cc.d[i]) + cs[i];
-        cx[i] = r[i] * flash_float(&cc.ux[i]);
-        cy[i] = r[i] * flash_float(&cc.uy[i]);
-    }
-    const float h1 = sn[0];
-    // P . A_j = e_j with A_j = c_j - c_1, e_j = (|c_j|^2 - |c_1|^2 - lb_j^2 + lb_1^2) / 2,
-    // and |c_i|^2 = r_i^2 + h_i^2 (u_i is a unit vector).
-    const float a2x = cx[1] - cx[0], a2y = cy[1] - cy[0], a2z = sn[1] - h1;
-    const float a3x = cx[2] - cx[0], a3y = cy[2] - cy[0], a3z = sn[2] - h1;
-    const float h1_sq = h1 * h1;
-    const float c1_sq = r[0] * r[0] + h1_sq;
-    const float e2 = fastmath::scale2(r[1] * r[1] + sn[1] * sn[1] - c1_sq, -1)
-                     - flash_float(&cc.half_dlb_sq[1]);
-    const float e3 = fastmath::scale2(r[2] * r[2] + sn[2] * sn[2] - c1_sq, -1)
-                     - flash_float(&cc.half_dlb_sq[2]);
-    const float det = a2x * a3y - a2y * a3x;
-    if (!fastmath::at_least(det, flash_float(&cc.min_det))) return fail(kSolveSingular, wrench);
-    const float inv = 1.0f / det;
-    const float ax = (a2y * a3z - a3y * a2z) * inv, bx = (a3y * e2 - a2y * e3) * inv;
-    const float ay = (a3x * a2z - a2x * a3z) * inv, by = (a2x * e3 - a3x * e2) * inv;
-    const float ex = bx - cx[0], ey = by - cy[0];
-    const float qa = ax * ax + ay * ay + 1.0f;
-    const float qb = ax * ex + ay * ey - h1;
-    const float qc = ex * ex + ey * ey + h1_sq - flash_float(&cc.lb_sq[0]);
-    const float disc = qb * qb - qa * qc;
-    if (!fastmath::at_least(disc, k.min_height_sq * qa)) return fail(kSolveNoSolution, wrench);
-    const float z = (fastmath::sqrt32(disc) - qb) / qa;
-    const float x = ax * z + bx, y = ay * z + by;
+    float cx[3], cy[3], p[3];
+    uint8_t status = trilaterate(cc, k.min_height_sq, cs, sn, cx, cy, p);
+    if (status != kSolveOk) return fail(status, wrench);
     DELTA6_PROFILE_MARK(23);
-    // Statics: link i carries tau_i v_i / G_i, G_i = (u_i . v_i) h_i - v_iz rho_i.
-    float f[3] = {0.0f, 0.0f, 0.0f};
-    for (uint8_t i = 0; i < 3; ++i) {
-        const float vx = x - cx[i], vy = y - cy[i], vz = z - sn[i];
-        const float uv = flash_float(&cc.ux[i]) * vx + flash_float(&cc.uy[i]) * vy;
-        const float g = uv * sn[i] - vz * cs[i];
-        if (!fastmath::at_least(absf(g), k.min_lever)) return fail(kSolveSingular, wrench);
-        const float s = tau[i] / g;
-        f[0] -= s * vx;
-        f[1] -= s * vy;
-        f[2] -= s * vz;
-    }
+    float f[3];
+    status = statics(cc, k.min_lever, cs, sn, tau, cx, cy, p, f);
+    if (status != kSolveOk) return fail(status, wrench);
     DELTA6_PROFILE_MARK(24);
     // The gimbal: F_E0 = F - w x F, w = gimbal + tilt * (M + c z x F).
     const float c = flash_float(&cc.c), tilt = flash_float(&cc.tilt);

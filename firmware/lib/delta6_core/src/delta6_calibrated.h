@@ -29,32 +29,33 @@ constexpr uint8_t kMaxSignSpeeds = 4;
 // The torque's count terms are summed in int32, in units of 2^-kTorqueShift N*m.
 constexpr uint8_t kTorqueShift = 28;
 // Bumped whenever CalibrationConstants changes shape; the generated header checks it.
-constexpr uint16_t kCalibrationConstantsVersion = 3;
+constexpr uint16_t kCalibrationConstantsVersion = 4;
 
 struct CalibrationConstants {
     // Torque of joint j, with x its count, y_r its plays and y2 its direction play (half
-    // counts): tau = (kx x + sum_r kw_r (x - y_r) + kd (2x - y2)) 2^-kTorqueShift + k0
+    // counts): tau = (kx x + sum_r kw_r (x - y_r) + kd (2x - y2) + k0) 2^-kTorqueShift
     // + friction(v).
     int32_t kx[6];                     // k * ratio * count
     int32_t kw[6][kMaxPlayRadii];      // hysteresis weight / radius
     int32_t kd[6];                     // (k * ratio * half_play + presliding) / H
-    float k0[6];                       // -k * ratio * offset, N*m
+    int32_t k0[6];                     // -k * ratio * offset
     int16_t direction_half;            // H, half counts: the direction play's radius
     uint8_t radii;                     // hysteresis plays in use (<= kMaxPlayRadii)
     int16_t radius[kMaxPlayRadii];     // counts
     float speed_tau;                   // s: the speed filter's time constant
     // Friction, a piecewise-linear odd function of the speed v (the sum of the saturated signs
     // and the viscous term): on the segment k of |v| (k breakpoints at or below it),
-    // slope[k] v + offset[k] sign(v).
+    // slope[k] v + offset[k] 2^-kTorqueShift sign(v).
     uint8_t speeds;                    // breakpoints in use (<= kMaxSignSpeeds)
     float breakpoint[kMaxSignSpeeds];  // the sign speeds V_s, ascending, rad/s
     float slope[6][kMaxSignSpeeds + 1];   // N*m*s/rad
-    float offset[6][kMaxSignSpeeds + 1];  // N*m
+    int32_t offset[6][kMaxSignSpeeds + 1];
     // The angles: the coarse tables (flash, as the solver's) hold each joint's constant
     // correction (branches: la_i and the rest angle; all: minus the encoder offset); the part
     // that varies is ed (2x - y2) (backlash), plus elbow * tau on the branches (compliance).
     const float* table[6];
     float ed[6];                       // half_play / H, rad per half count
+    float eh[6];                       // half_play, rad: ed H
     float elbow[3];                    // rad per N*m of the joint's torque
     // Geometry, branches 1..3.
     float ux[3], uy[3];                // cos, sin of each branch's azimuth

@@ -23,8 +23,10 @@ Device::Device(Hardware& hardware, const Identity& identity, const Config& defau
       queue_head_(0),
       queue_count_(0),
       streaming_(false),
-      config_defaults_(false),
+      config_problem_(0),
       tx_overflow_(false),
+      stream_changed_(false),
+      boot_id_(0),
       seq_(0),
       last_status_(0),
       temperature_centi_(kTemperatureUnknown),
@@ -105,12 +107,13 @@ void Device::applyConfig(const Config& c) {
   if (c.rate_hz != old_rate) hw_.sampleRateChanged(c.rate_hz);
 }
 
-void Device::begin(uint8_t reset_cause) {
+void Device::begin(uint8_t reset_cause, uint16_t boot_id) {
+  boot_id_ = boot_id;
   uint8_t blob[kConfigBlobSize];
   hw_.eepromRead(id_.eeprom_address, blob, kConfigBlobSize);
   Config loaded;
   const uint8_t problem = decodeConfig(blob, &loaded);
-  config_defaults_ = problem != 0;
+  config_problem_ = problem;
   config_ = problem ? defaults_ : loaded;
   hw_.sampleRateChanged(config_.rate_hz);
   answer(kEvent, 0, kEventBoot, 0, reset_cause);
@@ -132,7 +135,7 @@ void Device::saveConfig(const Command& c) {
       return;
     }
   }
-  config_defaults_ = false;
+  config_problem_ = 0;
   ack(c, kConfigBlobSize);
 }
 
@@ -140,7 +143,7 @@ uint16_t Device::persistentStatus() const {
   uint16_t s = 0;
   if (config_.tare_active) s |= kStatusTareActive;
   if (averaging_) s |= kStatusTareBusy;
-  if (config_defaults_) s |= kStatusConfigDefaults;
+  if (config_problem_) s |= kStatusConfigDefaults;
   return s;
 }
 
@@ -242,6 +245,7 @@ void Device::execute(const Command& c) {
       setRate(rate);
       if (!streaming_) last_telemetry_us_ = hw_.micros();
       streaming_ = true;
+      stream_changed_ = true;
       ack(c, rate);
       break;
     }
@@ -262,6 +266,7 @@ void Device::execute(const Command& c) {
         break;
       }
       config_.mode = mode;
+      stream_changed_ = true;
       ack(c, mode);
       break;
     }
@@ -284,6 +289,7 @@ void Device::execute(const Command& c) {
       }
       config_.tare_active = false;
       for (uint8_t i = 0; i < 6; ++i) config_.tare[i] = 0.0f;
+      stream_changed_ = true;
       ack(c, 0);
       break;
     case kCmdSetZero: {
@@ -307,6 +313,7 @@ void Device::execute(const Command& c) {
         config_.zero_counts[i] = counts[i];
         config_.tare[i] = 0.0f;
       }
+      stream_changed_ = true;
       ack(c, 0);
       break;
     }
@@ -323,7 +330,20 @@ void Device::execute(const Command& c) {
         break;
       }
       applyConfig(defaults_);
+      stream_changed_ = true;
       ack(c, 0);
+      break;
+    case kCmdAbort:
+      // Ends a tare or zero capture that would keep the device busy (65535 samples take
+      // minutes): it is answered NACK ABORTED, nothing changed; ACK 1 if one ran, 0 if not.
+      if (averaging_) {
+        const uint8_t command = averaging_;
+        averaging_ = 0;
+        answer(kNack, averaging_request_, command, kNackAborted, 0);
+        ack(c, 1);
+      } else {
+        ack(c, 0);
+      }
       break;
     default:
       nack(c, kNackUnknownCommand);
@@ -385,6 +405,7 @@ void Device::finishAveraging() {
     }
   }
   config_.tare_active = command == kCmdTare;
+  stream_changed_ = true;
   answer(kAck, averaging_request_, command, 0, averaging_count_);
 }
 
@@ -471,6 +492,7 @@ uint16_t Device::buildInfo(uint8_t request_id) {
   putU16(p + kInfoOffMaxRateHz, id_.max_rate_hz);
   putU16(p + kInfoOffStatus, persistentStatus());
   p[kInfoOffStreaming] = streaming_ ? 1 : 0;
+  p[kInfoOffConfigProblem] = config_problem_;
   putU32(p + kInfoOffBaud, id_.baud);
   putU32(p + kInfoOffSerialNumber, id_.serial_number);
   putF32(p + kInfoOffJointLimitRad, id_.joint_limit_rad);
@@ -479,6 +501,7 @@ uint16_t Device::buildInfo(uint8_t request_id) {
                       id_.calibration_name[i]; ++i) {
     p[kInfoOffCalibrationName + i] = static_cast<uint8_t>(id_.calibration_name[i]);
   }
+  putU16(p + kInfoOffBootId, boot_id_);
   putU32(p + kInfoOffModelHash, id_.model_hash);
   for (uint8_t i = 0; i < kInfoModelNameBytes - 1 && id_.model_name && id_.model_name[i]; ++i) {
     p[kInfoOffModelName + i] = static_cast<uint8_t>(id_.model_name[i]);
@@ -508,6 +531,7 @@ uint16_t Device::buildTelemetry(uint8_t request_id) {
   putU16(p + kTelemetryOffLoopTimeMeanUs, static_cast<uint16_t>(mean > 0xFFFF ? 0xFFFF : mean));
   putU16(p + kTelemetryOffTemperatureCenti, static_cast<uint16_t>(temperature_centi_));
   putU16(p + kTelemetryOffNextSeq, seq_);
+  putU16(p + kTelemetryOffBootId, boot_id_);
   if (request_id == 0) {  // the periodic record closes the loop-time window
     counters_.loop_time_max_us = 0;
     counters_.loop_time_sum_us = 0;
@@ -587,6 +611,10 @@ void Device::sendData(const Sample& s, uint16_t status, const int16_t* wrench) {
   }
   if (tx_overflow_) status |= kStatusTxOverflow;
   tx_overflow_ = false;
+  // The first record sent since a command changed what records mean (dropped ones pass the
+  // mark on): every record before it predates the change.
+  if (stream_changed_) status |= kStatusStreamChanged;
+  stream_changed_ = false;
   const uint16_t n = encodeDataRecord(tx_, seq, s.time_us, status, wrench,
                                       raw ? s.counts : static_cast<const uint16_t*>(0));
   hw_.txWrite(tx_, n);

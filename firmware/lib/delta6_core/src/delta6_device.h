@@ -108,8 +108,10 @@ class Device {
   Device(Hardware& hardware, const Identity& identity, const Config& defaults);
 
   // Load the configuration from EEPROM (defaults if it is invalid, flagged), announce the boot
-  // and the device info, and report the sample rate. reset_cause is board-specific.
-  void begin(uint8_t reset_cause);
+  // and the device info, and report the sample rate. reset_cause is board-specific; boot_id
+  // tells this boot session from the one before (info and telemetry carry it): a value the
+  // previous boot did not have (the board layer keeps a counter across resets).
+  void begin(uint8_t reset_cause, uint16_t boot_id = 0);
   // One sample: status word, tare, quantisation, the data record if streaming, telemetry.
   void onSample(const Sample& sample);
   // One received byte; a complete command is executed at once.
@@ -175,8 +177,10 @@ class Device {
   Response last_answer_;       // repeated for a retried request (same id and command)
 
   bool streaming_;
-  bool config_defaults_;
+  uint8_t config_problem_;     // why the EEPROM configuration was rejected (0: it was not)
   bool tx_overflow_;           // a data record was dropped since the last one sent
+  bool stream_changed_;        // a command changed what records mean; none sent since
+  uint16_t boot_id_;
   uint16_t seq_;
   uint16_t last_status_;
   int16_t temperature_centi_;

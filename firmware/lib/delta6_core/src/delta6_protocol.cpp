@@ -35,6 +35,7 @@ uint8_t commandSize(uint8_t type) {
     case kCmdSetZero: return kCmdSetZeroSize;
     case kCmdZeroHere: return kCmdZeroHereSize;
     case kCmdGetTelemetry: return kCmdGetTelemetrySize;
+    case kCmdAbort: return kCmdAbortSize;
     default: return 0;
   }
 }

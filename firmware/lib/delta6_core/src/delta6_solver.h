@@ -1,7 +1,7 @@
 // The on-chip wrench solver: six encoder angles in, the wrench at frame {E} out.
 //
 // It evaluates the paper's analytical model (eqs. 1-13) in float32, with the conventions of
-// the Python reference delta6.model (docs/model.md): z of {B} points down, theta_i =
+// the Python reference delta6.core.model (docs/model.md): z of {B} points down, theta_i =
 // theta_ei + theta_offset, R = Rz(theta6) Rx(theta4) Ry(theta5), E_F = R^T E0_F and
 // E_M = R^T k theta_e4..6. Design-specific numbers come in a SolverConstants that
 // `delta6 codegen` writes into generated/delta6_design.h (kSolverConstants).

@@ -82,6 +82,10 @@ def parse_url(url: str) -> dict:
         raise SerialException(f"{url}: {exc}") from None
     if not Path(opts["design"]).exists():
         raise SerialException(f"{url}: design file {opts['design']} not found")
+    eeprom = opts["eeprom_path"]
+    if eeprom is not None and not eeprom.resolve().parent.is_dir():
+        # Checked now: the image is written when a configuration is saved, much later.
+        raise SerialException(f"{url}: the folder of eeprom={eeprom} does not exist")
     opts["encoder_faults"] = faults
     opts["_motion"] = (motion, pose, amplitude)
     return opts

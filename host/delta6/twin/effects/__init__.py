@@ -13,7 +13,8 @@ from delta6.twin.effects.spring_hysteresis import SpringHysteresis
 from delta6.twin.effects.stiffness_mismatch import StiffnessMismatch
 from delta6.twin.effects.thermal_drift import ThermalDrift
 
-#: name -> effect class, in the order of the issue's vocabulary.
+#: name -> effect class, in the order of the effect vocabulary (docs/twin.md); the diagnosis
+#: names its terms alike (tests/evaluation/test_effect_names.py).
 REGISTRY: dict[str, type[Effect]] = {cls.NAME: cls for cls in (
     EncoderOffset, StiffnessMismatch, GeometryError, SpringHysteresis, JointFriction, Backlash,
     LinkCompliance, SensorLatency, ThermalDrift)}

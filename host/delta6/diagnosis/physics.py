@@ -1,0 +1,31 @@
+"""Fitted parameters that physics does not allow: a negative friction, play, compliance or
+latency means the term fitted something else (another effect, noise), so it is reported with
+a warning instead of being taken at face value."""
+from __future__ import annotations
+
+#: Summaries of each effect that cannot be negative (names or name prefixes of its params).
+NON_NEGATIVE = {
+    "joint_friction": ("coulomb_equiv_nm", "viscous_equiv_nm_s_per_rad"),
+    "spring_hysteresis": ("loop_half_width_nm",),
+    "backlash": ("play_rad",),
+    "link_compliance": ("axial_", "bending_"),
+    "sensor_latency": ("latency_s",),
+}
+
+
+def warnings(effect: str, params: dict) -> list[str]:
+    """One line per parameter of ``effect`` whose fitted value is negative where physics
+    allows only zero or more."""
+    out = []
+    for name, value in params.items():
+        if not any(name == k or (k.endswith("_") and name.startswith(k))
+                   for k in NON_NEGATIVE.get(effect, ())):
+            continue
+        values = value if isinstance(value, list) else [value]
+        bad = [(i, v) for i, v in enumerate(values) if v < 0]
+        if bad:
+            where = ", ".join((f"j{i + 1} " if len(values) > 1 else "") + f"{v:.3g}"
+                              for i, v in bad)
+            out.append(f"{effect}: {name} fitted negative ({where}): not physical, the term "
+                       "stands in for something else")
+    return out

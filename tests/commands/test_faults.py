@@ -1,0 +1,336 @@
+"""Faults injected at random points while ``delta6 log`` runs, as separate processes: the
+host killed by SIGINT, SIGTERM, SIGHUP or SIGKILL, the device side killed, random bytes both
+ways, a full disk. After each, the invariants of docs/reliability.md must hold:
+
+- every record received is in the log (or its .partial file after SIGKILL);
+- no row is made up: each one is a record the device sent, exactly;
+- every exit is a documented status, with one line saying how it ended, never a traceback;
+- no process is left behind.
+
+The device side is a simulated Delta6 on a pseudo-terminal in a process of its own
+(tests/support/ptydevice.py), which keeps a clean copy of all it sent. Every wait is bounded.
+"""
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from delta6.cli import main
+from delta6.link.bulkdecode import decode_capture
+from delta6.link.logfile import LogError, read_log
+
+from conftest import ROOT
+
+SUPPORT = Path(__file__).resolve().parents[1] / "support"
+ENV = {**os.environ, "PYTHONPATH": str(ROOT / "tests")}
+#: How each kind of end may look: exit status and the last line of stderr.
+STOPPED = 0
+
+
+def start_device(tmp_path: Path, *options: str) -> tuple[subprocess.Popen, str, Path]:
+    sent = tmp_path / "sent.bin"
+    proc = subprocess.Popen([sys.executable, str(SUPPORT / "ptydevice.py"),
+                             "delta6sim://?rate=500", "--sent", str(sent), *options],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+    port = proc.stdout.readline().strip()
+    assert port.startswith("/dev/"), proc.stderr.read()
+    return proc, port, sent
+
+
+def delta6(*args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "delta6", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=ENV)
+
+
+def start_log(port: str, tmp_path: Path, name: str, *options: str,
+              raw: bool = True) -> tuple[subprocess.Popen, Path, Path]:
+    out, capture = tmp_path / f"{name}.csv", tmp_path / f"{name}.bin"
+    proc = delta6("log", "--port", port, "-o", str(out), "--capture", str(capture), "--rate",
+                  "500", *(["--raw"] if raw else []), *options)
+    return proc, out, capture
+
+
+def wait_for_rows(proc: subprocess.Popen, out: Path, rows: int, timeout: float = 30.0) -> None:
+    """Until the log's .partial file holds ``rows`` rows (or the log ended)."""
+    partial = out.with_name(out.name + ".partial")
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.poll() is None:
+        if partial.exists() and partial.read_bytes().count(b"\n") > rows + 12:
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"the log did not get going: {proc.poll()}")
+
+
+def finish(proc: subprocess.Popen, timeout: float = 30.0) -> tuple[int, str]:
+    _, err = proc.communicate(timeout=timeout)
+    return proc.returncode, err
+
+
+def stop_device(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.terminate()
+    proc.communicate(timeout=10)
+
+
+def leftovers(token: str) -> list[str]:
+    """Live processes whose command line names ``token`` (our temporary folder)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode()
+            state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (OSError, IndexError):
+            continue
+        if token in cmdline and state != "Z":
+            found.append(cmdline)
+    return found
+
+
+def device_records(path: Path) -> dict:
+    """(seq, time) -> (status, wrench counts, raw counts) of every data record in a byte
+    stream (what the device sent, or a capture of what the host received)."""
+    cap = decode_capture(path.read_bytes())
+    return {(int(s) % 65536, int(t) % 2**32): (int(st), tuple(w), tuple(c))
+            for s, t, st, w, c in zip(cap.seq, cap.time_us, cap.status, cap.wrench_counts,
+                                      cap.counts)}
+
+
+def check_rows(log, sent: dict, received: dict, complete: bool) -> None:
+    """No row made up: each is a record the device sent, with its status, wrench and angles
+    exactly. Nothing lost: the log holds every record received from its first row to its last
+    (``complete``: and nothing after the last but what came after it closed)."""
+    lsb = np.array([float(v) for v in log.meta["lsb"].split()])
+    zero = np.array([int(v) for v in log.meta["zero_counts"].split()])
+    keys = [(int(s) % 65536, round(t * 1e6) % 2**32) for s, t in zip(log.seq, log.t)]
+    for i, key in enumerate(keys):
+        assert key in sent, f"row {i} (seq, time) {key} is no record the device sent"
+        status, counts, raw = sent[key]
+        assert int(log.status[i]) == status
+        expected = np.where(np.array(counts) == -32768, np.nan, np.array(counts) * lsb)
+        np.testing.assert_allclose(log.wrench[i], expected, rtol=1e-9, atol=0)
+        theta = ((np.array(raw) - zero + 8192) % 16384 - 8192) * (2 * np.pi / 16384)
+        bad = ((status >> np.arange(6)) & 1) | (np.array(raw) < 0)      # failed, or not sent
+        np.testing.assert_allclose(np.where(bad, np.nan, log.theta[i]),
+                                   np.where(bad, np.nan, theta), rtol=1e-7, atol=1e-12)
+    order = list(received)                    # in the order the records arrived
+    first, last = order.index(keys[0]), order.index(keys[-1])
+    assert keys == order[first:last + 1], "a record received is missing from the log"
+    if complete:
+        assert len(order) - last - 1 < 500, "records received long before the log closed"
+
+
+def read_partial_or_final(out: Path):
+    partial = out.with_name(out.name + ".partial")
+    return read_log(out if out.exists() else partial, require_complete_rows=False)
+
+
+@pytest.fixture(scope="module")
+def device(tmp_path_factory):
+    """One device process for the tests that kill the host: it outlives every log, as a
+    board outlives the programs that read it."""
+    folder = tmp_path_factory.mktemp("device")
+    proc, port, sent = start_device(folder)
+    yield port, sent
+    stop_device(proc)
+    assert leftovers(str(folder)) == []
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
+def test_a_stop_signal_ends_the_log_with_every_record(device, tmp_path, signum):
+    port, sent = device
+    rnd = random.Random(int(signum))
+    log_proc, out, capture = start_log(port, tmp_path, "stopped")
+    wait_for_rows(log_proc, out, rnd.randrange(5, 200))
+    log_proc.send_signal(signum)
+    status, err = finish(log_proc)
+    lines = err.strip().splitlines()
+    assert status == STOPPED and "Traceback" not in err, err
+    assert lines[-1].endswith(f"(stopped by {signal.Signals(signum).name})"), lines[-1]
+    assert lines[-1].startswith(f"{out}: ") and not out.with_name("stopped.csv.partial").exists()
+    assert leftovers(str(tmp_path)) == []
+    log = read_log(out)                 # complete rows: the raw mode gave angles to all
+    check_rows(log, device_records(sent), device_records(capture), complete=True)
+    assert f"{len(log)} samples over" in lines[-1]
+
+
+def test_sigkill_of_the_log_keeps_what_reached_the_file(device, tmp_path):
+    port, sent = device
+    log_proc, out, capture = start_log(port, tmp_path, "killed", raw=False)
+    wait_for_rows(log_proc, out, random.Random(9).randrange(50, 300))
+    log_proc.send_signal(signal.SIGKILL)
+    status, _ = finish(log_proc)
+    assert status == -signal.SIGKILL and not out.exists() and leftovers(str(tmp_path)) == []
+    log = read_partial_or_final(out)           # a cut last row is not read
+    assert len(log) > 0
+    check_rows(log, device_records(sent), device_records(capture), complete=False)
+    # The device, left streaming wrench-only records by the killed log, serves the next log
+    # (with angles) cleanly: no record of the old stream comes first, every row has angles.
+    again, out2, capture2 = start_log(port, tmp_path, "after", "--duration", "0.4")
+    status, err = finish(again)
+    assert status == 0, err
+    log2 = read_log(out2)                      # complete rows required: angles in every one
+    assert log2.status[0] & 0x8000             # the first record of the new stream (marked)
+    check_rows(log2, device_records(sent), device_records(capture2), complete=True)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGKILL, signal.SIGTERM])
+def test_losing_the_device_process_ends_the_log_with_one_line(tmp_path, signum):
+    dev_proc, port, sent = start_device(tmp_path)
+    try:
+        log_proc, out, capture = start_log(port, tmp_path, "lost")
+        wait_for_rows(log_proc, out, random.Random(int(signum)).randrange(20, 200))
+        dev_proc.send_signal(signum)
+        status, err = finish(log_proc)
+    finally:
+        stop_device(dev_proc)
+    lines = err.strip().splitlines()
+    assert status == 2 and "Traceback" not in err, err
+    assert lines[-1].startswith(f"delta6 log: error: lost the device on {port}: ")
+    log = read_log(out)
+    assert lines[-1].endswith(f"{out} keeps the {len(log)} samples received before")
+    check_rows(log, device_records(sent), device_records(capture), complete=True)
+    assert leftovers(str(tmp_path)) == []
+
+
+def test_random_bytes_both_ways(tmp_path):
+    """Garbage and flipped bits on the line, in both directions: commands are retried, damaged
+    records are counted and dropped, and no row is made up or lost on the way to the file."""
+    dev_proc, port, sent = start_device(tmp_path, "--noise", "0.05", "--seed", "4")
+    try:
+        log_proc, out, capture = start_log(port, tmp_path, "noisy", "--duration", "1.5")
+        status, err = finish(log_proc)
+    finally:
+        stop_device(dev_proc)
+    # Each command is tried three times: all three garbled at this noise is a 1e-4 chance.
+    assert status == 0 and "Traceback" not in err, err
+    log = read_log(out)
+    h = device_records(capture)
+    assert len(log) > 200 and len(h) < len(device_records(sent))     # the noise cost records
+    assert f" gaps; {int(np.count_nonzero(log.status & 0xFFF))} flagged; " in err
+    check_rows(log, device_records(sent), device_records(capture), complete=True)
+    assert leftovers(str(tmp_path)) == []
+
+
+def test_a_full_disk_ends_the_log_with_whole_rows(tmp_path, capsys, monkeypatch):
+    """The disk fills up mid-log (an injected ENOSPC after some kilobytes): one line, status
+    2, and the .partial file holds whole rows, each a record received."""
+    import errno
+    real_write = os.write
+    room = {"bytes": 60_000}
+    partial = tmp_path / "full.csv.partial"
+
+    def filling(fd, data):
+        try:
+            on_log = os.readlink(f"/proc/self/fd/{fd}") == str(partial)
+        except OSError:
+            on_log = False
+        if on_log:
+            if room["bytes"] <= 0:
+                raise OSError(errno.ENOSPC, "No space left on device")
+            data = bytes(data[:room["bytes"]])
+            room["bytes"] -= len(data)
+        return real_write(fd, data)
+
+    monkeypatch.setattr("delta6.link.logfile.os.write", filling)
+    capture = tmp_path / "full.bin"
+    status = main(["log", "--port", "delta6sim://?rate=1000", "-o", str(tmp_path / "full.csv"),
+                   "--raw", "--capture", str(capture), "--duration", "5"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2
+    assert err[-1].startswith(f"delta6 log: error: cannot write {partial}: No space left on "
+                              "device; it keeps the ")
+    log = read_log(partial)
+    assert f"it keeps the {len(log)} rows written before" in err[-1] and len(log) > 100
+    received = device_records(capture)
+    check_rows(log, received, received, complete=False)
+    assert not (tmp_path / "full.csv").exists()
+
+
+def test_a_full_disk_while_decoding_is_one_line(tmp_path, capsys, monkeypatch):
+    import errno
+    capture = tmp_path / "c.bin"
+    assert main(["log", "--port", "delta6sim://?rate=1000", "-o", str(tmp_path / "l.csv"),
+                 "--capture", str(capture), "--duration", "0.5"]) == 0
+    capsys.readouterr()
+
+    def full(fd, data):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr("delta6.link.logfile.os.write", full)
+    assert main(["decode", str(capture), "-o", str(tmp_path / "d.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "No space left on device" in err
+    assert not (tmp_path / "d.csv").exists()
+
+
+def test_every_file_reader_survives_a_truncated_log(tmp_path, capsys):
+    """What SIGKILL can leave: a .partial cut anywhere reads as its whole rows, or is refused
+    in one line; never a traceback, never a cut number."""
+    assert main(["log", "--port", "delta6sim://?rate=1000", "-o", str(tmp_path / "w.csv"),
+                 "--raw", "--duration", "0.3"]) == 0
+    text = (tmp_path / "w.csv").read_bytes()
+    rnd = random.Random(2)
+    for cut in sorted(rnd.sample(range(len(text)), 40)):
+        partial = tmp_path / "cut.csv.partial"
+        partial.write_bytes(text[:cut])
+        try:
+            log = read_log(partial)
+        except LogError as exc:
+            assert "\n" not in str(exc)
+            continue
+        whole = text[:cut].rsplit(b"\n", 1)[0].decode()
+        assert len(log) == sum(1 for ln in whole.splitlines() if ln and ln[0].isdigit())
+
+
+def test_an_interrupted_tare_does_not_leave_the_device_busy(device):
+    """SIGTERM during a tare of 65535 samples (over two minutes): one line, status 143, and the
+    device is told to stop averaging; after SIGKILL, `tare --abort` frees it."""
+    port, _ = device
+    tare = delta6("tare", "--port", port, "--samples", "65535")
+    wait_for_port(tare, port)              # then the tare is averaging on the device
+    tare.send_signal(signal.SIGTERM)
+    status, err = finish(tare)
+    assert status == 143 and err.strip() == "delta6 tare: interrupted (SIGTERM)", err
+    quick = delta6("tare", "--port", port, "--samples", "5", "--clear")
+    assert finish(quick)[0] == 0
+    killed = delta6("tare", "--port", port, "--samples", "65535")
+    wait_for_port(killed, port)
+    killed.send_signal(signal.SIGKILL)
+    finish(killed)
+    busy = delta6("tare", "--port", port, "--samples", "5")
+    status, err = finish(busy)
+    assert status == 2 and "still running (delta6 tare --abort stops it)" in err
+    status, out = finish_out(delta6("tare", "--port", port, "--abort"))
+    assert status == 0 and out.strip() == "stopped the averaging; nothing was changed"
+    status, out = finish_out(delta6("tare", "--port", port, "--samples", "5"))
+    assert status == 0 and out.startswith("tare over 5 samples: Fx")
+
+
+def wait_for_port(proc: subprocess.Popen, port: str, timeout: float = 30.0) -> None:
+    """Until ``proc`` has the port open, and half a second more (its command is on its way)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and proc.poll() is None:
+        try:
+            fds = list(Path(f"/proc/{proc.pid}/fd").iterdir())
+            if any(os.readlink(fd) == port for fd in fds):
+                time.sleep(0.5)
+                return
+        except OSError:
+            pass
+        time.sleep(0.02)
+    raise AssertionError(f"{proc.args} never opened {port}")
+
+
+def finish_out(proc: subprocess.Popen, timeout: float = 30.0) -> tuple[int, str]:
+    out, _ = proc.communicate(timeout=timeout)
+    return proc.returncode, out
