@@ -35,7 +35,7 @@ const delta6::Identity identity = {
      d::kFullScale[5]},
     d::kJointLimitRad, d::kJointLimitCounts,
     {delta6::kFirmwareVersionMajor, delta6::kFirmwareVersionMinor, delta6::kFirmwareVersionPatch},
-    500000, 2000, 0, 0, nullptr, 0};
+    500000, 2000, 0, 0, nullptr, 0, nullptr, 0};
 const delta6::Config defaults = {200, 1, false, {0, 0, 0, 0, 0, 0}, {0, 0, 0, 0, 0, 0}};
 delta6::Device device(hardware, identity, defaults);
 

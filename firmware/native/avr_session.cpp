@@ -47,7 +47,7 @@ const delta6::Identity identity = {"delta6", 0x535534AF,
                                    0.5236f, 1365,
                                    {delta6::kFirmwareVersionMajor, delta6::kFirmwareVersionMinor,
                                     delta6::kFirmwareVersionPatch},
-                                   500000, 2000, 0, 0, nullptr, 0};
+                                   500000, 2000, 0, 0, nullptr, 0, nullptr, 0};
 const delta6::Config defaults = {500, 1, false, {0, 0, 0, 0, 0, 0},
                                  {1200, 5400, 9800, 14100, 300, 16000}};
 delta6::Device device(hardware, identity, defaults);

@@ -16,6 +16,14 @@
 #include "generated/delta6_calibration.h"
 #define DELTA6_CALIBRATED 1
 #endif
+// An on-chip residual model over the base wrench (analytical or calibrated), when
+// `delta6 codegen --model` put one next to the design header (docs/ondevice-model.md); without
+// it the firmware is exactly the one without a model.
+#if __has_include("generated/delta6_model.h")
+#include "delta6_residual.h"
+#include "generated/delta6_model.h"
+#define DELTA6_RESIDUAL 1
+#endif
 #endif
 
 // The fastest rate the board sustains without overruns in both stream modes, for the info
@@ -59,6 +67,33 @@ delta6::CalibrationState calibration_state;
 uint16_t calibration_zero[6];
 #endif
 
+#if DELTA6_RESIDUAL
+namespace m = delta6::model;
+// The residual's history (rings sized for the model's deepest look-back at kMaxStride).
+int16_t residual_wrench_ring[m::kWrenchHistory ? 6 * m::kHistoryLength : 1];
+int16_t residual_count_ring[m::kCountHistory ? 6 * m::kHistoryLength : 1];
+int16_t residual_plays[m::kPlayCount ? 6 * m::kPlayCount : 1];
+delta6::residual::State residual_state = {residual_wrench_ring, residual_count_ring,
+                                          residual_plays, 0, 1, false};
+uint16_t residual_zero[6];   // the zero counts its history was built on
+
+// The base wrench plus the model's correction; a sample without a wrench restarts the history.
+void applyResidual(bool solver_ok, const uint16_t* zero, const int16_t* delta, float* wrench) {
+  bool zero_changed = false;
+  for (uint8_t j = 0; j < 6; ++j) {
+    if (zero[j] != residual_zero[j]) zero_changed = true;
+    residual_zero[j] = zero[j];
+  }
+  if (zero_changed || !solver_ok) delta6::residual::reset(residual_state);
+  if (!solver_ok) return;
+  int16_t base[6];
+  int16_t correction[6];
+  delta6::residual::quantizeInput(m::kModel, wrench, base);
+  delta6::residual::step(m::kModel, residual_state, base, delta, correction);
+  delta6::residual::applyOutput(m::kModel, correction, wrench);
+}
+#endif
+
 class BoardHardware : public delta6::Hardware {
  public:
   uint16_t txSpace() override { return board::txSpace(); }
@@ -80,6 +115,9 @@ class BoardHardware : public delta6::Hardware {
 #if DELTA6_CALIBRATED
     delta6::calibration_set_period(delta6::calibration::kCalibrationConstants,
                                    1.0f / static_cast<float>(rate_hz), calibration_state);
+#endif
+#if DELTA6_RESIDUAL
+    delta6::residual::configure(m::kModel, residual_state, rate_hz);
 #endif
     board::startSampling(rate_hz);
     board::watchdogStart(rate_hz);
@@ -104,6 +142,13 @@ delta6::Identity identity = {
     delta6::calibration::kHash,
 #else
     nullptr,   // no calibration: the analytical model
+    0,
+#endif
+#if DELTA6_RESIDUAL
+    m::kName,
+    m::kHash,
+#else
+    nullptr,   // no on-chip residual model
     0,
 #endif
 };
@@ -146,9 +191,15 @@ void process(const Latched& latched) {
 #else
     s.solver_ok = delta6::solve_counts(d::kSolverConstants, delta, s.wrench) == delta6::kSolveOk;
 #endif
+#if DELTA6_RESIDUAL
+    applyResidual(s.solver_ok, zero, delta, s.wrench);
+#endif
   } else {
     s.solver_ok = false;   // no wrench without all six angles
     for (uint8_t i = 0; i < 6; ++i) s.wrench[i] = 0.0f;
+#if DELTA6_RESIDUAL
+    delta6::residual::reset(residual_state);
+#endif
   }
   board::mark(D6_MARK_SOLVE_END);
   s.overrun = latched.missed != 0;

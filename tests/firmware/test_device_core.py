@@ -294,7 +294,10 @@ def test_garbage_to_the_device_is_counted_and_streaming_goes_on(bench):
 
 
 def test_encoder_faults_flag_exactly_their_samples():
-    b = Bench(rate_hz=500, encoder_faults={3: 0.3, 6: 0.1}, seed=4)
+    # A queue that holds the 190-byte boot INFO beside the first two raw records: START comes
+    # at once here, while that INFO still drains (the drops a smaller queue gives are counted
+    # and flagged: test_answers_go_first_on_a_full_link_...).
+    b = Bench(rate_hz=500, encoder_faults={3: 0.3, 6: 0.1}, seed=4, tx_capacity=320)
     b.send(C.SET_MODE, P.Mode.WRENCH_RAW)
     b.send(C.START, 500)
     records = data(b.run(1.0))
@@ -344,10 +347,10 @@ def test_overrange_and_joint_limit(bench):
 
 
 def test_answers_go_first_on_a_full_link_and_every_drop_is_a_counted_gap():
-    """A 170-byte transmit queue at 1.6 kHz: the 160-byte info record only fits into an empty
+    """A 200-byte transmit queue at 1.6 kHz: the 190-byte info record only fits into an empty
     queue, so data records give way until it went out. The host sees exactly the gaps the
     device counts, and the first record after each gap says so."""
-    b = Bench(rate_hz=1000, tx_capacity=170, baud=500_000)
+    b = Bench(rate_hz=1000, tx_capacity=200, baud=500_000)
     records = b.send(C.START, 1600)
     infos = 0
     for _ in range(20):
@@ -477,7 +480,7 @@ def test_abort_ends_an_averaging_that_would_keep_the_device_busy(bench):
 def test_info_and_telemetry_carry_the_boot_id():
     bench = Bench(rate_hz=500, boot_id=0xBEEF)
     info = next(r for r in bench.boot if isinstance(r, P.Info))
-    assert info.boot_id == 0xBEEF and info.protocol == (1, 1)
+    assert info.boot_id == 0xBEEF and info.protocol == P.VERSION
     assert bench.answer(bench.send(C.GET_TELEMETRY)).boot_id == 0xBEEF
     bench.sim.close()
 
@@ -486,7 +489,8 @@ def test_a_1_0_device_is_read_without_the_appended_fields():
     """A 1.0 device's INFO (128 bytes) and TELEMETRY (48) records parse with the boot id left
     unknown (None) and no calibration; a 1.0 host reads the 1.1 records by their known prefix.
     The offsets are docs/protocol.md's, written here by hand: INFO's boot id at 156, after the
-    calibration hash (128) and name (132); TELEMETRY's at 48."""
+    calibration hash (128) and name (132), then (1.2) the model's hash (158) and name (162);
+    TELEMETRY's at 48."""
     bench = Bench(rate_hz=500, boot_id=0x1234)
     bench.sim.write(P.encode_command(C.GET_INFO, 9) + P.encode_command(C.GET_TELEMETRY, 10))
     bench.sim.advance(0.02)                      # the answers leave at the baud rate
@@ -494,7 +498,8 @@ def test_a_1_0_device_is_read_without_the_appended_fields():
     bench.sim.close()
     payloads = [P.unframe(f) for f in raw.split(b"\x00")[:-1]]
     info, telemetry = (P.parse_payload(p) for p in payloads)
-    assert [len(p) for p in payloads] == [158, 50]
+    assert [len(p) for p in payloads] == [186, 50]
+    assert payloads[0][158:186] == bytes(28) and info.model_hash == 0       # no model built in
     assert payloads[0][156:158] == (0x1234).to_bytes(2, "little")   # u16, little-endian
     assert payloads[1][48:50] == (0x1234).to_bytes(2, "little")
     assert payloads[0][128:132] == bytes(4) and info.calibration_hash == 0   # none built in

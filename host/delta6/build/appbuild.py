@@ -17,7 +17,10 @@ SIZE_PROBE = avrbuild.FIRMWARE / "native" / "app_size_probe.cpp"
 
 
 def solver_sources() -> list[Path]:
-    return [avrbuild.CORE_LIB / "delta6_solver.cpp", avrbuild.CORE_LIB / "delta6_calibrated.cpp"]
+    """The wrench path: the solver, the calibrated model and the residual engine (each linked
+    in only when a generated header makes the application call it)."""
+    return [avrbuild.CORE_LIB / "delta6_solver.cpp", avrbuild.CORE_LIB / "delta6_calibrated.cpp",
+            avrbuild.CORE_LIB / "delta6_residual.cpp"]
 
 
 def app_sources() -> list[Path]:

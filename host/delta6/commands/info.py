@@ -40,6 +40,8 @@ def run(args: argparse.Namespace) -> int:
         f"serial 0x{info.serial_number:08x}",
         (f"  calibration '{info.calibration_name}' (hash 0x{info.calibration_hash:08x})"
          if info.calibration_hash else "  no calibration: the analytical model"),
+        (f"  on-chip residual model '{info.model_name}' (hash 0x{info.model_hash:08x})"
+         if info.model_hash else "  no on-chip residual model"),
         f"  rate {info.rate_hz} Hz (board max {info.max_rate_hz} Hz; link at {info.baud} baud "
         f"carries {link_rate_limit(info.baud, Mode.WRENCH)} Hz wrench, "
         f"{link_rate_limit(info.baud, Mode.WRENCH_RAW)} Hz wrench+raw)",

@@ -22,7 +22,7 @@ from delta6.link import cobs
 from delta6.link.crc import crc16
 from delta6.link.layout import Field, Layout
 
-VERSION = (1, 1)
+VERSION = (1, 2)
 
 #: The recommended UART rate (docs/protocol.md section 1, "Link"): exact on 16 MHz AVRs, carries
 #: 1 kHz of wrench records at half load.
@@ -181,7 +181,9 @@ RECORD_LAYOUTS = {
         # 1.1: the calibration the firmware applies (hash 0 and no name: none), and the boot
         # session.
         Field("calibration_hash", "I"), Field("calibration_name", "s", 24),
-        Field("boot_id", "H")]),
+        Field("boot_id", "H"),
+        # 1.2: the on-chip residual model the firmware runs (hash 0 and no name: none).
+        Field("model_hash", "I"), Field("model_name", "s", 24)]),
     RecordType.ACK: Layout("ACK", [_TYPE, _REQUEST, Field("command", "B"), Field("value", "I")]),
     RecordType.NACK: Layout("NACK", [_TYPE, _REQUEST, Field("command", "B"),
                                      Field("reason", "B"), Field("detail", "I")]),
@@ -196,15 +198,18 @@ RECORD_LAYOUTS = {
 }
 RECORD_SIZES = {t: layout.size for t, layout in RECORD_LAYOUTS.items()}
 #: Fields a minor version appended: a host reads the shorter records of an older device, each
-#: missing field as the value here (its version: 1.1 for all of these).
+#: missing field as the value here (1.1: the calibration and the boot id; 1.2: the model).
 APPENDED_FIELDS = {
-    RecordType.INFO: {"calibration_hash": 0, "calibration_name": "", "boot_id": None},
+    RecordType.INFO: {"calibration_hash": 0, "calibration_name": "", "boot_id": None,
+                      "model_hash": 0, "model_name": ""},
     RecordType.TELEMETRY: {"boot_id": None},
 }
 #: The shortest payload of each type a host accepts: the record as version 1.0 defined it.
 MIN_RECORD_SIZES = {t: min((layout.offsets[n] for n in APPENDED_FIELDS.get(t, ())),
                            default=layout.size) for t, layout in RECORD_LAYOUTS.items()}
 INFO_SIZE_1_0 = MIN_RECORD_SIZES[RecordType.INFO]
+#: INFO as version 1.1 sent it (without the model).
+INFO_SIZE_1_1 = RECORD_LAYOUTS[RecordType.INFO].offsets["model_hash"]
 _WRENCH = RECORD_LAYOUTS[RecordType.WRENCH].struct
 _WRENCH_RAW = RECORD_LAYOUTS[RecordType.WRENCH_RAW].struct
 
@@ -298,6 +303,8 @@ class Info(NamedTuple):
     calibration_hash: int = 0      # 1.1; 0: the analytical model, no calibration
     calibration_name: str = ""
     boot_id: int | None = None      # 1.1: identifies the device's boot session
+    model_hash: int = 0            # 1.2; 0: no on-chip residual model
+    model_name: str = ""
 
     @property
     def lsb(self) -> np.ndarray:
@@ -409,7 +416,7 @@ def parse_payload(payload: bytes):
         fields = layout.unpack(payload)
     del fields["type"]
     if kind == RecordType.INFO:
-        for key in ("design_name", "calibration_name"):
+        for key in ("design_name", "calibration_name", "model_name"):
             if isinstance(fields[key], bytes):
                 fields[key] = fields[key].split(b"\x00", 1)[0].decode("ascii", "replace")
         fields["streaming"] = bool(fields["streaming"])
@@ -458,12 +465,14 @@ def encode_wrench(seq: int, time_us: int, status: int, wrench, counts=None) -> b
 
 def encode_record(record, minor: int | None = None) -> bytes:
     """The frame of an INFO, ACK, NACK, TELEMETRY or EVENT record (the tuples above), as this
-    version sends it, or as minor version ``minor`` did (0: 1.0, without the appended fields).
+    version sends it, or as minor version ``minor`` did (0: 1.0, without the appended fields;
+    1: 1.1, without the model).
     An appended field the record does not have (None) is left off, with those after it."""
     kind = next(t for t, cls in _RECORD_TUPLES.items() if isinstance(record, cls))
     fields = record._asdict()
     layout = RECORD_LAYOUTS[kind]
-    size = MIN_RECORD_SIZES[kind] if minor == 0 else layout.size
+    size = (MIN_RECORD_SIZES[kind] if minor == 0 else
+            INFO_SIZE_1_1 if minor == 1 and kind == RecordType.INFO else layout.size)
     for name in APPENDED_FIELDS.get(kind, ()):
         if fields[name] is None:
             size = min(size, layout.offsets[name])
@@ -474,9 +483,9 @@ def encode_record(record, minor: int | None = None) -> bytes:
         name_field = RECORD_LAYOUTS[kind].field("design_name")
         fields.update(design_name=record.design_name.encode("ascii")[:name_field.count - 1],
                       streaming=int(record.streaming))
-        if "calibration_name" in fields:
-            fields["calibration_name"] = record.calibration_name.encode("ascii")[
-                :name_field.count - 1]
+        for key in ("calibration_name", "model_name"):
+            if key in fields:
+                fields[key] = getattr(record, key).encode("ascii")[:name_field.count - 1]
     return frame(layout.pack(type=kind, **fields))
 
 

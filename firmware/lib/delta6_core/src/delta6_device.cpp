@@ -502,6 +502,10 @@ uint16_t Device::buildInfo(uint8_t request_id) {
     p[kInfoOffCalibrationName + i] = static_cast<uint8_t>(id_.calibration_name[i]);
   }
   putU16(p + kInfoOffBootId, boot_id_);
+  putU32(p + kInfoOffModelHash, id_.model_hash);
+  for (uint8_t i = 0; i < kInfoModelNameBytes - 1 && id_.model_name && id_.model_name[i]; ++i) {
+    p[kInfoOffModelName + i] = static_cast<uint8_t>(id_.model_name[i]);
+  }
   return finishFrame(tx_, kInfoSize);
 }
 

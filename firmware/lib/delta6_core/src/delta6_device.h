@@ -55,6 +55,8 @@ struct Identity {
   uint16_t eeprom_address;   // where the configuration blob lives
   const char* calibration_name;  // the calibration compiled in (ASCII, <= 23 characters), or
   uint32_t calibration_hash;     // nullptr and 0: the analytical model (INFO, protocol 1.1)
+  const char* model_name;  // the on-chip residual model compiled in (ASCII, <= 23
+  uint32_t model_hash;     // characters), or nullptr and 0: none (INFO, protocol 1.2)
 };
 
 // The persistent configuration (saved to EEPROM only by the save command).
