@@ -38,6 +38,10 @@ def run(design, effects, seed):
     ("link_compliance", "hertzian"),
     ("sensor_latency", "first_order"),
     ("thermal_drift", "lagged"),
+    # Beyond the first vocabulary: a stiffening spring, the magnet's harmonics, a harness.
+    ("nonlinear_spring", "progressive"),
+    ("encoder_periodic_error", "harmonics"),
+    ("harness", "cable"),
 ])
 def test_names_the_effect_whatever_its_formulation(baseline, name, formulation):
     effect = twin.make_effect(name, seed=31, formulation=formulation, magnitude=0.9)

@@ -141,7 +141,8 @@ def test_backlash_encoder_stands_still_after_reversal(baseline, formulation):
 
 # --- encoder_offset and geometry_error: functions of the pose, not of the history ---------
 
-@pytest.mark.parametrize("name", ["encoder_offset", "geometry_error"])
+@pytest.mark.parametrize("name", ["encoder_offset", "geometry_error", "nonlinear_spring",
+                                  "encoder_periodic_error", "harness"])
 def test_pose_effects_do_not_depend_on_history(baseline, name):
     effect = one(name, magnitude=0.8)
     duration = 60.0

@@ -9,7 +9,7 @@ from delta6.core.model import AXES
 from delta6.diagnosis.data import GapData
 
 
-def _plt():
+def pyplot():
     try:
         import matplotlib
     except ImportError:  # pragma: no cover - depends on the install
@@ -30,7 +30,7 @@ def _table(header: list[str], rows: list[str]) -> list[str]:
 
 def write_report(result: dict, data: GapData, out_dir: str | Path, source: str = "") -> Path:
     """Write ``report.md`` and its PNG plots into ``out_dir``; returns the report's path."""
-    plt = _plt()
+    plt = pyplot()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     figures = {
@@ -174,8 +174,8 @@ def _plot_cross_axis(plt, result):
 def _plot_loops(plt, data: GapData):
     rng = np.random.default_rng(0)
     idx = np.sort(rng.choice(len(data), size=min(len(data), 6000), replace=False))
-    tau = data.residual_joint_torque[idx]
-    vel = data.velocity[idx]
+    tau = data.joint_torque_of(data.residual[idx], idx)
+    vel = data.smooth_velocity[idx]
     fig, axes = plt.subplots(2, 3, figsize=(11, 6), sharex=True)
     for j, ax in enumerate(axes.flat):
         up = vel[:, j] > 0

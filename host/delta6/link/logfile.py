@@ -187,6 +187,11 @@ def _cell(value) -> str:
 
 # --- reading ------------------------------------------------------------------------------
 
+#: Rows parsed at a time: reading never holds more than this many lines of text, so a log of
+#: millions of rows costs little more than its arrays.
+READ_CHUNK_ROWS = 100_000
+
+
 def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData:
     """Read a log. Raises :class:`LogError` naming the problem: no file, wrong header,
     missing columns, unparsable or missing values (NaN), non-monotonic time.
@@ -196,44 +201,17 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="ascii")
+        with open(path, encoding="ascii", newline=None) as f:
+            meta, columns, body_start = _read_header(path, f)
+            table = _read_body(path, f, len(columns), body_start)
     except FileNotFoundError:
         raise LogError(f"{path}: no such file") from None
     except UnicodeDecodeError:
         raise LogError(f"{path}: not a text CSV log (non-ASCII bytes)") from None
+    except IsADirectoryError:
+        raise LogError(f"{path}: cannot be read (Is a directory)") from None
     except OSError as exc:
         raise LogError(f"{path}: cannot be read ({exc.strerror})") from None
-
-    lines = text.splitlines()
-    meta: dict[str, str] = {}
-    body_start = 0
-    for body_start, line in enumerate(lines):
-        if not line.startswith("#"):
-            break
-        content = line[1:].strip()
-        if content.startswith(MAGIC):
-            for part in content.split()[1:]:
-                if part.startswith("schema="):
-                    meta["schema"] = part[len("schema="):]
-        elif "=" in content and not content.startswith("units:"):
-            key, _, value = content.partition("=")
-            meta[key.strip()] = value.strip()
-    else:
-        raise LogError(f"{path}: no column header line")
-    if "schema" in meta and meta["schema"] != str(SCHEMA_VERSION):
-        raise LogError(f"{path}: log schema {meta['schema']} is not supported "
-                       f"(this version reads schema {SCHEMA_VERSION})")
-
-    columns = [c.strip() for c in lines[body_start].split(",")]
-    missing = [c for c in CORE_COLUMNS if c not in columns]
-    if missing:
-        raise LogError(f"{path}: missing column(s) {', '.join(missing)}")
-    if len(set(columns)) != len(columns):
-        raise LogError(f"{path}: duplicate column names")
-    rows = [ln for ln in lines[body_start + 1:] if ln.strip()]
-    if not rows:
-        raise LogError(f"{path}: no samples")
-    table = _parse_rows(path, rows, len(columns), body_start + 2)
     col = {name: table[:, i] for i, name in enumerate(columns)}
 
     t = col["t"]
@@ -260,6 +238,61 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
     return LogData(t=t, theta=theta, wrench=wrench, seq=_as_int(optional("seq")),
                    status=_as_int(optional("status")), host_t=optional("host_t"),
                    temp_c=optional("temp_c"), meta=meta)
+
+
+def _read_header(path: Path, f) -> tuple[dict, list[str], int]:
+    """The comment lines and the column header: (meta, columns, index of the header line)."""
+    meta: dict[str, str] = {}
+    body_start = -1
+    header = None
+    for body_start, raw in enumerate(f):
+        line = raw.rstrip("\r\n")
+        if not line.startswith("#"):
+            header = line
+            break
+        content = line[1:].strip()
+        if content.startswith(MAGIC):
+            for part in content.split()[1:]:
+                if part.startswith("schema="):
+                    meta["schema"] = part[len("schema="):]
+        elif "=" in content and not content.startswith("units:"):
+            key, _, value = content.partition("=")
+            meta[key.strip()] = value.strip()
+    if header is None:
+        raise LogError(f"{path}: no column header line")
+    if "schema" in meta and meta["schema"] != str(SCHEMA_VERSION):
+        raise LogError(f"{path}: log schema {meta['schema']} is not supported "
+                       f"(this version reads schema {SCHEMA_VERSION})")
+    columns = [c.strip() for c in header.split(",")]
+    missing = [c for c in CORE_COLUMNS if c not in columns]
+    if missing:
+        raise LogError(f"{path}: missing column(s) {', '.join(missing)}")
+    if len(set(columns)) != len(columns):
+        raise LogError(f"{path}: duplicate column names")
+    return meta, columns, body_start
+
+
+def _read_body(path: Path, f, ncols: int, body_start: int) -> np.ndarray:
+    """The rows after the header, parsed a chunk at a time (blank lines skipped)."""
+    parts = []
+    done = 0
+    while True:
+        rows = []
+        for raw in f:
+            line = raw.rstrip("\r\n")
+            if line.strip():
+                rows.append(line)
+                if len(rows) == READ_CHUNK_ROWS:
+                    break
+        if not rows:
+            break
+        parts.append(_parse_rows(path, rows, ncols, body_start + 2 + done))
+        done += len(rows)
+        if len(rows) < READ_CHUNK_ROWS:
+            break
+    if not parts:
+        raise LogError(f"{path}: no samples")
+    return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=0)
 
 
 def _as_int(values: np.ndarray | None) -> np.ndarray | None:
