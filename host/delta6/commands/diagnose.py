@@ -12,7 +12,7 @@ from delta6.core.model import AXES
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
 from delta6.diagnosis.data import GapData
-from delta6.diagnosis.report import write_report
+from delta6.diagnosis.report import verdict_lines, write_report
 from delta6.diagnosis.run import diagnose_data
 from delta6.link.logfile import read_log
 
@@ -66,8 +66,9 @@ def summary(result: dict) -> str:
         lines.append(row(f"+ {step['added']}", step["heldout_p99_pct"]))
     if result["present"]:
         lines.append("Present (strongest first): " + ", ".join(result["present"]))
-    else:
+    elif not result["groups"]:
         lines.append("No significant unmodelled effect.")
+    lines += [line[2:].replace("**", "") for line in verdict_lines(result)]
     top = ", ".join(f"{c['name']} {c['score']:.3f}" for c in result["candidates"][:4])
     lines.append(f"Best candidates alone (share of held-out error removed): {top}")
     return "\n".join(lines)

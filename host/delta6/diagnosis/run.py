@@ -25,7 +25,7 @@ from delta6.link.logfile import LogData
 #: A structured leftover holding at least this share of the analytical model's held-out
 #: squared error means the vocabulary misses something sizeable; families carrying less than
 #: ``PARTIAL_SHARE`` of the gap are then reported as partial, not named.
-MISSING_SHARE = 0.15
+MISSING_SHARE = 0.25
 PARTIAL_SHARE = 0.30
 #: Logs up to this many samples keep their columns in memory (no second pass).
 KEEP_COLUMNS_SAMPLES = 30_000

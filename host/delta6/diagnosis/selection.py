@@ -252,6 +252,7 @@ def greedy(problem: Problem, candidates, rng: np.random.Generator,
         if progress:
             progress(f"added {best}: held-out error -{100 * g:.1f} %")
     forward = [s.added for s in ladder]
+    forward_steps = list(ladder)
     signature = {}
     for name in problem.sub:
         if name in candidates and (chosen or name in forward):
@@ -263,7 +264,8 @@ def greedy(problem: Problem, candidates, rng: np.random.Generator,
     kept += [n for n in sorted(confirmed) if n not in kept]
     if kept != forward:
         ladder = _rebuild(problem, kept, base, rng, confidence)
-    return ladder, {"base": base, "alone": alone, "forward": forward,
+    gains = {s.added: s.gain for s in forward_steps}
+    return ladder, {"base": base, "alone": alone, "forward": forward, "forward_gain": gains,
                     "dropped": [n for n in forward if n not in kept], "signature": signature}
 
 

@@ -284,11 +284,15 @@ _FK_STEP = 1e-6
 
 
 def _nonlinear_spring(data: GapData) -> np.ndarray:
-    # Odd in the angle (a spring pair is symmetric), beyond the linear rate: |q| q and q^3,
-    # scaled so that the parameters are fractions of the nominal torque at the reference.
+    # Odd in the angle (a spring pair is symmetric), beyond the linear rate: |u| and u^2 times
+    # the nominal torque (u = theta / reference), each minus its linear part over the joint
+    # range (u uniform in [-1, 1]: E[u^2 |u|] / E[u^2] = 3/4, E[u^4] / E[u^2] = 3/5), so that a
+    # spring-rate error stays with stiffness_mismatch. The parameters are the curvature:
+    # the extra torque at the reference beyond the straight line, as a fraction of nominal,
+    # is 0.25 * p1 + 0.4 * p2.
     u = data.theta / NONLINEAR_REF_RAD
     tau = data.params.k * data.theta
-    feats = np.stack([tau * np.abs(u), tau * u**2], axis=-1)
+    feats = np.stack([tau * (np.abs(u) - 0.75), tau * (u**2 - 0.6)], axis=-1)
     return _torque_columns(data, feats)
 
 
@@ -373,6 +377,17 @@ def _backlash_plausible(coef):
     return [("play_rad", coef.reshape(6, -1).sum(axis=1), _RAD_LIMIT)]
 
 
+def _encoder_plausible(coef):
+    # The error curve over the joint range, not its harmonics one by one: over a sixth of a
+    # turn the harmonics are nearly collinear, and large coefficients of opposite signs can
+    # make a small error.
+    q = np.linspace(-NONLINEAR_REF_RAD, NONLINEAR_REF_RAD, 101)
+    basis = np.stack([f for h in ENCODER_HARMONICS
+                      for f in (np.sin(h * q), np.cos(h * q) - 1.0)], axis=1)   # (101, 2H)
+    curves = basis @ coef.reshape(6, -1).T                                        # (101, 6)
+    return [("angle_error_rad", np.abs(curves).max(axis=0), 0.03)]
+
+
 def _thermal_plausible(coef):
     s = _thermal_summary(coef)
     return [("stiffness_coeff_per_c", s["stiffness_coeff_per_c"], 0.01),
@@ -435,7 +450,7 @@ TERMS: tuple[Term, ...] = (
          tuple(f"{kind}{h}_{j}_rad" for j in JOINTS for h in ENCODER_HARMONICS
                for kind in ("sin", "cos")), "rad", _encoder_periodic,
          prior_sd=_per_joint(3e-3, 2 * len(ENCODER_HARMONICS)),
-         plausible=_each([("harmonic_amplitude_rad", slice(0, 48), 0.03)])),
+         plausible=_encoder_plausible),
     Term("harness", "torque",
          tuple(f"preload_{a}_n" for a in "xyz")
          + tuple(f"k_{a}{b}_n_per_mm" for b in "xyz" for a in "xyz"), "N, N/mm", _harness,

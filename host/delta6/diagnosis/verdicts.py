@@ -3,11 +3,13 @@ are not physically believable (plausibility).
 
 Group verdicts. Some families describe physically different causes with nearly the same
 signature on a given log: friction, hysteresis and backlash are all direction-dependent joint
-torques; a spring-rate error, an encoder offset and assembly errors are all pose-dependent
-static errors. When forward selection found two members of a group significant one after the
-other and the backward test then dropped one of them (its share was absorbed by the other), the
-honest answer names the group, "direction-dependent joint torque: backlash and/or
-spring_hysteresis, together N % of the gap", rather than silently keeping one.
+torques. When forward selection found two members of a group significant one after the other
+(the later one removing at least ``GROUP_MIN_GAIN`` of what was left) and the backward test
+then dropped one of them (its share was absorbed by the other), the honest answer names the
+group, "direction-dependent joint torque: backlash and/or spring_hysteresis, together N % of
+the gap", rather than silently keeping one. (The pose-dependent families, offsets, rates,
+geometry, are nested enough that the backward test's choice among them is the better answer;
+they form no group.)
 """
 from __future__ import annotations
 
@@ -15,12 +17,18 @@ import numpy as np
 
 from delta6.diagnosis import selection
 
+#: A member the backward test dropped joins a group verdict only if, when forward selection
+#: added it, it removed at least this share of the held-out error left (a passenger that picks
+#: up a few per cent of a neighbour's misfit is not a second explanation).
+GROUP_MIN_GAIN = 0.10
+
 
 def groups(problem: selection.Problem, kept: list[str], info: dict) -> list[dict]:
     """Group verdicts: per group with a member dropped by the backward test after forward
     selection found it significant, the members (kept and dropped) and their joint share of
     the analytical model's held-out squared error."""
-    dropped = info.get("dropped", [])
+    gains = info.get("forward_gain", {})
+    dropped = [n for n in info.get("dropped", []) if gains.get(n, 1.0) >= GROUP_MIN_GAIN]
     by_group: dict[str, list[str]] = {}
     for name in info.get("forward", []):
         group = problem.terms[name].group

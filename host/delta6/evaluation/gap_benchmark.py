@@ -81,7 +81,8 @@ def plan(base_seed: int = DEFAULT_BASE_SEED, magnitudes=DEFAULT_MAGNITUDES, n_pa
     ``n_none`` runs without effects, the paper scenario; ``n_mixes`` mixes of 4..8 effects;
     under one-axis-at-a-time excitation every effect alone (``axis_singles``) and
     ``n_axis_mixes`` mixes; ``unknown_per_effect`` runs of each effect of ``UNKNOWN_EFFECTS``
-    with its family withheld (per-joint effects on one or two joints drawn blind)."""
+    with the families of all three withheld: the vocabulary before they were added (per-joint
+    effects on one or two joints drawn blind)."""
     from delta6 import twin
     names = tuple(effects or twin.EFFECT_NAMES)
     rng = np.random.default_rng(base_seed)
@@ -125,7 +126,7 @@ def plan(base_seed: int = DEFAULT_BASE_SEED, magnitudes=DEFAULT_MAGNITUDES, n_pa
                                                             size=int(rng.integers(1, 3)),
                                                             replace=False))]
             cases.append(Case("unknown", [name], seed, [float(rng.uniform(0.6, 1.0))],
-                              withhold=[name], joints=joints))
+                              withhold=list(UNKNOWN_EFFECTS), joints=joints))
     return cases
 
 
@@ -280,10 +281,6 @@ def _recovery_pairs(name, truth, fitted, design):
         return [(truth["latency_s"], fitted["latency_s"])]
     if name == "thermal_drift":
         return [(truth["stiffness_coeff_per_c"], fitted["stiffness_coeff_per_c"])]
-    if name == "nonlinear_spring":
-        # Extra torque at the reference deflection as a fraction of the nominal one.
-        rate = [fitted[f"abs_quadratic_j{i}"] + fitted[f"cubic_j{i}"] for i in range(1, 7)]
-        return [(truth["stiffening"], rate)]
     return []
 
 
