@@ -25,14 +25,15 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--design", default=str(ROOT / "designs" / "delta6.toml"))
     parser.add_argument("--seed", type=int, default=None, help="base seed (default: fresh)")
-    parser.add_argument("--duration", type=float, default=600.0, help="seconds per run")
-    parser.add_argument("--pairs", type=int, default=8)
-    parser.add_argument("--none", type=int, default=6, dest="n_none")
-    parser.add_argument("--mixes", type=int, default=14, help="mixes of 4..8 effects")
-    parser.add_argument("--axis-mixes", type=int, default=4,
+    parser.add_argument("--duration", type=float, default=400.0, help="seconds per run")
+    parser.add_argument("--pairs", type=int, default=4)
+    parser.add_argument("--none", type=int, default=4, dest="n_none")
+    parser.add_argument("--mixes", type=int, default=12, help="mixes of 4..8 effects")
+    parser.add_argument("--axis-mixes", type=int, default=3,
                         help="mixes under one-axis-at-a-time excitation")
-    parser.add_argument("--unknown", type=int, default=5,
+    parser.add_argument("--unknown", type=int, default=3,
                         help="runs per effect withheld from the diagnosis's families")
+    parser.add_argument("--paper", action="store_true", help="add the paper scenario (2000 s)")
     parser.add_argument("--quick", action="store_true",
                         help="a few cases of each kind (development, not the figures)")
     parser.add_argument("--jobs", type=int, default=2)
@@ -48,7 +49,7 @@ def main() -> int:
                            n_mixes=3, n_axis_mixes=1, unknown_per_effect=1)
     else:
         cases = bench.plan(seed, magnitudes=(0.75,), n_pairs=args.pairs, n_none=args.n_none,
-                           n_mixes=args.mixes, n_axis_mixes=args.axis_mixes,
+                           paper=args.paper, n_mixes=args.mixes, n_axis_mixes=args.axis_mixes,
                            axis_singles=True, unknown_per_effect=args.unknown)
     design = load(args.design)
     print(f"gap benchmark: {len(cases)} blind cases, {args.duration:g} s each, "
