@@ -14,7 +14,6 @@ counts what other processes took.
 from __future__ import annotations
 
 import argparse
-import resource
 import subprocess
 import sys
 import tempfile

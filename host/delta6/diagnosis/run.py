@@ -48,7 +48,6 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
               min_share: float = selection.MIN_SHARE, terms=None) -> dict:
     """``terms``: the candidate families (default: all of ``TERMS``)."""
     started = time.perf_counter()
-    design = data.design
     if progress:
         progress("model and breakdowns")
     where = gap.where(data)
