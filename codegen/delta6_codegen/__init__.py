@@ -1,9 +1,11 @@
-"""Code generation for the Delta6 firmware: the per-design C++ header.
+"""Code generation for the Delta6 firmware: the per-design header and the wire layout header.
 
 ``render(design, label)`` gives the text of generated/delta6_design.h;
-``solver_constants(design)`` the numbers in it (also used by the native tests).
+``solver_constants(design)`` the numbers in it (also used by the native tests);
+``render_wire()`` the text of the core's generated/delta6_wire.h (the protocol's tables).
 """
 from .design_header import render
 from .solver_constants import SolverConstants, solver_constants
+from .wire_header import render_wire
 
-__all__ = ["render", "solver_constants", "SolverConstants"]
+__all__ = ["render", "render_wire", "solver_constants", "SolverConstants"]

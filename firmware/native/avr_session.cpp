@@ -2,8 +2,8 @@
 // boot, samples while stopped, start, wrench samples, wrench+raw samples, a tare, tared
 // samples, get info, get telemetry. Every call is bracketed by GPIOR0 markers (the emulator
 // stamps them with the cycle count) and everything the device sends goes out on UART0
-// between calls (so the timed code never waits for the UART). tests/avr_session.py runs the
-// same script on the native build and requires the same bytes; tools/bench_protocol.py
+// between calls (so the timed code never waits for the UART). delta6.sim.avrsession runs
+// the same script on the native build and requires the same bytes; tools/bench_protocol.py
 // reports the cycles. Never part of the firmware image.
 #include <avr/io.h>
 
@@ -65,21 +65,35 @@ void samples(uint8_t count, uint8_t marker) {
   }
 }
 
-void command(const uint8_t* frame, uint8_t n, uint8_t marker) {
-  for (uint8_t i = 0; i + 1 < n; ++i) device.onByte(frame[i]);
+// A command frame (type, request id, its argument if it has one) made by the core's own
+// encoder, before the timed spans; delta6.sim.avrsession sends the same commands encoded by
+// the host's, and the two runs must answer alike.
+struct CommandFrame {
+  uint8_t bytes[delta6::proto::kMaxCommandSize + delta6::proto::kFrameOverhead];
+  uint8_t n;
+};
+
+CommandFrame frameCommand(uint8_t type, uint8_t request_id, uint16_t arg) {
+  namespace proto = delta6::proto;
+  CommandFrame f;
+  uint8_t* p = f.bytes + 1;
+  p[0] = type;
+  p[1] = request_id;
+  const uint8_t size = proto::commandSize(type);
+  const uint8_t arg_bytes = static_cast<uint8_t>(size - 2);  // after type and request id
+  if (arg_bytes == 1) p[2] = static_cast<uint8_t>(arg);
+  if (arg_bytes == 2) proto::putU16(p + 2, arg);
+  f.n = static_cast<uint8_t>(proto::finishFrame(f.bytes, size));
+  return f;
+}
+
+void command(const CommandFrame& frame, uint8_t marker) {
+  for (uint8_t i = 0; i + 1 < frame.n; ++i) device.onByte(frame.bytes[i]);
   mark(marker);
-  device.onByte(frame[n - 1]);  // the delimiter: parse, execute, answer
+  device.onByte(frame.bytes[frame.n - 1]);  // the delimiter: parse, execute, answer
   mark(static_cast<uint8_t>(marker + 1));
   hardware.flush();
 }
-
-// delta6.protocol.encode_command(START, 0x22, 500), (SET_MODE, 0x24, 2), (TARE, 0x25, 10),
-// (GET_INFO, 0x20), (GET_TELEMETRY, 0x2b).
-const uint8_t kStart[] = {0x07, 0x82, 0x22, 0xf4, 0x01, 0x93, 0x12, 0x00};
-const uint8_t kRaw[] = {0x06, 0x84, 0x24, 0x02, 0xc1, 0x66, 0x00};
-const uint8_t kTare[] = {0x04, 0x85, 0x25, 0x0a, 0x03, 0x67, 0x40, 0x00};
-const uint8_t kInfo[] = {0x05, 0x80, 0x20, 0x22, 0xf5, 0x00};
-const uint8_t kTelemetry[] = {0x05, 0x8b, 0x2b, 0x4f, 0x64, 0x00};
 
 }  // namespace
 
@@ -95,20 +109,27 @@ int main() {
   sample.loop_time_us = 900;
   sample.temperature_centi = delta6::proto::kTemperatureUnknown;
 
+  namespace proto = delta6::proto;
+  const CommandFrame start = frameCommand(proto::kCmdStart, 0x22, 500);
+  const CommandFrame raw = frameCommand(proto::kCmdSetMode, 0x24, proto::kModeWrenchRaw);
+  const CommandFrame tare = frameCommand(proto::kCmdTare, 0x25, 10);
+  const CommandFrame info = frameCommand(proto::kCmdGetInfo, 0x20, 0);
+  const CommandFrame telemetry = frameCommand(proto::kCmdGetTelemetry, 0x2B, 0);
+
   mark(80);
   device.begin(0);
   mark(81);
   hardware.flush();
   samples(20, 10);                        // stopped
-  command(kStart, sizeof kStart, 50);
+  command(start, 50);
   samples(50, 20);                        // wrench
-  command(kRaw, sizeof kRaw, 52);
+  command(raw, 52);
   samples(50, 30);                        // wrench + raw
-  command(kTare, sizeof kTare, 54);
+  command(tare, 54);
   samples(10, 56);                        // averaging
   samples(50, 40);                        // wrench + raw, tared
-  command(kInfo, sizeof kInfo, 60);
-  command(kTelemetry, sizeof kTelemetry, 62);
+  command(info, 60);
+  command(telemetry, 62);
   while (!(UCSR0A & (1 << TXC0))) {
   }
   mark(0xFF);

@@ -1,5 +1,5 @@
 // C interface to the portable device core for the host: the simulated device
-// (delta6.simdevice, the delta6sim:// serial URL) and the cross-language tests call these
+// (delta6.sim.simdevice, the delta6sim:// serial URL) and the cross-language tests call these
 // through ctypes. Built natively by delta6.nativebuild; never part of the firmware image.
 #include <stdint.h>
 #include <string.h>
@@ -148,6 +148,9 @@ uint32_t d6_cobs_encode_in_place(uint8_t* buf, uint32_t n) {
 int32_t d6_cobs_decode_in_place(uint8_t* buf, uint32_t n) {
   return delta6::cobsDecodeInPlace(buf, static_cast<uint16_t>(n));
 }
+
+uint32_t d6_record_size(uint8_t type) { return delta6::proto::recordSize(type); }
+uint32_t d6_command_size(uint8_t type) { return delta6::proto::commandSize(type); }
 
 uint32_t d6_encode_data(uint8_t* out, uint16_t seq, uint32_t time_us, uint16_t status,
                         const int16_t* wrench, const uint16_t* counts) {

@@ -71,10 +71,10 @@ struct OutputChecker {
     const uint16_t size = proto::recordSize(frame[0]);
     if (size == 0 || n != size + 2) return fail("unknown type or wrong size");
     if (frame[0] == proto::kWrench || frame[0] == proto::kWrenchRaw) {
-      const bool invalid = proto::getU16(frame + proto::kOffStatus) & proto::kStatusWrenchInvalid;
+      const bool invalid = proto::getU16(frame + proto::kWrenchOffStatus) & proto::kStatusWrenchInvalid;
       int sentinels = 0;
       for (int i = 0; i < 6; ++i) {
-        const int16_t v = static_cast<int16_t>(proto::getU16(frame + proto::kOffWrench + 2 * i));
+        const int16_t v = static_cast<int16_t>(proto::getU16(frame + proto::kWrenchOffWrench + 2 * i));
         sentinels += v == proto::kInvalidValue;
       }
       if (invalid ? sentinels != 6 : sentinels != 0) fail("wrench values disagree with status");

@@ -13,7 +13,7 @@ from delta6.core.errors import UserError
 
 #: Subcommand modules, in the order ``delta6 --help`` lists them.
 COMMAND_MODULES = ("design", "codegen", "virtual", "info", "stream", "log", "tare", "decode",
-                   "simulate", "diagnose")
+                   "convert", "simulate", "diagnose", "flash")
 
 
 def build_parser() -> argparse.ArgumentParser:

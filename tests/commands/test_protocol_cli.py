@@ -16,7 +16,7 @@ from support.streams import make_frames
 
 def capture_from_sim(seconds=0.5, raw=True, **kwargs) -> tuple[bytes, SimulatedDevice]:
     sim = SimulatedDevice(**kwargs)
-    sim.write(P.encode_command(P.Command.SET_MODE, 1, 2 if raw else 1))
+    sim.write(P.encode_command(P.Command.SET_MODE, 1, P.Mode.WRENCH_RAW if raw else P.Mode.WRENCH))
     sim.write(P.encode_command(P.Command.START, 2, 500))
     sim.advance(seconds)
     return sim.read(), sim

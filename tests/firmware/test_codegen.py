@@ -1,8 +1,10 @@
 """`delta6 codegen`: the generated design header is deterministic and the committed one is
-up to date with designs/delta6.toml."""
+up to date with designs/delta6.toml; the wire layout header is up to date with the protocol's
+tables and the core writes no wire number of its own."""
 from __future__ import annotations
 
 import re
+from fractions import Fraction
 
 import numpy as np
 import pytest
@@ -11,8 +13,11 @@ from hypothesis import strategies as st
 
 from delta6.cli import main
 from delta6.core.design import load
-from delta6_codegen import render
+from delta6.link import protocol as P
+from delta6_codegen import render, render_wire
 from delta6_codegen.design_header import c_float
+from delta6_codegen.wire_header import HEADER_RELPATH as WIRE_RELPATH
+from delta6_codegen.wire_header import camel
 
 from conftest import DESIGN_FILES, DESIGNS, ROOT
 
@@ -90,3 +95,75 @@ def test_unwritable_output_is_a_user_error(tmp_path, capsys):
     blocker.write_text("")
     assert main(["codegen", str(DESIGNS / "delta6.toml"), "-o", str(blocker / "x.h")]) == 2
     assert "cannot write" in capsys.readouterr().err
+
+
+# --- the wire layout header ----------------------------------------------------------------
+
+WIRE = ROOT / WIRE_RELPATH
+
+
+def test_committed_wire_header_is_up_to_date():
+    assert WIRE.read_text(encoding="utf-8") == render_wire(), (
+        f"{WIRE_RELPATH} is out of date with delta6.link.protocol: run `delta6 codegen --wire` "
+        "and commit the result")
+
+
+def test_wire_check_reports_a_stale_header_and_the_fix(tmp_path, capsys):
+    assert main(["codegen", "--wire", "--check"]) == 0
+    stale = tmp_path / "delta6_wire.h"
+    stale.write_text(WIRE.read_text().replace("kInfoSize = 128", "kInfoSize = 127"))
+    assert main(["codegen", "--wire", "--check", "-o", str(stale)]) == 1
+    assert "run: delta6 codegen --wire" in capsys.readouterr().err
+    assert main(["codegen", "--wire", "-o", str(stale)]) == 0
+    assert stale.read_bytes() == WIRE.read_bytes()
+
+
+def test_wire_takes_no_design_and_a_design_is_otherwise_needed(capsys):
+    assert main(["codegen", "--wire", str(DESIGNS / "delta6.toml")]) == 2
+    assert main(["codegen"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and "no design file" in err[0] and "--wire" in err[1]
+
+
+def test_wire_header_holds_every_table_entry():
+    """Every enum member, record field and command of delta6.link.protocol has its constant,
+    with its value; the banner names the command that regenerates it."""
+    text = render_wire()
+    assert "GENERATED FILE - DO NOT EDIT" in text.splitlines()[0]
+    assert "`delta6 codegen --wire`" in text.splitlines()[1]
+    consts = dict(re.findall(r"^const \w+ (k\w+) = (0x[0-9A-F]+|-?\d+)U?L?;", text, re.M))
+    value = {name: int(v, 0) for name, v in consts.items()}
+    for kind, layout in P.RECORD_LAYOUTS.items():
+        name = "k" + camel(kind.name)
+        assert value[name] == kind and value[name + "Size"] == layout.size
+        for f in layout.fields:
+            assert value[f"{name}Off{camel(f.name)}"] == layout.offsets[f.name]
+    for command, size in P.COMMAND_SIZES.items():
+        assert value["kCmd" + camel(command.name)] == command
+        assert value["kCmd" + camel(command.name) + "Size"] == size
+    for enum_type, prefix in [(P.Mode, "kMode"), (P.NackReason, "kNack"),
+                              (P.EventCode, "kEvent"), (P.ConfigProblem, "kConfig")]:
+        for member in enum_type:
+            assert value[prefix + camel(member.name)] == member
+    for flag in P.Status:
+        assert f"kStatus{camel(flag.name)} = 1u << {int(flag).bit_length() - 1};" in text
+    for field in P.CONFIG_LAYOUT.fields:
+        assert value[f"kConfigOff{camel(field.name)}"] == P.CONFIG_LAYOUT.offsets[field.name]
+    assert (value["kConfigBlobSize"], value["kConfigMagic"]) == (P.CONFIG_BLOB_SIZE,
+                                                                 P.CONFIG_MAGIC)
+    assert (value["kMaxValue"], value["kInvalidValue"]) == (P.MAX_VALUE, P.INVALID_VALUE)
+    assert Fraction(value["kLinkBudgetNumerator"], value["kLinkBudgetDivisor"]) == (
+        P.LINK_BUDGET / P.BITS_PER_BYTE)
+
+
+def test_core_sources_write_no_wire_numbers_themselves():
+    """No hand-copied offsets (``p + 74``) or type bytes in the device core: the offsets and
+    types come from the generated header by name."""
+    core = ROOT / "firmware" / "lib" / "delta6_core" / "src"
+    for name in ("delta6_device.cpp", "delta6_protocol.cpp"):
+        code = re.sub(r"//.*", "", (core / name).read_text(encoding="utf-8"))
+        assert not re.findall(r"\b(?:p|blob) \+ \d+", code), name
+        assert not re.findall(r"\b0x[89][0-9A-Fa-f]\b", code), name
+    # Records and the blob are built field by field (putU16 and friends index their bytes).
+    device = (core / "delta6_device.cpp").read_text(encoding="utf-8")
+    assert not re.findall(r"\b(?:p|blob)\[\d+\]", device)

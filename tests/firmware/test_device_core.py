@@ -71,7 +71,7 @@ def bench():
 def test_boot_announces_itself_and_flags_the_erased_eeprom(bench):
     boot = bench.boot
     assert boot[0] == P.Event(P.EventCode.BOOT, 0)
-    assert boot[1] == P.Event(P.EventCode.CONFIG_DEFAULTS, 1)      # erased
+    assert boot[1] == P.Event(P.EventCode.CONFIG_DEFAULTS, P.ConfigProblem.ERASED)
     info = boot[2]
     assert isinstance(info, P.Info) and info.request_id == 0
     assert info.design_name == "delta6" and info.design_hash == bench.sim.design.hash32()
@@ -102,13 +102,13 @@ def test_rates_the_board_or_link_cannot_carry_are_refused(bench):
     nack = raw.answer(raw.send(C.START, 500))
     assert (nack.reason, nack.detail) == (P.NackReason.LINK_TOO_SLOW, 414)
     raw.answer(raw.send(C.START, 400))
-    nack = raw.answer(raw.send(C.SET_MODE, 2))              # 37-byte records do not fit
+    nack = raw.answer(raw.send(C.SET_MODE, P.Mode.WRENCH_RAW))              # 37-byte records do not fit
     assert (nack.reason, nack.detail) == (P.NackReason.LINK_TOO_SLOW, 280)
     assert raw.sim.core.mode == P.Mode.WRENCH
 
 
 def test_wrench_matches_the_reference_within_half_a_step(bench):
-    bench.send(C.SET_MODE, 2)
+    bench.send(C.SET_MODE, P.Mode.WRENCH_RAW)
     bench.send(C.START, 500)
     lsb = bench.lsb()
     records = data(bench.run(1.0))
@@ -199,7 +199,7 @@ def test_zero_here_takes_the_current_pose_as_zero(bench):
 
 def test_configuration_survives_a_power_cycle_only_when_saved(bench):
     bench.sim.motion = Motion.static(np.full(6, 0.03))
-    bench.send(C.SET_MODE, 2)
+    bench.send(C.SET_MODE, P.Mode.WRENCH_RAW)
     bench.send(C.START, 250)
     bench.send(C.TARE, 10, run=0.1)
     writes = bench.sim.core.eeprom_writes
@@ -207,22 +207,29 @@ def test_configuration_survives_a_power_cycle_only_when_saved(bench):
         bench.send(command)
     assert bench.sim.core.eeprom_writes == writes == 0       # never on ordinary commands
     bench.send(C.TARE, 10, run=0.1)
-    assert bench.answer(bench.send(C.SAVE_CONFIG)) == P.Ack(bench.request, C.SAVE_CONFIG, 50)
+    assert bench.answer(bench.send(C.SAVE_CONFIG)) == P.Ack(bench.request, C.SAVE_CONFIG, P.CONFIG_BLOB_SIZE)
     assert bench.sim.core.eeprom_writes == 1
     saved_tare = bench.sim.core.tare.copy()
 
     reborn = Bench(rate_hz=500, eeprom=bench.sim.core.eeprom)
     assert [r for r in reborn.boot if isinstance(r, P.Event)] == [P.Event(P.EventCode.BOOT, 0)]
     info = reborn.boot[-1]
-    assert (info.rate_hz, info.mode) == (250, 2)
+    assert (info.rate_hz, info.mode) == (250, P.Mode.WRENCH_RAW)
     assert not info.status & P.Status.CONFIG_DEFAULTS and info.status & P.Status.TARE_ACTIVE
     assert np.array_equal(np.float32(info.tare), saved_tare)
     assert reborn.sim.core.rate_changes == 1 and reborn.sim.core.rate_hz == 250
 
 
-@pytest.mark.parametrize("damage, reason", [(lambda b: b[:20] + bytes([b[20] ^ 4]) + b[21:], 2),
-                                            (lambda b: b"\xff" * 256, 1),
-                                            (lambda b: b[:2] + b"\x07" + b[3:], 3)])
+def _flip(blob: bytes, field: str, mask: int) -> bytes:
+    """``blob`` with one byte of a configuration field XORed with ``mask``."""
+    at = P.CONFIG_LAYOUT.offsets[field]
+    return blob[:at] + bytes([blob[at] ^ mask]) + blob[at + 1:]
+
+
+@pytest.mark.parametrize("damage, reason", [
+    (lambda b: _flip(b, "tare", 4), P.ConfigProblem.BAD_CRC),
+    (lambda b: b"\xff" * 256, P.ConfigProblem.ERASED),
+    (lambda b: _flip(b, "layout", 6), P.ConfigProblem.BAD_VERSION)])
 def test_a_corrupt_eeprom_falls_back_to_defaults_and_says_so(bench, damage, reason):
     bench.send(C.START, 250)
     bench.send(C.SAVE_CONFIG)
@@ -260,13 +267,14 @@ def test_malformed_commands_get_reasons_and_loopback_gets_silence(bench):
     bench.sim.write(P.frame(bytes([0x9F, 12])))
     assert bench.answer(bench.collect(), 12) == P.Nack(12, 0x9F, P.NackReason.UNKNOWN_COMMAND, 0)
     bench.sim.write(P.frame(bytes([C.START, 13, 1])))          # one argument byte short
-    assert bench.answer(bench.collect(), 13) == P.Nack(13, C.START, P.NackReason.BAD_LENGTH, 4)
-    bench.sim.write(P.encode_command(C.SET_MODE, 14, 3))
+    assert bench.answer(bench.collect(), 13) == P.Nack(13, C.START, P.NackReason.BAD_LENGTH,
+                                                           P.COMMAND_SIZES[C.START])
+    bench.sim.write(P.encode_command(C.SET_MODE, 14, max(P.Mode) + 1))
     assert bench.answer(bench.collect(), 14).reason == P.NackReason.BAD_ARGUMENT
     bench.sim.write(P.encode_command(C.TARE, 15, 0))
     assert bench.answer(bench.collect(), 15).reason == P.NackReason.BAD_ARGUMENT
     # The device's own records sent back to it (a loopback) are never answered.
-    bench.sim.write(P.encode_wrench(1, 2, 3, (0,) * 6) + P.encode_ack(16, 0x81, 0))
+    bench.sim.write(P.encode_wrench(1, 2, 3, (0,) * 6) + P.encode_ack(16, C.PING, 0))
     assert bench.collect() == []
     t = bench.answer(bench.send(C.GET_TELEMETRY))
     assert (t.rx_bad_frames, t.rx_crc_errors) == (4, 0)     # unknown, short, 2 looped back
@@ -285,7 +293,7 @@ def test_garbage_to_the_device_is_counted_and_streaming_goes_on(bench):
 
 def test_encoder_faults_flag_exactly_their_samples():
     b = Bench(rate_hz=500, encoder_faults={3: 0.3, 6: 0.1}, seed=4)
-    b.send(C.SET_MODE, 2)
+    b.send(C.SET_MODE, P.Mode.WRENCH_RAW)
     b.send(C.START, 500)
     records = data(b.run(1.0))
     status = np.array([r.status for r in records])

@@ -9,7 +9,7 @@ import pytest
 
 from delta6.build import avrbuild, nativebuild
 from delta6.link.decoder import StreamDecoder
-from delta6.link.protocol import WrenchRecord
+from delta6.link.protocol import Status, WrenchRecord
 
 #: Budgets on the ATmega328P (32 KB flash, 2 KB RAM) for the whole protocol core, float
 #: library included; the solver and the board layer need the rest.
@@ -69,6 +69,6 @@ def test_the_avr_build_sends_the_same_bytes_as_the_native_build():
     records = StreamDecoder().feed(avr.uart)
     data = [r for r in records if isinstance(r, WrenchRecord)]
     assert len(data) == 160 and sum(r.counts is not None for r in data) == 110
-    assert all(r.status & 0x1000 for r in data[-50:])            # tared
+    assert all(r.status & Status.TARE_ACTIVE for r in data[-50:])   # tared
     spans = avr_session.cycles(avr)
     assert spans["stopped"] < spans["wrench"] < spans["raw"] < spans["raw_tared"]

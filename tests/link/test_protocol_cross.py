@@ -5,7 +5,6 @@ from __future__ import annotations
 import ctypes
 import struct
 
-import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -45,7 +44,8 @@ def cpp_data_frame(lib, seq, time_us, status, wrench, counts) -> bytes:
 def test_cpp_records_equal_python_records_byte_for_byte(lib, record):
     frame = cpp_data_frame(lib, *record)
     assert frame == P.encode_wrench(*record)
-    assert len(frame) == (37 if record[4] is not None else 25)
+    kind = P.RecordType.WRENCH_RAW if record[4] is not None else P.RecordType.WRENCH
+    assert len(frame) == P.wire_bytes(kind)
 
 
 @given(st.lists(data_records, min_size=1, max_size=30), st.integers(1, 64))
@@ -106,7 +106,7 @@ def reference_parse(piece: bytes) -> tuple:
     """What the C++ parser must report for one delimited piece (the model of its contract)."""
     if not piece:
         return (PARSE_EMPTY,)
-    if len(piece) > 32:
+    if len(piece) > P.COMMAND_BUFFER:
         return (PARSE_TOO_LONG,)
     decoded = cobs.decode(piece)
     if decoded is None or len(decoded) < 4:
@@ -134,7 +134,7 @@ def test_cpp_parser_reports_each_failure_kind(lib):
     assert cpp_parse(lib, bytes(flipped)) == [(PARSE_BAD_CRC,)]
     assert cpp_parse(lib, b"\x05\x01\x00") == [(PARSE_BAD_FRAME,)]       # code runs past end
     assert cpp_parse(lib, b"\x11" * 40 + b"\x00" + good) == [(PARSE_TOO_LONG,),
-                                                              (PARSE_COMMAND, 0x81, 3, b"")]
+                                                              (PARSE_COMMAND, P.Command.PING, 3, b"")]
 
 
 def test_sim_device_records_have_exact_sizes():
@@ -156,12 +156,37 @@ def test_sim_device_records_have_exact_sizes():
 
 
 def test_config_blob_is_protected_by_its_crc(lib):
-    blob = ctypes.create_string_buffer(50)
-    lib.d6_encode_config((ctypes.c_uint16 * 3)(500, 2, 1), (ctypes.c_float * 6)(*[0.25] * 6),
+    blob = ctypes.create_string_buffer(P.CONFIG_BLOB_SIZE)
+    lib.d6_encode_config((ctypes.c_uint16 * 3)(500, P.Mode.WRENCH_RAW, 1),
+                         (ctypes.c_float * 6)(*[0.25] * 6),
                          (ctypes.c_uint16 * 6)(1, 2, 3, 4, 5, 6), 0x535534AF, blob)
     raw = blob.raw
-    assert raw[:4] == b"D6\x01\x32"           # magic, layout 1, 50 bytes
+    assert raw[:2] == b"D6"                   # the magic reads "D6" in a hex dump
     assert P.crc16(raw) == 0                  # CRC big-endian at the end, like frames
-    assert struct.unpack_from("<IHBB6f6H", raw, 4) == (0x535534AF, 500, 2, 1, *[0.25] * 6,
-                                                        1, 2, 3, 4, 5, 6)
-    assert np.frombuffer(raw, np.uint8).size == 50
+    assert P.CONFIG_LAYOUT.unpack(raw) == {
+        "magic": P.CONFIG_MAGIC, "layout": P.CONFIG_LAYOUT_VERSION, "size": P.CONFIG_BLOB_SIZE,
+        "design_hash": 0x535534AF, "rate_hz": 500, "mode": P.Mode.WRENCH_RAW, "tare_active": 1,
+        "tare": (0.25,) * 6, "zero_counts": (1, 2, 3, 4, 5, 6)}
+    assert len(raw) == P.CONFIG_LAYOUT.size + P.CRC_SIZE
+
+
+def test_cpp_sizes_of_every_type_byte_are_the_tables(lib):
+    """The core's recordSize and commandSize (switches over the generated constants) know
+    exactly the record types and commands of delta6.link.protocol, with their sizes."""
+    for t in range(256):
+        assert lib.d6_record_size(t) == P.RECORD_SIZES.get(t, 0), hex(t)
+        assert lib.d6_command_size(t) == P.COMMAND_SIZES.get(t, 0), hex(t)
+
+
+@given(st.sampled_from([0, 9600, 115_200, 250_000, 500_000, 1_000_000, 2_000_000])
+       | st.integers(1, 4_000_000), st.sampled_from(list(P.Mode)))
+def test_cpp_link_limit_is_the_python_one(baud, mode):
+    """Both ends compute the highest rate a link carries in integers, the same way."""
+    from delta6.sim.simdevice import NativeCore
+    core = NativeCore(design_name="x", design_hash=1, full_scale=[1.0] * 6,
+                      joint_limit_rad=0.5, joint_limit_counts=0, baud=baud, max_rate_hz=2000,
+                      default_rate_hz=100, zero_counts=[0] * 6)
+    try:
+        assert core.link_limit(mode) == P.link_rate_limit(baud, mode)
+    finally:
+        core.close()

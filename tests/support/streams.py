@@ -20,16 +20,17 @@ def make_frames(n: int, seed: int = 0, data_only: bool = False) -> tuple[list[by
                            rnd.randrange(-300, 300) for _ in range(6))
             counts = (tuple(rnd.randrange(16384) for _ in range(6))
                       if rnd.random() < 0.2 else None)
-            status = rnd.choice([0, 0, 0, 0x1000, 0x0201, 0x0040])
+            status = rnd.choice([0, 0, 0, P.Status.TARE_ACTIVE, P.Status.ENCODER1 | P.Status.WRENCH_INVALID,
+                                 P.Status.OVERRANGE])
             record = P.WrenchRecord(seq, t, status, wrench, counts)
             frame = P.encode_wrench(seq, t, status, wrench, counts)
             seq = (seq + 1) & 0xFFFF
             t = (t + 1000) & 0xFFFFFFFF
         elif kind < 0.9:
-            record = P.Ack(rnd.randrange(1, 256), 0x81, rnd.randrange(2**32))
+            record = P.Ack(rnd.randrange(1, 256), P.Command.PING, rnd.randrange(2**32))
             frame = P.encode_ack(*record)
         elif kind < 0.95:
-            record = P.Nack(rnd.randrange(1, 256), 0x82, 4, 2000)
+            record = P.Nack(rnd.randrange(1, 256), P.Command.START, P.NackReason.RATE_TOO_HIGH, 2000)
             frame = P.encode_nack(*record)
         else:
             record = P.Event(P.EventCode.BOOT, rnd.randrange(256))

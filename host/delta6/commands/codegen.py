@@ -1,4 +1,5 @@
-"""``delta6 codegen``: write the firmware's design header, optionally build the AVR image."""
+"""``delta6 codegen``: write the firmware's design header (optionally build the AVR image), or
+with ``--wire`` the core's wire layout header."""
 from __future__ import annotations
 
 import argparse
@@ -10,26 +11,35 @@ from delta6.core import design as design_mod
 from delta6.core import paths
 from delta6.core.errors import UserError
 from delta6.core.workspace import load_checked
+from delta6.link.protocol import VERSION as PROTOCOL_VERSION
+from delta6_codegen.wire_header import HEADER_RELPATH as WIRE_HEADER_RELPATH
 
 NAME = "codegen"
 HELP = ("write the firmware header generated/delta6_design.h for a design "
-        "(--build: into build/designs/NAME/ and build the ATmega328P firmware image there)")
+        "(--build: into build/designs/NAME/ and build the ATmega328P firmware image there), "
+        "or with --wire the protocol's generated/delta6_wire.h")
 HEADER_RELPATH = Path("generated") / "delta6_design.h"
 COMMITTED_HEADER = avrbuild.COMMITTED_DESIGN_INCLUDE / HEADER_RELPATH
+WIRE_RELPATH = Path(WIRE_HEADER_RELPATH)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("design", metavar="DESIGN.toml", type=Path, help="design file")
+    parser.add_argument("design", metavar="DESIGN.toml", type=Path, nargs="?",
+                        help="design file (not with --wire)")
+    parser.add_argument("--wire", action="store_true",
+                        help=f"write the wire layout header {WIRE_RELPATH} from the protocol "
+                             "tables of delta6.link.protocol instead of a design header")
     parser.add_argument("-o", "--output", metavar="PATH", type=Path,
                         help=f"header to write (default: {_rel(COMMITTED_HEADER)}, the one the "
                              "PlatformIO build uses; with --build: "
-                             "build/designs/NAME/include/generated/delta6_design.h)")
+                             "build/designs/NAME/include/generated/delta6_design.h; with --wire: "
+                             f"{WIRE_RELPATH})")
     parser.add_argument("--build", action="store_true",
                         help="also build the ATmega328P firmware application for this design "
                              "with the local avr-gcc (the committed header is left alone)")
     parser.add_argument("--check", action="store_true",
                         help="write nothing; exit 1 if the header differs from what the design "
-                             "generates")
+                             "(or with --wire, the protocol) generates")
 
 
 def source_label(path: Path) -> str:
@@ -70,21 +80,17 @@ def include_dir_of(header: Path) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.wire:
+        return run_wire(args)
+    if args.design is None:
+        raise UserError("give a design file (delta6 codegen designs/delta6.toml) or --wire")
     if args.build or args.output is None:
         paths.checkout()    # the firmware tree the header belongs to, or one line saying so
     design, text = header_text(args.design)
     out = output_path(args, design)
     if args.check:
-        try:
-            current = out.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError):
-            current = None
-        if current != text:
-            print(f"{_rel(out)} is out of date with {source_label(args.design)}; "
-                  f"run: delta6 codegen {source_label(args.design)}", file=sys.stderr)
-            return 1
-        print(f"{_rel(out)} is up to date")
-        return 0
+        return check(out, text, source_label(args.design),
+                     f"delta6 codegen {source_label(args.design)}")
     verb = "wrote" if _write_if_changed(out, text) else "unchanged:"
     print(f"{verb} {_rel(out)} for design '{design.name}' (hash 0x{design.hash32():08x})")
     if args.build:
@@ -92,6 +98,34 @@ def run(args: argparse.Namespace) -> int:
         sizes = image.sizes
         print(f"built {_rel(image.elf)} and .hex ({image.mcu}): flash {sizes.flash} B of "
               f"{avrbuild.NANO.flash_bytes}, static RAM {sizes.ram} B of {avrbuild.NANO.ram_bytes}")
+    return 0
+
+
+def run_wire(args: argparse.Namespace) -> int:
+    """``--wire``: the core's generated/delta6_wire.h from delta6.link.protocol."""
+    from delta6_codegen.wire_header import COMMAND, render_wire
+    if args.design is not None or args.build:
+        raise UserError("--wire takes no design file and no --build: the wire layout is the "
+                        "same for every design")
+    out = args.output if args.output is not None else paths.checkout() / WIRE_RELPATH
+    text = render_wire()
+    if args.check:
+        return check(out, text, "delta6.link.protocol", COMMAND)
+    verb = "wrote" if _write_if_changed(out, text) else "unchanged:"
+    print(f"{verb} {_rel(out)} (wire protocol {'.'.join(map(str, PROTOCOL_VERSION))})")
+    return 0
+
+
+def check(out: Path, text: str, source: str, command: str) -> int:
+    """``--check``: 0 if ``out`` holds ``text``, else 1 with the command that fixes it."""
+    try:
+        current = out.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        current = None
+    if current != text:
+        print(f"{_rel(out)} is out of date with {source}; run: {command}", file=sys.stderr)
+        return 1
+    print(f"{_rel(out)} is up to date")
     return 0
 
 

@@ -11,18 +11,19 @@ from delta6.commands._port import Progress, log_meta
 from delta6.core.design import load
 from delta6.core.errors import UserError
 from delta6.link.bulkdecode import decode_capture, sequence_counts
-from delta6.link.logfile import LogWriter
+from delta6.link.logfile import open_log_writer
 from delta6.link.protocol import Event, EventCode
 from delta6.link.wirescale import design_lsb
 
 NAME = "decode"
-HELP = "decode a raw capture of the device's byte stream into a CSV log"
+HELP = "decode a raw capture of the device's byte stream into a log (CSV or MCAP)"
 BLOCK_ROWS = 100_000
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("capture", metavar="CAPTURE.bin", help="raw bytes as received")
-    parser.add_argument("-o", "--output", required=True, metavar="FILE", help="log file (CSV)")
+    parser.add_argument("-o", "--output", required=True, metavar="FILE",
+                        help="log file: CSV, or MCAP (ROS 2) when it ends in .mcap")
     parser.add_argument("--design", metavar="DESIGN.toml",
                         help="the device's design file: gives the wrench scale when the capture "
                              "holds no device-info record, and is checked against it otherwise")
@@ -66,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     wrench = capture.wrench(lsb)[:rows]
     theta = (capture.theta(zero)[:rows] if zero is not None and has_counts.any() else None)
     progress = Progress()
-    with LogWriter(args.output, meta, optional=("seq", "status")) as log:
+    with open_log_writer(args.output, meta, optional=("seq", "status")) as log:
         for start in range(0, rows, BLOCK_ROWS):
             part = slice(start, min(start + BLOCK_ROWS, rows))
             log.write_block(capture.time_us[part] * 1e-6,

@@ -1,4 +1,5 @@
-"""``delta6 log``: record the stream to a log file (docs/log-format.md), safely.
+"""``delta6 log``: record the stream to a log file (docs/log-format.md), safely: CSV, or MCAP
+with ROS 2 messages when the file name ends in ``.mcap``.
 
 Rows go to FILE.partial and are flushed as they come; the file is renamed to FILE when the log
 closes: at the end of --duration, on Ctrl-C, and also when the port disappears or the device
@@ -22,15 +23,19 @@ from delta6.commands._port import (
     start_stream,
 )
 from delta6.link.device import DeviceError
-from delta6.link.logfile import LogWriter
+from delta6.link.logfile import LogWriter, open_log_writer
+from delta6.link.ros2msg import DEFAULT_FRAME_ID
 
 NAME = "log"
-HELP = "record the wrench stream to a CSV log (progress shown; Ctrl-C ends it cleanly)"
+HELP = "record the wrench stream to a log, CSV or MCAP (progress shown; Ctrl-C ends it cleanly)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_port_arguments(parser)
-    parser.add_argument("-o", "--output", required=True, metavar="FILE", help="log file (CSV)")
+    parser.add_argument("-o", "--output", required=True, metavar="FILE",
+                        help="log file: CSV, or MCAP with ROS 2 messages when it ends in .mcap")
+    parser.add_argument("--frame-id", default=DEFAULT_FRAME_ID, metavar="ID",
+                        help=f"frame id of the wrench messages (default {DEFAULT_FRAME_ID})")
     parser.add_argument("--duration", type=number("--duration", low=0, low_open=True), metavar="S",
                         help="seconds to record (default: until Ctrl-C)")
     add_stream_arguments(parser)
@@ -103,8 +108,11 @@ def run(args: argparse.Namespace) -> int:
     with open_device(args, capture=args.capture) as dev:
         rate = start_stream(dev, args)
         info = dev.info()
-        meta = {**log_meta(info, args.port, "delta6 log --port"), "rate_hz": rate}
-        writer = LogWriter(args.output, meta, optional=("seq", "status", "host_t"))
+        meta = {**log_meta(info, args.port, "delta6 log --port"), "rate_hz": rate,
+                "frame_id": args.frame_id,
+                # UNIX time = host_t + this: dates the MCAP messages (docs/log-format.md)
+                "host_clock_offset": f"{time.time() - time.monotonic():.6f}"}
+        writer = open_log_writer(args.output, meta, optional=("seq", "status", "host_t"))
         stats = Stats(writer)
         started = time.monotonic()
         next_show = started

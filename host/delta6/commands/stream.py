@@ -1,7 +1,9 @@
-"""``delta6 stream``: a live readout of the wrench."""
+"""``delta6 stream``: the wrench live, as a readout, rolling plots, CSV or JSON lines on stdout
+(for piping), and optionally served to the Foxglove app."""
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 
@@ -17,9 +19,14 @@ from delta6.commands._port import (
     open_device,
     start_stream,
 )
+from delta6.commands._termplot import RollingPlot
+from delta6.core.errors import UserError
+from delta6.link.logfile import THETA_COLUMNS, WRENCH_COLUMNS
+from delta6.link.ros2msg import DEFAULT_FRAME_ID
 
 NAME = "stream"
-HELP = "show the wrench live (Ctrl-C ends it)"
+HELP = "show the wrench live: readout, plots, CSV or JSON lines; serve it to Foxglove (Ctrl-C ends)"
+FORMATS = ("table", "csv", "jsonl")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,6 +37,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--interval", type=number("--interval", low=0, low_open=True),
                         default=0.1, metavar="S",
                         help="seconds between display updates (default 0.1)")
+    parser.add_argument("--format", choices=FORMATS, default="table",
+                        help="table: one readout line updated in place (default); csv, jsonl: "
+                             "every sample on stdout, for piping")
+    parser.add_argument("--plot", action="store_true",
+                        help="rolling plots of the six axes in the terminal (with --format table)")
+    parser.add_argument("--plot-seconds", type=number("--plot-seconds", low=0, low_open=True),
+                        default=5.0, metavar="S", help="time span of the plots (default 5)")
+    parser.add_argument("--foxglove", action="store_true",
+                        help="also serve the stream to the Foxglove app over WebSocket "
+                             "(same ROS 2 topics as the MCAP log)")
+    parser.add_argument("--foxglove-port", type=number("--foxglove-port", int, 0, 65535),
+                        default=8765, metavar="N", help="WebSocket port (default 8765; 0: any)")
+    parser.add_argument("--foxglove-host", default="127.0.0.1", metavar="HOST",
+                        help="address to listen on (default 127.0.0.1; 0.0.0.0 for the network)")
+    parser.add_argument("--frame-id", default=DEFAULT_FRAME_ID, metavar="ID",
+                        help=f"frame id of the wrench messages (default {DEFAULT_FRAME_ID})")
 
 
 def format_line(t: float, wrench: np.ndarray, status: int, rate: float, lost: int) -> str:
@@ -40,32 +63,120 @@ def format_line(t: float, wrench: np.ndarray, status: int, rate: float, lost: in
     return (f"t {t:9.3f} s  {values}  {rate:6.0f} Hz  lost {lost}  {flag_names(status)}")
 
 
+def csv_header(raw: bool) -> str:
+    return ",".join(("t",) + (THETA_COLUMNS if raw else ()) + WRENCH_COLUMNS
+                    + ("seq", "status", "host_t"))
+
+
+def csv_rows(block, raw: bool) -> str:
+    """Every sample of a block as the log format's columns (9 significant digits, NaN empty)."""
+    cols = [block.t[:, None]] + ([block.theta] if raw else []) + [
+        block.wrench, block.seq[:, None], block.status[:, None], block.host_t[:, None]]
+    table = np.hstack([np.asarray(c, float) for c in cols])
+    lines = []
+    n_float = table.shape[1] - 3
+    for row in table:
+        cells = ["" if not np.isfinite(v) else f"{v:.9g}" for v in row[:n_float]]
+        cells += [str(int(row[n_float])), str(int(row[n_float + 1])), f"{row[-1]:.6f}"]
+        lines.append(",".join(cells))
+    return "\n".join(lines) + "\n"
+
+
+def jsonl_rows(block, raw: bool) -> str:
+    """Every sample as one JSON object per line (NaN as null)."""
+    def values(v):
+        return [_short(x) for x in v]
+    out = []
+    for i in range(len(block.t)):
+        record = {"t": _short(block.t[i]), "seq": int(block.seq[i]),
+                  "status": int(block.status[i]), "flags": flag_names(int(block.status[i]), 0),
+                  "wrench": values(block.wrench[i])}
+        if raw:
+            record["theta"] = values(block.theta[i])
+        record["host_t"] = float(block.host_t[i])
+        out.append(json.dumps(record, separators=(",", ":")))
+    return "\n".join(out) + "\n"
+
+
+def _short(x) -> float | None:
+    """The value at 9 significant digits (0.412, not 0.41200000000000003), None for NaN."""
+    return float(f"{x:.9g}") if np.isfinite(x) else None
+
+
+class _Screen:
+    """Whole-screen frames: redrawn in place on a terminal, separated by a blank line otherwise."""
+
+    def __init__(self, stream):
+        self.stream, self.tty = stream, stream.isatty()
+
+    def show(self, text: str) -> None:
+        self.stream.write(("\x1b[H\x1b[J" if self.tty else "") + text + "\n"
+                          + ("" if self.tty else "\n"))
+        self.stream.flush()
+
+    def end(self) -> None:
+        pass
+
+
 def run(args: argparse.Namespace) -> int:
-    display = Progress(sys.stdout)
+    if args.plot and args.format != "table":
+        raise UserError("--plot draws on the terminal; it does not combine with --format "
+                        f"{args.format}")
+    raw = bool(args.raw)
+    out = sys.stdout
+    display = _Screen(out) if args.plot else Progress(out) if args.format == "table" else None
+    plot = RollingPlot(args.plot_seconds) if args.plot else None
+    live = None
     with open_device(args) as dev:
         rate = start_stream(dev, args)
+        if args.foxglove:
+            from delta6.link.foxglovelive import FoxgloveLive
+            info = dev.info()
+            live = FoxgloveLive(args.foxglove_host, args.foxglove_port, args.frame_id,
+                                f"{info.design_name} 0x{info.serial_number:08x}")
+            print(f"Foxglove: open connection ws://{args.foxglove_host}:{live.port}",
+                  file=sys.stderr)
         print(f"streaming {rate} Hz from {args.port} (forces N, moments N*m; Ctrl-C ends)",
               file=sys.stderr)
+        if args.format == "csv":
+            out.write(csv_header(raw) + "\n")
         started = time.monotonic()
         next_show = started
         window = []          # device times of the samples since the last update
         try:
             while args.duration is None or time.monotonic() - started < args.duration:
                 block = dev.read_block()
+                if live is not None:
+                    live.publish(block)
+                if args.format == "csv":
+                    out.write(csv_rows(block, raw))
+                    out.flush()
+                    continue
+                if args.format == "jsonl":
+                    out.write(jsonl_rows(block, raw))
+                    out.flush()
+                    continue
                 window.append(block.t)
+                if plot is not None:
+                    plot.add(block.t, block.wrench)
                 now = time.monotonic()
                 if now >= next_show:
                     times = np.concatenate(window)
                     span = times[-1] - times[0]
                     measured = (len(times) - 1) / span if span > 0 else 0.0
-                    display.show(format_line(block.t[-1], block.wrench[-1],
-                                             int(block.status[-1]), measured,
-                                             dev.health.samples_lost))
+                    line = format_line(block.t[-1], block.wrench[-1], int(block.status[-1]),
+                                       measured, dev.health.samples_lost)
+                    display.show(plot.render() + "\n" + line if plot is not None else line)
                     window = [block.t[-1:]]
                     next_show = now + args.interval
         except KeyboardInterrupt:
             pass
         finally:
-            display.end()
-        print(dev.health.summary(), file=sys.stderr)
+            if display is not None:
+                display.end()
+            if live is not None:
+                live.close()
+        print(dev.health.summary()
+              + (f"; {live.published} samples served to Foxglove" if live else ""),
+              file=sys.stderr)
     return 0

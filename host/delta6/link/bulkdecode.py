@@ -129,7 +129,7 @@ def _decode_fixed(buf, starts, length, kind, dtype):
 def _assemble(parts, recovered) -> Capture:
     index = [p[0] for p in parts]
     seq = [p[1]["seq"] for p in parts]
-    time = [p[1]["time"] for p in parts]
+    time = [p[1]["time_us"] for p in parts]
     status = [p[1]["status"] for p in parts]
     wrench = [p[1]["wrench"] for p in parts]
     counts = [p[1]["counts"].astype(np.int32) if "counts" in p[1].dtype.names

@@ -1,4 +1,7 @@
-"""The Delta6 log format: CSV with a commented header (``docs/log-format.md``).
+"""The Delta6 log format: CSV with a commented header (``docs/log-format.md``), and the front
+door to every log format: :func:`open_log_writer` picks the format from the file name (``.mcap``:
+MCAP with ROS 2 messages, :mod:`delta6.link.mcaplog`; anything else: CSV) and :func:`read_log`
+reads either, by the file's first bytes, into the same :class:`LogData`.
 
 One format for everything that records samples: the host logger (``delta6 log``), the
 capture decoder (``delta6 decode``), the digital twin (``delta6 simulate``) and the gap
@@ -13,48 +16,25 @@ from __future__ import annotations
 import io
 import math
 import os
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from delta6.core.errors import UserError
+from delta6.link import mcaplog
+from delta6.link.logdata import (  # noqa: F401 - re-exported: the log API is this module's
+    CORE_COLUMNS,
+    OPTIONAL_COLUMNS,
+    PARTIAL_SUFFIX,
+    SCHEMA_VERSION,
+    THETA_COLUMNS,
+    UNITS,
+    WRENCH_COLUMNS,
+    LogData,
+    LogError,
+)
 
-SCHEMA_VERSION = 1
 MAGIC = "delta6-log"
-THETA_COLUMNS = tuple(f"theta_e{i}" for i in range(1, 7))
-WRENCH_COLUMNS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
-#: Required, in this order, at the start of every row.
-CORE_COLUMNS = ("t",) + THETA_COLUMNS + WRENCH_COLUMNS
-#: Optional columns, after the core ones, in this order when present.
-OPTIONAL_COLUMNS = ("seq", "status", "host_t", "temp_c")
-UNITS = {"t": "s", "theta_e": "rad", "F": "N", "M": "N*m", "host_t": "s (host monotonic)",
-         "temp_c": "degC", "status": "status word (docs/protocol.md)", "seq": "record sequence"}
-PARTIAL_SUFFIX = ".partial"
-
 _FLOAT_FORMAT = "%.9g"      # float32 values survive the round trip exactly
-
-
-class LogError(UserError):
-    """A log file is missing, malformed or unusable; the message names the problem."""
-
-
-@dataclass
-class LogData:
-    """A log read back into arrays. ``theta`` and ``wrench`` are (N, 6); optional columns
-    are None when the file lacks them."""
-
-    t: np.ndarray
-    theta: np.ndarray
-    wrench: np.ndarray
-    seq: np.ndarray | None = None
-    status: np.ndarray | None = None
-    host_t: np.ndarray | None = None
-    temp_c: np.ndarray | None = None
-    meta: dict = field(default_factory=dict)
-
-    def __len__(self) -> int:
-        return len(self.t)
 
 
 def header_lines(meta: dict, columns: tuple[str, ...]) -> list[str]:
@@ -158,6 +138,15 @@ class LogWriter:
         self.close(complete=exc_type is None or not self.keep_partial_on_error)
 
 
+def open_log_writer(path: str | Path, meta: dict | None = None, optional: tuple[str, ...] = (),
+                    **kwargs):
+    """A :class:`LogWriter` or, for a ``.mcap`` file, a :class:`~delta6.link.mcaplog.McapLogWriter`
+    (the same interface)."""
+    if Path(path).suffix.lower() == ".mcap":
+        return mcaplog.McapLogWriter(path, meta, optional, **kwargs)
+    return LogWriter(path, meta, optional, **kwargs)
+
+
 def _six(values) -> list:
     if values is None:
         return [None] * 6
@@ -193,13 +182,15 @@ READ_CHUNK_ROWS = 100_000
 
 
 def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData:
-    """Read a log. Raises :class:`LogError` naming the problem: no file, wrong header,
-    missing columns, unparsable or missing values (NaN), non-monotonic time.
+    """Read a log, CSV or MCAP (told apart by the file's first bytes). Raises :class:`LogError`
+    naming the problem: no file, wrong header, missing columns, unparsable or missing values (NaN), non-monotonic time.
 
     With ``require_complete_rows=False`` empty angle/wrench fields read as NaN (a stream that
     carried wrench only, or flagged samples) instead of being an error.
     """
     path = Path(path)
+    if mcaplog.is_mcap(path):
+        return mcaplog.read_mcap(path, require_complete_rows=require_complete_rows)
     try:
         with open(path, encoding="ascii", newline=None) as f:
             meta, columns, body_start = _read_header(path, f)

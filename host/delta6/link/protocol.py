@@ -1,13 +1,15 @@
 """The Delta6 wire protocol, version 1.0: every number and layout of ``docs/protocol.md``.
 
-The firmware's copy is ``firmware/lib/delta6_core/src/delta6_protocol.h``; the tests build the
-C++ natively and check both against each other byte for byte. This module packs and parses
-single frames; :mod:`delta6.link.decoder` and :mod:`delta6.link.bulkdecode` split byte streams into them.
+The tables here (record types, commands, modes, status bits, NACK reasons, event codes,
+configuration problems, the field layouts of every record, command and the EEPROM blob) are
+the only copy: ``delta6 codegen --wire`` writes them into the header the firmware core includes
+(``firmware/lib/delta6_core/src/generated/delta6_wire.h``), and tests fail when that header is
+stale. This module packs and parses single frames; :mod:`delta6.link.decoder` and
+:mod:`delta6.link.bulkdecode` split byte streams into them.
 """
 from __future__ import annotations
 
 import enum
-import struct
 from fractions import Fraction
 from typing import NamedTuple
 
@@ -16,6 +18,7 @@ import numpy as np
 from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.link import cobs
 from delta6.link.crc import crc16
+from delta6.link.layout import Field, Layout
 
 VERSION = (1, 0)
 
@@ -35,6 +38,12 @@ TEMPERATURE_UNKNOWN = 0x7FFF
 BITS_PER_BYTE = 10           # UART: start bit, 8 data bits, stop bit
 #: Data records may fill 90 % of the link (a fraction: the firmware computes in integers).
 LINK_BUDGET = Fraction(9, 10)
+#: Types 0x01..0x7F are records (device to host), 0x80..0xFF commands (host to device).
+FIRST_COMMAND_TYPE = 0x80
+#: The device's receive buffer: command frames (COBS-encoded, delimiter excluded) longer than
+#: this are discarded and counted (``rx_overflows``); it leaves room for commands up to 29
+#: payload bytes, so a longer command from a newer host is answered with BAD_LENGTH.
+COMMAND_BUFFER = 32
 
 
 class RecordType(enum.IntEnum):
@@ -118,47 +127,95 @@ class EventCode(enum.IntEnum):
     CONFIG_DEFAULTS = 2
 
 
-CONFIG_PROBLEM_TEXT = {1: "EEPROM erased or never saved", 2: "CRC mismatch",
-                       3: "unknown layout version", 4: "value out of range"}
+class ConfigProblem(enum.IntEnum):
+    """Why a stored configuration was rejected at boot (the CONFIG_DEFAULTS event's argument)."""
+
+    ERASED = 1
+    BAD_CRC = 2
+    BAD_VERSION = 3
+    OUT_OF_RANGE = 4
+
+
+CONFIG_PROBLEM_TEXT = {
+    ConfigProblem.ERASED: "EEPROM erased or never saved",
+    ConfigProblem.BAD_CRC: "CRC mismatch",
+    ConfigProblem.BAD_VERSION: "unknown layout version",
+    ConfigProblem.OUT_OF_RANGE: "value out of range",
+}
+
+
+def config_problem_text(code: int) -> str:
+    """Why the device fell back to its defaults, in words (unknown codes by number)."""
+    try:
+        return CONFIG_PROBLEM_TEXT[ConfigProblem(code)]
+    except ValueError:
+        return f"reason {code}"
+
 
 # --- layouts (little-endian; the CRC after the payload is big-endian) ---------------------
 
-_WRENCH = struct.Struct("<BHIH6h")
-_WRENCH_RAW = struct.Struct("<BHIH6h6H")
-_INFO = struct.Struct("<BB2B3BBI24s6f6B6bHHHBBII6H6ff")
-_ACK = struct.Struct("<BBBI")
-_NACK = struct.Struct("<BBBBI")
-_TELEMETRY = struct.Struct("<BBIHIH6HHHHHHHHHHhH")
-_EVENT = struct.Struct("<BBI")
+_TYPE = Field("type", "B")
+_REQUEST = Field("request_id", "B")
+_DATA = [_TYPE, Field("seq", "H"), Field("time_us", "I"), Field("status", "H"),
+         Field("wrench", "h", 6)]
 
-RECORD_SIZES = {
-    RecordType.WRENCH: _WRENCH.size, RecordType.WRENCH_RAW: _WRENCH_RAW.size,
-    RecordType.INFO: _INFO.size, RecordType.ACK: _ACK.size, RecordType.NACK: _NACK.size,
-    RecordType.TELEMETRY: _TELEMETRY.size, RecordType.EVENT: _EVENT.size,
+#: The payload of each record (type byte included, CRC excluded). Field names are those of
+#: the record's tuple below; a minor version only appends fields.
+RECORD_LAYOUTS = {
+    RecordType.WRENCH: Layout("WRENCH", _DATA),
+    RecordType.WRENCH_RAW: Layout("WRENCH_RAW", _DATA + [Field("counts", "H", 6)]),
+    RecordType.INFO: Layout("INFO", [
+        _TYPE, _REQUEST, Field("protocol", "B", 2), Field("firmware", "B", 3),
+        Field("mode", "B"), Field("design_hash", "I"), Field("design_name", "s", 24),
+        Field("full_scale", "f", 6), Field("lsb_mantissa", "B", 6),
+        Field("lsb_exponent", "b", 6), Field("rate_hz", "H"), Field("max_rate_hz", "H"),
+        Field("status", "H"), Field("streaming", "B"), Field("reserved", "B"),
+        Field("baud", "I"), Field("serial_number", "I"), Field("zero_counts", "H", 6),
+        Field("tare", "f", 6), Field("joint_limit_rad", "f")]),
+    RecordType.ACK: Layout("ACK", [_TYPE, _REQUEST, Field("command", "B"), Field("value", "I")]),
+    RecordType.NACK: Layout("NACK", [_TYPE, _REQUEST, Field("command", "B"),
+                                     Field("reason", "B"), Field("detail", "I")]),
+    RecordType.TELEMETRY: Layout("TELEMETRY", [
+        _TYPE, _REQUEST, Field("time_us", "I"), Field("status", "H"), Field("samples", "I"),
+        Field("overruns", "H"), Field("encoder_errors", "H", 6), Field("solver_errors", "H"),
+        Field("rx_frames", "H"), Field("rx_crc_errors", "H"), Field("rx_bad_frames", "H"),
+        Field("rx_overflows", "H"), Field("tx_dropped", "H"), Field("responses_dropped", "H"),
+        Field("loop_time_max_us", "H"), Field("loop_time_mean_us", "H"),
+        Field("temperature_centi", "h"), Field("next_seq", "H")]),
+    RecordType.EVENT: Layout("EVENT", [_TYPE, Field("code", "B"), Field("arg", "I")]),
 }
+RECORD_SIZES = {t: layout.size for t, layout in RECORD_LAYOUTS.items()}
+_WRENCH = RECORD_LAYOUTS[RecordType.WRENCH].struct
+_WRENCH_RAW = RECORD_LAYOUTS[RecordType.WRENCH_RAW].struct
 
 #: The data records as numpy structured dtypes, for decoding many at once: one element is a
-#: COBS-decoded frame, the record (the struct layouts above) followed by its CRC.
-_DATA_FIELDS = [("type", "u1"), ("seq", "<u2"), ("time", "<u4"), ("status", "<u2"),
-                ("wrench", "<i2", 6)]
-DATA_FRAME_DTYPES = {
-    RecordType.WRENCH: np.dtype(_DATA_FIELDS + [("crc", ">u2")]),
-    RecordType.WRENCH_RAW: np.dtype(_DATA_FIELDS + [("counts", "<u2", 6), ("crc", ">u2")]),
-}
-for _kind, _dtype in DATA_FRAME_DTYPES.items():
-    if _dtype.itemsize != RECORD_SIZES[_kind] + CRC_SIZE:   # the two layouts must agree
-        raise AssertionError(f"{_kind.name}: dtype of {_dtype.itemsize} bytes, struct of "
-                             f"{RECORD_SIZES[_kind]} + CRC")
+#: COBS-decoded frame, the record followed by its CRC.
+DATA_FRAME_DTYPES = {t: RECORD_LAYOUTS[t].dtype([("crc", ">u2")])
+                     for t in (RecordType.WRENCH, RecordType.WRENCH_RAW)}
 
-#: Argument layout of each command (after type and request id).
-COMMAND_ARGS = {
-    Command.GET_INFO: "", Command.PING: "", Command.START: "H", Command.STOP: "",
-    Command.SET_MODE: "B", Command.TARE: "H", Command.CLEAR_TARE: "", Command.SAVE_CONFIG: "",
-    Command.LOAD_DEFAULTS: "", Command.SET_ZERO: "6H", Command.ZERO_HERE: "H",
-    Command.GET_TELEMETRY: "",
-}
-COMMAND_SIZES = {c: 2 + struct.calcsize("<" + a) for c, a in COMMAND_ARGS.items()}
+#: Every command: type, request id, then its arguments.
+COMMAND_LAYOUTS = {c: Layout(c.name, [_TYPE, _REQUEST, *args]) for c, args in {
+    Command.GET_INFO: [], Command.PING: [], Command.START: [Field("rate_hz", "H")],
+    Command.STOP: [], Command.SET_MODE: [Field("mode", "B")],
+    Command.TARE: [Field("samples", "H")], Command.CLEAR_TARE: [], Command.SAVE_CONFIG: [],
+    Command.LOAD_DEFAULTS: [], Command.SET_ZERO: [Field("zero_counts", "H", 6)],
+    Command.ZERO_HERE: [Field("samples", "H")], Command.GET_TELEMETRY: [],
+}.items()}
+#: Argument format of each command (``struct``, after type and request id).
+COMMAND_ARGS = {c: "".join(f.fmt for f in layout.fields[2:])
+                for c, layout in COMMAND_LAYOUTS.items()}
+COMMAND_SIZES = {c: layout.size for c, layout in COMMAND_LAYOUTS.items()}
 MAX_RECORD_SIZE = max(RECORD_SIZES.values())
+
+#: The configuration blob in the device's EEPROM (docs/protocol.md section 9), followed by
+#: its CRC (most significant byte first, like frames).
+CONFIG_LAYOUT = Layout("CONFIG", [
+    Field("magic", "H"), Field("layout", "B"), Field("size", "B"), Field("design_hash", "I"),
+    Field("rate_hz", "H"), Field("mode", "B"), Field("tare_active", "B"), Field("tare", "f", 6),
+    Field("zero_counts", "H", 6)])
+CONFIG_MAGIC = 0x3644           # "D6" little-endian
+CONFIG_LAYOUT_VERSION = 1
+CONFIG_BLOB_SIZE = CONFIG_LAYOUT.size + CRC_SIZE
 #: Encoded length (no delimiter) of each record type: payload + CRC + one COBS code byte.
 ENCODED_SIZES = {t: s + 3 for t, s in RECORD_SIZES.items()}
 
@@ -280,6 +337,17 @@ class Event(NamedTuple):
     arg: int
 
 
+# parse_payload reads data records in WrenchRecord's field order, and the firmware writes
+# both data records with one set of offsets.
+if [f.name for f in RECORD_LAYOUTS[RecordType.WRENCH_RAW].fields] != ["type", *WrenchRecord._fields] \
+        or not RECORD_LAYOUTS[RecordType.WRENCH_RAW].starts_with(RECORD_LAYOUTS[RecordType.WRENCH]):
+    raise AssertionError("the data records are WRENCH = type + WrenchRecord's fields, "
+                         "WRENCH_RAW = WRENCH + counts")
+
+_RECORD_TUPLES = {RecordType.INFO: Info, RecordType.ACK: Ack, RecordType.NACK: Nack,
+                  RecordType.TELEMETRY: Telemetry, RecordType.EVENT: Event}
+
+
 class ProtocolError(ValueError):
     """A frame that is not a valid record: the message says why."""
 
@@ -297,29 +365,22 @@ def parse_payload(payload: bytes):
         raise ProtocolError(f"unknown record type 0x{kind:02x}")
     if len(payload) < size:
         raise ProtocolError(f"record type 0x{kind:02x} has {len(payload)} bytes, needs {size}")
+    # Data records by position, twice as fast as by name (the order is checked at import):
+    # type, seq, time_us, status, wrench[6], counts[6].
     if kind == RecordType.WRENCH:
         v = _WRENCH.unpack_from(payload)
         return WrenchRecord(v[1], v[2], v[3], v[4:10], None)
     if kind == RecordType.WRENCH_RAW:
         v = _WRENCH_RAW.unpack_from(payload)
         return WrenchRecord(v[1], v[2], v[3], v[4:10], v[10:16])
+    fields = RECORD_LAYOUTS[kind].unpack(payload)
+    del fields["type"]
     if kind == RecordType.INFO:
-        v = _INFO.unpack_from(payload)
-        name = v[9].split(b"\x00", 1)[0].decode("ascii", "replace")
-        return Info(request_id=v[1], protocol=v[2:4], firmware=v[4:7], mode=v[7],
-                    design_hash=v[8], design_name=name, full_scale=v[10:16],
-                    lsb_mantissa=v[16:22], lsb_exponent=v[22:28], rate_hz=v[28],
-                    max_rate_hz=v[29], status=v[30], streaming=bool(v[31]), baud=v[33],
-                    serial_number=v[34], zero_counts=v[35:41], tare=v[41:47],
-                    joint_limit_rad=v[47])
-    if kind == RecordType.ACK:
-        return Ack(*_ACK.unpack_from(payload)[1:])
-    if kind == RecordType.NACK:
-        return Nack(*_NACK.unpack_from(payload)[1:])
-    if kind == RecordType.TELEMETRY:
-        v = _TELEMETRY.unpack_from(payload)
-        return Telemetry(v[1], v[2], v[3], v[4], v[5], v[6:12], *v[12:])
-    return Event(*_EVENT.unpack_from(payload)[1:])
+        del fields["reserved"]
+        fields["design_name"] = fields["design_name"].split(b"\x00", 1)[0].decode("ascii",
+                                                                                   "replace")
+        fields["streaming"] = bool(fields["streaming"])
+    return _RECORD_TUPLES[kind](**fields)
 
 
 def frame(payload: bytes) -> bytes:
@@ -343,8 +404,8 @@ def checked_payload(decoded: bytes) -> bytes | None:
 # --- encoders (commands for the host; records for tests, captures and benchmarks) -------
 
 def encode_command(command: Command, request_id: int, *args) -> bytes:
-    fmt = "<BB" + COMMAND_ARGS[Command(command)]
-    return frame(struct.pack(fmt, command, request_id, *args))
+    layout = COMMAND_LAYOUTS[Command(command)]
+    return frame(layout.struct.pack(command, request_id, *args))
 
 
 def encode_wrench(seq: int, time_us: int, status: int, wrench, counts=None) -> bytes:
@@ -353,31 +414,31 @@ def encode_wrench(seq: int, time_us: int, status: int, wrench, counts=None) -> b
     return frame(_WRENCH_RAW.pack(RecordType.WRENCH_RAW, seq, time_us, status, *wrench, *counts))
 
 
+def encode_record(record) -> bytes:
+    """The frame of an INFO, ACK, NACK, TELEMETRY or EVENT record (the tuples above)."""
+    kind = next(t for t, cls in _RECORD_TUPLES.items() if isinstance(record, cls))
+    fields = record._asdict()
+    if kind == RecordType.INFO:
+        name_field = RECORD_LAYOUTS[kind].field("design_name")
+        fields.update(design_name=record.design_name.encode("ascii")[:name_field.count - 1],
+                      streaming=int(record.streaming), reserved=0)
+    return frame(RECORD_LAYOUTS[kind].pack(type=kind, **fields))
+
+
 def encode_info(info: Info) -> bytes:
-    name = info.design_name.encode("ascii")[:23]
-    return frame(_INFO.pack(RecordType.INFO, info.request_id, *info.protocol, *info.firmware,
-                            info.mode, info.design_hash, name, *info.full_scale,
-                            *info.lsb_mantissa, *info.lsb_exponent, info.rate_hz,
-                            info.max_rate_hz, info.status, int(info.streaming), 0, info.baud,
-                            info.serial_number, *info.zero_counts, *info.tare,
-                            info.joint_limit_rad))
+    return encode_record(info)
 
 
 def encode_ack(request_id: int, command: int, value: int) -> bytes:
-    return frame(_ACK.pack(RecordType.ACK, request_id, command, value))
+    return encode_record(Ack(request_id, command, value))
 
 
 def encode_nack(request_id: int, command: int, reason: int, detail: int = 0) -> bytes:
-    return frame(_NACK.pack(RecordType.NACK, request_id, command, reason, detail))
+    return encode_record(Nack(request_id, command, reason, detail))
 
 
 def encode_event(code: int, arg: int) -> bytes:
-    return frame(_EVENT.pack(RecordType.EVENT, code, arg))
-
-
-def encode_telemetry(t: Telemetry) -> bytes:
-    return frame(_TELEMETRY.pack(RecordType.TELEMETRY, t.request_id, t.time_us, t.status,
-                                 t.samples, t.overruns, *t.encoder_errors, *t[6:]))
+    return encode_record(Event(code, arg))
 
 
 def lsb_value(mantissa: int, exponent: int) -> float:

@@ -25,7 +25,7 @@ from delta6.link.protocol import COUNT_RAD, INVALID_VALUE, MAX_VALUE, lsb_value
 
 MIN_EXPONENT, MAX_EXPONENT = -6, 3
 HEADROOM = 1.25
-_MANTISSAS = (1, 2, 5)
+MANTISSAS = (1, 2, 5)
 
 
 def choose_scale(full_scale_value: float) -> tuple[int, int]:
@@ -35,7 +35,7 @@ def choose_scale(full_scale_value: float) -> tuple[int, int]:
     needed = f32(full_scale_value) * (f32(HEADROOM) / f32(MAX_VALUE))
     for e in range(MIN_EXPONENT, MAX_EXPONENT + 1):
         decade = f32(f"1e{e}")
-        for m in _MANTISSAS:
+        for m in MANTISSAS:
             if f32(m) * decade >= needed:
                 return m, e
     return 5, MAX_EXPONENT

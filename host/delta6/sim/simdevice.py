@@ -69,6 +69,8 @@ def native_library() -> ctypes.CDLL:
         "d6_crc16": (c.c_uint16, [c.c_char_p, c.c_uint32]),
         "d6_cobs_encode_in_place": (c.c_uint32, [c.c_void_p, c.c_uint32]),
         "d6_cobs_decode_in_place": (c.c_int32, [c.c_void_p, c.c_uint32]),
+        "d6_record_size": (c.c_uint32, [c.c_uint8]),
+        "d6_command_size": (c.c_uint32, [c.c_uint8]),
         "d6_encode_data": (c.c_uint32, [c.c_void_p, c.c_uint16, c.c_uint32, c.c_uint16,
                                         c.c_void_p, c.c_void_p]),
         "d6_scale": (None, [c.c_float, c.c_void_p, c.c_void_p]),

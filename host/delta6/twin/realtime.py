@@ -8,7 +8,7 @@ from typing import Callable, Iterator, NamedTuple
 
 import numpy as np
 
-from delta6.link.logfile import LogWriter
+from delta6.link.logfile import open_log_writer
 from delta6.link.protocol import theta_to_counts
 from delta6.twin.truth import truth_path, write_truth
 
@@ -35,7 +35,7 @@ def write_log(result, path: str | Path, *, progress: Callable[[float], None] | N
         meta["scenario"] = truth["scenario"]
     optional = ("temp_c",) if result.temp_c is not None else ()
     n = len(result)
-    with LogWriter(path, meta, optional=optional) as log:
+    with open_log_writer(path, meta, optional=optional) as log:
         for start in range(0, n, WRITE_BLOCK):
             part = slice(start, min(n, start + WRITE_BLOCK))
             extra = {"temp_c": result.temp_c[part]} if result.temp_c is not None else {}

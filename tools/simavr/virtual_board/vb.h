@@ -36,7 +36,7 @@ extern avr_t *vb_avr;
 
 /* --- angles.c: the raw counts the sensors report ----------------------------------------- */
 void angles_init(const uint16_t rest[VB_ENCODERS]);
-/* Replay file (written by delta6.virtualboard): "D6RP", u32 version 1, u32 n, then n records
+/* Replay file (written by delta6.sim.virtualboard): "D6RP", u32 version 1, u32 n, then n records
  * of f64 time (s, from the start of the run) and u16 counts[6], little-endian. Dies with a
  * one-line message on a bad file. */
 void angles_load_replay(const char *path, int loop);

@@ -12,8 +12,6 @@ using namespace proto;
 
 namespace {
 
-const uint16_t kConfigMagic = 0x3644;   // "D6" little-endian
-const uint8_t kConfigLayout = 1;
 using fastmath::is_finite;
 
 }  // namespace
@@ -49,16 +47,16 @@ Device::Device(Hardware& hardware, const Identity& identity, const Config& defau
 
 void Device::encodeConfig(const Config& c, uint32_t design_hash, uint8_t* blob) {
   memset(blob, 0, kConfigBlobSize);
-  putU16(blob, kConfigMagic);
-  blob[2] = kConfigLayout;
-  blob[3] = kConfigBlobSize;
-  putU32(blob + 4, design_hash);
-  putU16(blob + 8, c.rate_hz);
-  blob[10] = c.mode;
-  blob[11] = c.tare_active ? 1 : 0;
+  putU16(blob + kConfigOffMagic, kConfigMagic);
+  blob[kConfigOffLayout] = kConfigLayoutVersion;
+  blob[kConfigOffSize] = kConfigBlobSize;
+  putU32(blob + kConfigOffDesignHash, design_hash);
+  putU16(blob + kConfigOffRateHz, c.rate_hz);
+  blob[kConfigOffMode] = c.mode;
+  blob[kConfigOffTareActive] = c.tare_active ? 1 : 0;
   for (uint8_t i = 0; i < 6; ++i) {
-    putF32(blob + 12 + 4 * i, c.tare[i]);
-    putU16(blob + 36 + 2 * i, c.zero_counts[i]);
+    putF32(blob + kConfigOffTare + 4 * i, c.tare[i]);
+    putU16(blob + kConfigOffZeroCounts + 2 * i, c.zero_counts[i]);
   }
   const uint16_t crc = crc16(blob, kConfigBlobSize - 2);
   blob[kConfigBlobSize - 2] = static_cast<uint8_t>(crc >> 8);
@@ -66,26 +64,28 @@ void Device::encodeConfig(const Config& c, uint32_t design_hash, uint8_t* blob) 
 }
 
 uint8_t Device::decodeConfig(const uint8_t* blob, Config* out) const {
-  if (getU16(blob) != kConfigMagic) return kConfigErased;
-  if (blob[2] != kConfigLayout || blob[3] != kConfigBlobSize) return kConfigBadVersion;
+  if (getU16(blob + kConfigOffMagic) != kConfigMagic) return kConfigErased;
+  if (blob[kConfigOffLayout] != kConfigLayoutVersion || blob[kConfigOffSize] != kConfigBlobSize) {
+    return kConfigBadVersion;
+  }
   if (crc16(blob, kConfigBlobSize) != 0) return kConfigBadCrc;
   Config c;
-  c.rate_hz = getU16(blob + 8);
-  c.mode = blob[10];
-  c.tare_active = blob[11] == 1;
+  c.rate_hz = getU16(blob + kConfigOffRateHz);
+  c.mode = blob[kConfigOffMode];
+  c.tare_active = blob[kConfigOffTareActive] == 1;
   if (c.rate_hz == 0 || c.rate_hz > id_.max_rate_hz) return kConfigOutOfRange;
   if (c.mode != kModeWrench && c.mode != kModeWrenchRaw) return kConfigOutOfRange;
-  if (blob[11] > 1) return kConfigOutOfRange;
+  if (blob[kConfigOffTareActive] > 1) return kConfigOutOfRange;
   for (uint8_t i = 0; i < 6; ++i) {
-    const uint32_t bits = getU32(blob + 12 + 4 * i);
+    const uint32_t bits = getU32(blob + kConfigOffTare + 4 * i);
     memcpy(&c.tare[i], &bits, 4);
     // Any finite offset: the loader accepts every configuration the device can hold.
     if (!is_finite(c.tare[i])) return kConfigOutOfRange;
-    c.zero_counts[i] = getU16(blob + 36 + 2 * i);
+    c.zero_counts[i] = getU16(blob + kConfigOffZeroCounts + 2 * i);
     if (c.zero_counts[i] >= kCountsPerTurn) return kConfigOutOfRange;
   }
   // Offsets belong to the model they were measured with; zero counts are mechanical.
-  if (getU32(blob + 4) != id_.design_hash) {
+  if (getU32(blob + kConfigOffDesignHash) != id_.design_hash) {
     c.tare_active = false;
     for (uint8_t i = 0; i < 6; ++i) c.tare[i] = 0.0f;
   }
@@ -171,7 +171,7 @@ uint16_t Device::linkRateLimit(uint8_t mode) const {
   if (id_.baud == 0) return 0xFFFF;
   const uint32_t frame = recordSize(mode == kModeWrenchRaw ? kWrenchRaw : kWrench) + kFrameOverhead;
   // 10 bits per byte (start, 8 data, stop); data records may fill 90 % of the link.
-  const uint32_t limit = id_.baud / 100 * 9 / frame;
+  const uint32_t limit = id_.baud / kLinkBudgetDivisor * kLinkBudgetNumerator / frame;
   return limit > 0xFFFF ? 0xFFFF : static_cast<uint16_t>(limit);
 }
 
@@ -424,22 +424,22 @@ uint16_t Device::buildResponse(const Response& r) {
     case kTelemetry:
       return buildTelemetry(r.request_id);
     case kEvent:
-      p[0] = kEvent;
-      p[1] = r.command;
-      putU32(p + 2, r.value);
+      p[kEventOffType] = kEvent;
+      p[kEventOffCode] = r.command;
+      putU32(p + kEventOffArg, r.value);
       return finishFrame(tx_, kEventSize);
     case kNack:
-      p[0] = kNack;
-      p[1] = r.request_id;
-      p[2] = r.command;
-      p[3] = r.code;
-      putU32(p + 4, r.value);
+      p[kNackOffType] = kNack;
+      p[kNackOffRequestId] = r.request_id;
+      p[kNackOffCommand] = r.command;
+      p[kNackOffReason] = r.code;
+      putU32(p + kNackOffDetail, r.value);
       return finishFrame(tx_, kNackSize);
     default:
-      p[0] = kAck;
-      p[1] = r.request_id;
-      p[2] = r.command;
-      putU32(p + 3, r.value);
+      p[kAckOffType] = kAck;
+      p[kAckOffRequestId] = r.request_id;
+      p[kAckOffCommand] = r.command;
+      putU32(p + kAckOffValue, r.value);
       return finishFrame(tx_, kAckSize);
   }
 }
@@ -447,57 +447,58 @@ uint16_t Device::buildResponse(const Response& r) {
 uint16_t Device::buildInfo(uint8_t request_id) {
   uint8_t* p = tx_ + 1;
   memset(p, 0, kInfoSize);
-  p[0] = kInfo;
-  p[1] = request_id;
-  p[2] = kVersionMajor;
-  p[3] = kVersionMinor;
-  p[4] = id_.firmware_version[0];
-  p[5] = id_.firmware_version[1];
-  p[6] = id_.firmware_version[2];
-  p[7] = config_.mode;
-  putU32(p + 8, id_.design_hash);
-  for (uint8_t i = 0; i < 23 && id_.design_name && id_.design_name[i]; ++i) {
-    p[12 + i] = static_cast<uint8_t>(id_.design_name[i]);
+  p[kInfoOffType] = kInfo;
+  p[kInfoOffRequestId] = request_id;
+  p[kInfoOffProtocol] = kVersionMajor;
+  p[kInfoOffProtocol + 1] = kVersionMinor;
+  p[kInfoOffFirmware] = id_.firmware_version[0];
+  p[kInfoOffFirmware + 1] = id_.firmware_version[1];
+  p[kInfoOffFirmware + 2] = id_.firmware_version[2];
+  p[kInfoOffMode] = config_.mode;
+  putU32(p + kInfoOffDesignHash, id_.design_hash);
+  // At most kInfoDesignNameBytes - 1 characters: the field always ends in a NUL.
+  for (uint8_t i = 0; i < kInfoDesignNameBytes - 1 && id_.design_name && id_.design_name[i]; ++i) {
+    p[kInfoOffDesignName + i] = static_cast<uint8_t>(id_.design_name[i]);
   }
   for (uint8_t i = 0; i < 6; ++i) {
-    putF32(p + 36 + 4 * i, id_.full_scale[i]);
-    p[60 + i] = scale_[i].mantissa;
-    p[66 + i] = static_cast<uint8_t>(scale_[i].exponent);
-    putU16(p + 88 + 2 * i, config_.zero_counts[i]);
-    putF32(p + 100 + 4 * i, config_.tare[i]);
+    putF32(p + kInfoOffFullScale + 4 * i, id_.full_scale[i]);
+    p[kInfoOffLsbMantissa + i] = scale_[i].mantissa;
+    p[kInfoOffLsbExponent + i] = static_cast<uint8_t>(scale_[i].exponent);
+    putU16(p + kInfoOffZeroCounts + 2 * i, config_.zero_counts[i]);
+    putF32(p + kInfoOffTare + 4 * i, config_.tare[i]);
   }
-  putU16(p + 72, config_.rate_hz);
-  putU16(p + 74, id_.max_rate_hz);
-  putU16(p + 76, persistentStatus());
-  p[78] = streaming_ ? 1 : 0;
-  putU32(p + 80, id_.baud);
-  putU32(p + 84, id_.serial_number);
-  putF32(p + 124, id_.joint_limit_rad);
+  putU16(p + kInfoOffRateHz, config_.rate_hz);
+  putU16(p + kInfoOffMaxRateHz, id_.max_rate_hz);
+  putU16(p + kInfoOffStatus, persistentStatus());
+  p[kInfoOffStreaming] = streaming_ ? 1 : 0;
+  putU32(p + kInfoOffBaud, id_.baud);
+  putU32(p + kInfoOffSerialNumber, id_.serial_number);
+  putF32(p + kInfoOffJointLimitRad, id_.joint_limit_rad);
   return finishFrame(tx_, kInfoSize);
 }
 
 uint16_t Device::buildTelemetry(uint8_t request_id) {
   uint8_t* p = tx_ + 1;
   const Counters& k = counters_;
-  p[0] = kTelemetry;
-  p[1] = request_id;
-  putU32(p + 2, hw_.micros());
-  putU16(p + 6, static_cast<uint16_t>(last_status_ | persistentStatus()));
-  putU32(p + 8, k.samples);
-  putU16(p + 12, k.overruns);
-  for (uint8_t i = 0; i < 6; ++i) putU16(p + 14 + 2 * i, k.encoder_errors[i]);
-  putU16(p + 26, k.solver_errors);
-  putU16(p + 28, k.rx_frames);
-  putU16(p + 30, k.rx_crc_errors);
-  putU16(p + 32, k.rx_bad_frames);
-  putU16(p + 34, k.rx_overflows);
-  putU16(p + 36, k.tx_dropped);
-  putU16(p + 38, k.responses_dropped);
-  putU16(p + 40, k.loop_time_max_us);
+  p[kTelemetryOffType] = kTelemetry;
+  p[kTelemetryOffRequestId] = request_id;
+  putU32(p + kTelemetryOffTimeUs, hw_.micros());
+  putU16(p + kTelemetryOffStatus, static_cast<uint16_t>(last_status_ | persistentStatus()));
+  putU32(p + kTelemetryOffSamples, k.samples);
+  putU16(p + kTelemetryOffOverruns, k.overruns);
+  for (uint8_t i = 0; i < 6; ++i) putU16(p + kTelemetryOffEncoderErrors + 2 * i, k.encoder_errors[i]);
+  putU16(p + kTelemetryOffSolverErrors, k.solver_errors);
+  putU16(p + kTelemetryOffRxFrames, k.rx_frames);
+  putU16(p + kTelemetryOffRxCrcErrors, k.rx_crc_errors);
+  putU16(p + kTelemetryOffRxBadFrames, k.rx_bad_frames);
+  putU16(p + kTelemetryOffRxOverflows, k.rx_overflows);
+  putU16(p + kTelemetryOffTxDropped, k.tx_dropped);
+  putU16(p + kTelemetryOffResponsesDropped, k.responses_dropped);
+  putU16(p + kTelemetryOffLoopTimeMaxUs, k.loop_time_max_us);
   const uint32_t mean = k.loop_time_samples ? k.loop_time_sum_us / k.loop_time_samples : 0;
-  putU16(p + 42, static_cast<uint16_t>(mean > 0xFFFF ? 0xFFFF : mean));
-  putU16(p + 44, static_cast<uint16_t>(temperature_centi_));
-  putU16(p + 46, seq_);
+  putU16(p + kTelemetryOffLoopTimeMeanUs, static_cast<uint16_t>(mean > 0xFFFF ? 0xFFFF : mean));
+  putU16(p + kTelemetryOffTemperatureCenti, static_cast<uint16_t>(temperature_centi_));
+  putU16(p + kTelemetryOffNextSeq, seq_);
   if (request_id == 0) {  // the periodic record closes the loop-time window
     counters_.loop_time_max_us = 0;
     counters_.loop_time_sum_us = 0;

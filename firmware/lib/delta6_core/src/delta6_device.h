@@ -96,7 +96,7 @@ struct Counters {
 
 class Device {
  public:
-  static const uint16_t kConfigBlobSize = 50;
+  static const uint16_t kConfigBlobSize = proto::kConfigBlobSize;
   static const uint16_t kMinTxBuffer = proto::kMaxFrameBytes;
   static const uint32_t kTelemetryPeriodUs = 1000000;
   static const uint8_t kQueueLength = 4;

@@ -23,39 +23,29 @@ uint8_t recordSize(uint8_t type) {
 
 uint8_t commandSize(uint8_t type) {
   switch (type) {
-    case kCmdGetInfo:
-    case kCmdPing:
-    case kCmdStop:
-    case kCmdClearTare:
-    case kCmdSaveConfig:
-    case kCmdLoadDefaults:
-    case kCmdGetTelemetry:
-      return 2;
-    case kCmdSetMode:
-      return 3;
-    case kCmdStart:
-    case kCmdTare:
-    case kCmdZeroHere:
-      return 4;
-    case kCmdSetZero:
-      return 14;
-    default:
-      return 0;
+    case kCmdGetInfo: return kCmdGetInfoSize;
+    case kCmdPing: return kCmdPingSize;
+    case kCmdStart: return kCmdStartSize;
+    case kCmdStop: return kCmdStopSize;
+    case kCmdSetMode: return kCmdSetModeSize;
+    case kCmdTare: return kCmdTareSize;
+    case kCmdClearTare: return kCmdClearTareSize;
+    case kCmdSaveConfig: return kCmdSaveConfigSize;
+    case kCmdLoadDefaults: return kCmdLoadDefaultsSize;
+    case kCmdSetZero: return kCmdSetZeroSize;
+    case kCmdZeroHere: return kCmdZeroHereSize;
+    case kCmdGetTelemetry: return kCmdGetTelemetrySize;
+    default: return 0;
   }
 }
 
-// Decades as float literals: the host mirrors this table and the products below in float32,
-// so both ends pick the same step even at exact boundaries.
-static const float kDecades[kMaxExponent - kMinExponent + 1] = {
-    1e-6f, 1e-5f, 1e-4f, 1e-3f, 1e-2f, 1e-1f, 1e0f, 1e1f, 1e2f, 1e3f};
-static const uint8_t kMantissas[3] = {1, 2, 5};
-// Headroom: the range +-32767 LSB covers at least 1.25 x full scale.
-static const float kHeadroomPerCount = 1.25f / 32767.0f;
+// The host mirrors the products below in float32, so both ends pick the same step.
+static const float kHeadroomPerCount = kHeadroom / static_cast<float>(kMaxValue);
 
 Scale scaleForFullScale(float full_scale) {
   const float needed = full_scale * kHeadroomPerCount;
   for (int8_t e = kMinExponent; e <= kMaxExponent; ++e) {
-    for (uint8_t m = 0; m < 3; ++m) {
+    for (uint8_t m = 0; m < kMantissaCount; ++m) {
       const float step = static_cast<float>(kMantissas[m]) * kDecades[e - kMinExponent];
       if (step >= needed) {
         Scale s = {kMantissas[m], e};
@@ -63,8 +53,8 @@ Scale scaleForFullScale(float full_scale) {
       }
     }
   }
-  // Not finite, or beyond 5e3 x 32767 / 1.25: the coarsest step (never reached by a design).
-  Scale s = {5, kMaxExponent};
+  // Not finite, or beyond the coarsest step's range: that step (never reached by a design).
+  Scale s = {kMantissas[kMantissaCount - 1], kMaxExponent};
   return s;
 }
 
@@ -79,7 +69,7 @@ int16_t quantize(float value, float inverse_lsb, bool* clipped) {
   memcpy(&bits, &x, 4);
   const uint32_t magnitude = bits & 0x7FFFFFFFUL;
   const bool negative = (bits >> 31) != 0;
-  if (magnitude < 0x46FFFE00UL) {  // |x| < 32767.0f
+  if (magnitude < kMaxValueFloatBits) {  // |x| < kMaxValue
     // Round half away from zero in integers, from the mantissa and exponent: exact, and a
     // fifth of the cycles of a float addition and conversion on the AVR.
     const int16_t exponent = static_cast<int16_t>(magnitude >> 23) - 127;
@@ -99,7 +89,7 @@ int16_t quantize(float value, float inverse_lsb, bool* clipped) {
     return negative ? static_cast<int16_t>(-rounded) : rounded;
   }
   if (magnitude > 0x7F800000UL) return kInvalidValue;  // NaN
-  if (magnitude > 0x46FFFE00UL) *clipped = true;       // beyond 32767 (infinities too)
+  if (magnitude > kMaxValueFloatBits) *clipped = true;  // beyond kMaxValue (infinities too)
   return static_cast<int16_t>(negative ? -kMaxValue : kMaxValue);
 }
 
@@ -140,15 +130,16 @@ uint16_t finishFrame(uint8_t* buf, uint16_t n) {
 uint16_t encodeDataRecord(uint8_t* buf, uint16_t seq, uint32_t time_us, uint16_t status,
                           const int16_t wrench[6], const uint16_t* counts) {
   uint8_t* p = buf + 1;
-  p[0] = counts ? kWrenchRaw : kWrench;
-  putU16(p + kOffSeq, seq);
-  putU32(p + kOffTime, time_us);
-  putU16(p + kOffStatus, status);
+  p[kWrenchOffType] = counts ? kWrenchRaw : kWrench;
+  // WRENCH_RAW is WRENCH with the counts appended (the host checks it): one set of offsets.
+  putU16(p + kWrenchOffSeq, seq);
+  putU32(p + kWrenchOffTimeUs, time_us);
+  putU16(p + kWrenchOffStatus, status);
   for (uint8_t i = 0; i < 6; ++i) {
-    putU16(p + kOffWrench + 2 * i, static_cast<uint16_t>(wrench[i]));
+    putU16(p + kWrenchOffWrench + 2 * i, static_cast<uint16_t>(wrench[i]));
   }
   if (!counts) return finishFrame(buf, kWrenchSize);
-  for (uint8_t i = 0; i < 6; ++i) putU16(p + kOffCounts + 2 * i, counts[i]);
+  for (uint8_t i = 0; i < 6; ++i) putU16(p + kWrenchRawOffCounts + 2 * i, counts[i]);
   return finishFrame(buf, kWrenchRawSize);
 }
 

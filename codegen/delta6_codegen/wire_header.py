@@ -1,0 +1,172 @@
+"""Render firmware/lib/delta6_core/src/generated/delta6_wire.h: the wire layout for the C++ core.
+
+Every number of the protocol that both ends share comes from :mod:`delta6.link.protocol` (record
+types and field layouts, commands and their sizes, modes, status bits, NACK reasons, event
+codes, configuration problems, the EEPROM blob, the link budget) and :mod:`delta6.link.wirescale`
+(the LSB steps). The firmware core includes the header and writes none of these numbers
+itself. The output depends on nothing else, so it is the same bytes on every machine.
+"""
+from __future__ import annotations
+
+import enum
+import struct
+
+from delta6.link import protocol as P
+from delta6.link import wirescale
+from delta6.link.layout import Layout
+
+COMMAND = "delta6 codegen --wire"
+#: Where the header lives, relative to the repository root.
+HEADER_RELPATH = "firmware/lib/delta6_core/src/generated/delta6_wire.h"
+
+
+def camel(name: str) -> str:
+    """``WRENCH_RAW`` or ``design_name`` -> ``WrenchRaw`` / ``DesignName``."""
+    return "".join(part.capitalize() for part in name.lower().split("_"))
+
+
+def _enum(members: type[enum.IntEnum], prefix: str, title: str, hex_width: int = 0,
+          ctype: str = "uint8_t") -> list[str]:
+    lines = [f"// --- {title} ---"]
+    for m in members:
+        value = f"0x{int(m):0{hex_width}X}" if hex_width else str(int(m))
+        lines.append(f"const {ctype} {prefix}{camel(m.name)} = {value};")
+    return lines + [""]
+
+
+def _offsets(prefix: str, layout: Layout) -> list[str]:
+    """``k<Prefix>Off<Field>`` for every field, with its type as a comment."""
+    lines = []
+    for f in layout.fields:
+        lines.append(f"const uint8_t {prefix}Off{camel(f.name)} = {layout.offsets[f.name]};"
+                     f"  // {f.c_type}")
+        if f.code == "s":
+            lines.append(f"const uint8_t {prefix}{camel(f.name)}Bytes = {f.count};"
+                         "  // NUL-padded")
+    return lines
+
+
+def _records() -> list[str]:
+    lines = ["// --- records (device -> host): type, payload size (type byte included, CRC",
+             "// excluded) and the offset of every field (docs/protocol.md section 3) ---"]
+    for kind, layout in P.RECORD_LAYOUTS.items():
+        name = f"k{camel(kind.name)}"
+        lines += ["", f"const uint8_t {name} = 0x{int(kind):02X};",
+                  f"const uint8_t {name}Size = {layout.size};", *_offsets(name, layout)]
+    size = P.MAX_RECORD_SIZE
+    return lines + ["", f"const uint8_t kMaxRecordSize = {size};",
+                    "// Bytes on the wire beyond the payload: CRC, one COBS code byte, the "
+                    "delimiter.",
+                    f"const uint8_t kFrameOverhead = {P.FRAME_OVERHEAD};",
+                    f"const uint8_t kMaxFrameBytes = {size + P.FRAME_OVERHEAD};", ""]
+
+
+def _commands() -> list[str]:
+    lines = ["// --- commands (host -> device): type, request id, arguments; each command's",
+             "// exact payload size (docs/protocol.md section 4) ---"]
+    for command, layout in P.COMMAND_LAYOUTS.items():
+        args = ", ".join(f"{f.c_type} {f.name}" for f in layout.fields[2:])
+        name = f"kCmd{camel(command.name)}"
+        lines.append(f"const uint8_t {name} = 0x{int(command):02X};")
+        lines.append(f"const uint8_t {name}Size = {layout.size};" + (f"  // {args}" if args else ""))
+    return lines + [
+        "// Types below this are records: a device never answers them (its own output looped",
+        "// back must not start an endless exchange).",
+        f"const uint8_t kFirstCommand = 0x{P.FIRST_COMMAND_TYPE:02X};",
+        f"const uint8_t kLastCommand = 0x{max(P.Command):02X};",
+        f"const uint8_t kMaxCommandSize = {max(P.COMMAND_SIZES.values())};",
+        "// Receive buffer (encoded bytes): longer command frames are discarded and counted.",
+        f"const uint8_t kCommandBuffer = {P.COMMAND_BUFFER};", ""]
+
+
+def _status() -> list[str]:
+    lines = ["// --- status word bits (docs/protocol.md section 5); bit 15 is reserved ---"]
+    for flag in P.Status:
+        lines.append(f"const uint16_t kStatus{camel(flag.name)} = 1u << {int(flag).bit_length() - 1};")
+    return lines + [f"const uint16_t kStatusEncoderMask = 0x{P.ENCODER_MASK:04X};", ""]
+
+
+def _config_blob() -> list[str]:
+    layout = P.CONFIG_LAYOUT
+    return ["// --- the configuration blob in EEPROM (docs/protocol.md section 9), followed by "
+            "its CRC,", "// most significant byte first ---",
+            f"const uint16_t kConfigMagic = 0x{P.CONFIG_MAGIC:04X};",
+            f"const uint8_t kConfigLayoutVersion = {P.CONFIG_LAYOUT_VERSION};",
+            f"const uint16_t kConfigBlobSize = {P.CONFIG_BLOB_SIZE};",
+            *_offsets("kConfig", layout), ""]
+
+
+def _scaling() -> list[str]:
+    exponents = range(wirescale.MIN_EXPONENT, wirescale.MAX_EXPONENT + 1)
+    mantissas = wirescale.MANTISSAS
+    return [
+        "// --- wrench scaling (docs/protocol.md section 7): LSB = mantissa x 10^exponent, the",
+        f"// smallest step whose +-{P.MAX_VALUE} counts cover kHeadroom x full scale ---",
+        f"const int8_t kMinExponent = {wirescale.MIN_EXPONENT};",
+        f"const int8_t kMaxExponent = {wirescale.MAX_EXPONENT};",
+        f"const uint8_t kMantissaCount = {len(mantissas)};",
+        f"const uint8_t kMantissas[kMantissaCount] = {{{', '.join(map(str, mantissas))}}};",
+        "// Decades as float literals: the host (delta6.link.wirescale) rounds the same decimals",
+        "// to float32, so both ends pick the same step even at exact boundaries.",
+        "const float kDecades[kMaxExponent - kMinExponent + 1] = {",
+        "    " + ", ".join(f"1e{e}f" for e in exponents) + "};",
+        f"const float kHeadroom = {wirescale.HEADROOM!r}f;",
+        "// A wrench value: counts of the LSB; kInvalidValue when the sample has none.",
+        f"const int16_t kInvalidValue = {P.INVALID_VALUE};",
+        f"const int16_t kMaxValue = {P.MAX_VALUE};",
+        "// float(kMaxValue) as IEEE-754 binary32 bits: quantize() compares magnitudes as integers.",
+        f"const uint32_t kMaxValueFloatBits = 0x{_float_bits(P.MAX_VALUE):08X}UL;",
+        ""]
+
+
+def _float_bits(x: float) -> int:
+    return struct.unpack("<I", struct.pack("<f", x))[0]
+
+
+def render_wire() -> str:
+    """The text of generated/delta6_wire.h."""
+    budget = P.LINK_BUDGET
+    lines = [
+        "// GENERATED FILE - DO NOT EDIT.",
+        f"// Written by `{COMMAND}` from delta6.link.protocol and delta6.link.wirescale",
+        "// (host/delta6/link/). Regenerate with that command; tests/firmware/test_codegen.py fails",
+        "// when this file is out of date. docs/protocol.md explains every number.",
+        "#ifndef DELTA6_GENERATED_WIRE_H",
+        "#define DELTA6_GENERATED_WIRE_H",
+        "",
+        "#include <stdint.h>",
+        "",
+        "namespace delta6 {",
+        "namespace proto {",
+        "",
+        f"const uint8_t kVersionMajor = {P.VERSION[0]};",
+        f"const uint8_t kVersionMinor = {P.VERSION[1]};",
+        "",
+        *_records(),
+        *_commands(),
+        *_enum(P.Mode, "kMode", "stream modes (SET_MODE argument, INFO)"),
+        *_status(),
+        *_enum(P.NackReason, "kNack", "NACK reasons (docs/protocol.md section 3)"),
+        *_enum(P.EventCode, "kEvent", "event codes (EVENT record)"),
+        *_enum(P.ConfigProblem, "kConfig",
+               "why a stored configuration was rejected (CONFIG_DEFAULTS argument)"),
+        *_config_blob(),
+        "// --- telemetry ---",
+        f"const int16_t kTemperatureUnknown = 0x{P.TEMPERATURE_UNKNOWN:04X};"
+        "  // no temperature sensor",
+        "",
+        *_scaling(),
+        f"// --- the link: data records may fill {budget.numerator}/{budget.denominator} of its "
+        f"baud / {P.BITS_PER_BYTE} bytes per second, computed",
+        "// as baud / kLinkBudgetDivisor x kLinkBudgetNumerator (dividing first: no 32-bit "
+        "overflow) ---",
+        f"const uint8_t kLinkBudgetNumerator = {budget.numerator};",
+        f"const uint16_t kLinkBudgetDivisor = {P.BITS_PER_BYTE * budget.denominator};",
+        "",
+        "}  // namespace proto",
+        "}  // namespace delta6",
+        "",
+        "#endif  // DELTA6_GENERATED_WIRE_H",
+        "",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,40 @@
+"""``delta6 convert``: a log from CSV to MCAP (ROS 2) or back, every column and header kept."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from delta6.core.errors import UserError
+from delta6.link.logfile import OPTIONAL_COLUMNS, open_log_writer, read_log
+
+NAME = "convert"
+HELP = "convert a log between CSV and MCAP (ROS 2 bag); the format follows each file's name"
+BLOCK_ROWS = 100_000
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("source", metavar="IN", help="log to read (CSV or MCAP, either name)")
+    parser.add_argument("output", metavar="OUT", help="log to write: MCAP if it ends in .mcap, "
+                                                      "CSV otherwise")
+    parser.add_argument("--frame-id", metavar="ID",
+                        help="frame id of the wrench messages (default: the log's, or delta6_e)")
+
+
+def run(args: argparse.Namespace) -> int:
+    source, output = Path(args.source), Path(args.output)
+    if output.exists() and source.exists() and output.resolve() == source.resolve():
+        raise UserError(f"{output}: the output would overwrite the log being read")
+    log = read_log(source, require_complete_rows=False)
+    meta = {k: v for k, v in log.meta.items() if k != "schema"}   # the writer writes its own
+    if args.frame_id is not None:
+        meta["frame_id"] = args.frame_id
+    optional = tuple(c for c in OPTIONAL_COLUMNS if getattr(log, c) is not None)
+    with open_log_writer(output, meta, optional=optional) as writer:
+        for start in range(0, len(log), BLOCK_ROWS):
+            part = slice(start, start + BLOCK_ROWS)
+            writer.write_block(log.t[part], log.theta[part], log.wrench[part],
+                               **{c: getattr(log, c)[part] for c in optional})
+    print(f"{output}: {len(log)} samples, columns t, theta_e1..6, Fx..Mz"
+          + "".join(f", {c}" for c in optional), file=sys.stderr)
+    return 0
