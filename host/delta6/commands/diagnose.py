@@ -34,13 +34,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     design = load_checked(args.design)
-    log = read_log(args.log)
 
     def progress(message: str) -> None:
         if not args.quiet:
             print(f"  {message}", file=sys.stderr, flush=True)
 
-    data = GapData.from_log(log, design)
+    data = GapData.from_log(read_log(args.log), design)   # the log's table is freed here
     result = diagnose_data(data, seed=args.seed, progress=progress)
     if args.json:
         try:

@@ -73,9 +73,13 @@ class GapData:
                 f"{outside.any(axis=1).mean():.0%} of the samples have encoder angles far "
                 f"outside the joint box (|theta_e| > {1.5 * limit:.2f} rad): wrong units "
                 "(degrees?) or wrong design")
-        data = cls(design=design, params=Params.from_design(design), t=np.asarray(log.t, float),
-                   theta=np.asarray(log.theta, float), reference=np.asarray(log.wrench, float),
-                   temp_c=None if temp is None else np.asarray(temp, float),
+        # Contiguous copies: a log's columns may be views into its whole table, which then
+        # need not stay in memory.
+        data = cls(design=design, params=Params.from_design(design),
+                   t=np.ascontiguousarray(log.t, float),
+                   theta=np.ascontiguousarray(log.theta, float),
+                   reference=np.ascontiguousarray(log.wrench, float),
+                   temp_c=None if temp is None else np.ascontiguousarray(temp, float),
                    fs=full_scale(design), ref_temp_c=ref_temp_c)
         if not np.all(np.isfinite(data.model)):
             raise DiagnosisInputError("the analytical model has no solution for some logged "

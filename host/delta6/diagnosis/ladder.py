@@ -25,10 +25,12 @@ def p99(err_pct: np.ndarray) -> np.ndarray:
     return np.percentile(np.abs(err_pct), 99, axis=0)
 
 
-def monotone(y: np.ndarray, preds: list[np.ndarray]) -> tuple[list[float], list[np.ndarray]]:
+def monotone(y: np.ndarray, preds: list[np.ndarray]) -> tuple[list[float], list[np.ndarray],
+                                                              np.ndarray]:
     """``y`` (n, 6) FS-normalised residual, ``preds`` the held-out predictions of the refit
-    after each step. Returns the blend weight of each step and the blended predictions."""
-    weights, blended = [], []
+    after each step. Returns the blend weight of each step, the held-out p99 (% FS) after each
+    step, and the final blended prediction (only one (n, 6) array is kept: long logs)."""
+    weights, p99s = [], []
     before = np.zeros_like(y)
     before_p99 = p99(100.0 * y)
     for pred in preds:
@@ -40,9 +42,9 @@ def monotone(y: np.ndarray, preds: list[np.ndarray]) -> tuple[list[float], list[
                     or a == 0.0:
                 break
         weights.append(float(a))
-        blended.append(trial)
+        p99s.append(trial_p99)
         before, before_p99 = trial, trial_p99
-    return weights, blended
+    return weights, p99s, before
 
 
 def blend_coefficients(prev: np.ndarray, new: np.ndarray, a: float) -> np.ndarray:

@@ -144,15 +144,14 @@ def _decide(data, problem, terms, skipped, where, cache, started, *, seed, progr
     candidates.sort(key=lambda c: c["score"], reverse=True)
 
     y = data.residual / data.fs
-    weights, blended = ladder_mod.monotone(y, [held["pred"][("step", s.added)]
-                                              for s in steps_found])
+    weights, step_p99, final_pred = ladder_mod.monotone(
+        y, [held["pred"].pop(("step", s.added)) for s in steps_found])
     steps = []
     chosen = []
     coef_all = np.zeros(0)
     fold_all = np.zeros((len(problem.folds), 0))
     current = base_sse
-    final_pred = np.zeros_like(y)
-    for step, weight, pred in zip(steps_found, weights, blended):
+    for step, weight, p99_after in zip(steps_found, weights, step_p99):
         chosen.append(step.added)
         coef_all = ladder_mod.blend_coefficients(coef_all, selection.fit(problem, chosen), weight)
         fold_all = ladder_mod.blend_coefficients(
@@ -166,12 +165,11 @@ def _decide(data, problem, terms, skipped, where, cache, started, *, seed, progr
             params[name] = term.summarize(coef_all[cols:cols + width])
             cols += width
         steps.append({"added": step.added,
-                      "heldout_p99_pct": ladder_mod.p99(100.0 * (y - pred)).tolist(),
+                      "heldout_p99_pct": p99_after.tolist(),
                       "gain": selection.gain(current, sse), "gain_lower": step.gain_low,
                       "damping": 1.0 - weight,
                       "params": params[step.added], "all_params": params})
         current = sse
-        final_pred = pred
 
     # Each named family's own share of the gap: what taking it out of the final model costs.
     final_sse = selection.heldout_block_sse(problem, chosen).sum() if chosen else 0.0
