@@ -51,6 +51,9 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
     if progress:
         progress("model and breakdowns")
     where = gap.where(data)
+    baseline_p99 = ladder_mod.p99(data.residual_pct).tolist()
+    for name in ("velocity", "residual_pct", "position_mm"):   # long logs: 50..100 MB each
+        data.__dict__.pop(name, None)
 
     vocabulary = TERMS if terms is None else tuple(terms)
     terms = [t for t in vocabulary if t.available(data)]
@@ -63,13 +66,13 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
         problem = selection.build_problem(data, terms, progress=progress,
                                           signatures=signatures, keep_columns=keep,
                                           cache=cache)
-        return _decide(data, problem, terms, skipped, where, cache, started, seed=seed,
-                       progress=progress, min_gain=min_gain, confidence=confidence,
-                       min_share=min_share)
+        return _decide(data, problem, terms, skipped, where, baseline_p99, cache, started,
+                       seed=seed, progress=progress, min_gain=min_gain,
+                       confidence=confidence, min_share=min_share)
 
 
-def _decide(data, problem, terms, skipped, where, cache, started, *, seed, progress,
-            min_gain, confidence, min_share) -> dict:
+def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, *, seed,
+            progress, min_gain, confidence, min_share) -> dict:
     design = data.design
     rng = np.random.default_rng(seed)
     names = [t.name for t in terms]
@@ -196,7 +199,7 @@ def _decide(data, problem, terms, skipped, where, cache, started, *, seed, progr
     for step in steps:
         step["named"] = not any(p["name"] == step["added"] for p in partial)
     result = {
-        "baseline_heldout_p99_pct": ladder_mod.p99(data.residual_pct).tolist(),
+        "baseline_heldout_p99_pct": baseline_p99,
         "present": [n for n in chosen if n in kept
                     and not any(p["name"] == n for p in partial)],
         "partial": partial,

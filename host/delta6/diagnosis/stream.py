@@ -18,10 +18,11 @@ import numpy as np
 
 from delta6.diagnosis.data import GapData
 
-#: Samples per piece: the columns of ~200 parameters for 20,000 samples take 190 MB.
-PIECE_SAMPLES = 20_000
+#: Samples per piece: the columns of ~220 parameters for 10,000 samples take 110 MB, and the
+#: families' intermediate arrays about as much again.
+PIECE_SAMPLES = 10_000
 #: Margin on either side of a piece, s: longer than any backlash dwell and its look-ahead.
-MARGIN_S = 20.0
+MARGIN_S = 10.0
 
 
 def margin_samples(data: GapData) -> int:
