@@ -113,7 +113,6 @@ def accumulate(data: GapData, terms, bounds: np.ndarray, signatures: dict | None
     sub = {name: (np.zeros((n_blocks, p, p)), np.zeros((n_blocks, p)), np.zeros(n_blocks),
                   np.zeros(n_blocks)) for name in signatures}
     x_all = np.empty((len(data), 6, p)) if keep_columns else None
-    y_all = data.residual / data.fs
     for a, b, keep, view in pieces(data):
         if progress:
             progress(f"columns of samples {a}..{b} of {len(data)}")
@@ -123,7 +122,7 @@ def accumulate(data: GapData, terms, bounds: np.ndarray, signatures: dict | None
             x_all[a:b] = x
         if cache is not None:
             cache.write(a, x)
-        y = y_all[a:b]
+        y = data.residual[a:b] / data.fs
         for blk, lo, hi in blocks_in(bounds, a, b):
             rows = slice(lo - a, hi - a)
             xb = x[rows].reshape(-1, p)
@@ -184,7 +183,6 @@ def predict(data: GapData, terms, bounds: np.ndarray, fold_of_block: np.ndarray,
     ``store``, name -> the FS-normalised prediction itself (float32, (n, 6)). ``x_all``: the
     whole log's columns when they were kept, ``cache`` the columns of an earlier pass (no
     columns are built then)."""
-    y_all = data.residual / data.fs
     tails = {name: Tails(len(data)) for name in models}
     kept = {name: np.empty((len(data), 6), dtype=np.float32) for name in store}
     stored = x_all is not None or cache is not None
@@ -199,7 +197,7 @@ def predict(data: GapData, terms, bounds: np.ndarray, fold_of_block: np.ndarray,
             x = cache.read(a, b)
         else:
             x = columns(view, terms, keep)
-        y = y_all[a:b]
+        y = data.residual[a:b] / data.fs
         fold = fold_of_block[np.searchsorted(bounds, np.arange(a, b), side="right") - 1]
         for name, (cols, coefs) in models.items():
             if len(cols):
