@@ -36,6 +36,20 @@ def baseline():
     return load(DESIGNS / "delta6.toml")
 
 
+@pytest.fixture(scope="session")
+def unit_logs(tmp_path_factory, baseline):
+    """Two twin runs of one unit, (calibration log, evaluation log) (support/learned.py)."""
+    from support import learned
+    return learned.unit_logs(baseline, tmp_path_factory.mktemp("unit"))
+
+
+@pytest.fixture(scope="session")
+def tiny_models(tmp_path_factory, baseline, unit_logs):
+    """One briefly trained model of each kind, exported: {kind: (path, fitted)}."""
+    from support import learned
+    return learned.tiny_models(baseline, unit_logs[0], tmp_path_factory.mktemp("models"))
+
+
 #: What the ``avr`` tests need, and the Debian package that provides each.
 AVR_TOOLS = {"avr-g++": "gcc-avr", "avr-gcc": "gcc-avr", "avr-size": "binutils-avr",
              "g++": "g++"}

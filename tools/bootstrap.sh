@@ -45,8 +45,8 @@ stamp="$VENV/.delta6-installed"
 want=$( { cat "$ROOT/pyproject.toml"; cd "$ROOT" && ls host/*/__init__.py codegen/*/__init__.py 2>/dev/null; } \
   | sha256sum | cut -d' ' -f1)
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
-  say "installing the delta6 package and its test dependencies into $VENV"
+  say "installing the delta6 package, its test dependencies and the training extra into $VENV"
   "$VENV/bin/python" -m pip install -q --upgrade pip >/dev/null
-  "$VENV/bin/python" -m pip install -q -e "$ROOT[test]"
+  "$VENV/bin/python" -m pip install -q -e "$ROOT[test,train]"
   echo "$want" > "$stamp"
 fi

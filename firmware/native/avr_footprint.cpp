@@ -32,7 +32,7 @@ const delta6::Identity identity = {
     d::kName, d::kHash,
     {d::kFullScale[0], d::kFullScale[1], d::kFullScale[2], d::kFullScale[3], d::kFullScale[4],
      d::kFullScale[5]},
-    d::kJointLimitRad, d::kJointLimitCounts, {0, 1, 0}, 500000, 2000, 0, 0};
+    d::kJointLimitRad, d::kJointLimitCounts, {0, 1, 0}, 500000, 2000, 0, 0, nullptr, 0};
 const delta6::Config defaults = {200, 1, false, {0, 0, 0, 0, 0, 0}, {0, 0, 0, 0, 0, 0}};
 delta6::Device device(hardware, identity, defaults);
 

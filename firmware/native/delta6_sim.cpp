@@ -41,6 +41,8 @@ struct Setup {
     identity.max_rate_hz = max_rate;
     identity.serial_number = serial;
     identity.eeprom_address = 0;
+    identity.calibration_name = nullptr;
+    identity.calibration_hash = 0;
     memset(&defaults, 0, sizeof(defaults));
     defaults.rate_hz = default_rate;
     defaults.mode = delta6::proto::kModeWrench;

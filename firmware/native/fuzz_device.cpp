@@ -134,7 +134,7 @@ int main(int argc, char** argv) {
   state = strtoull(argv[1], 0, 10) * 0x9E3779B97F4A7C15ULL + 1;
   const long steps = strtol(argv[2], 0, 10);
 
-  sim::SimHardware hw(500000, static_cast<uint16_t>(140 + below(200)));
+  sim::SimHardware hw(500000, static_cast<uint16_t>(delta6::proto::kMaxFrameBytes + below(200)));
   Identity id;
   memset(&id, 0, sizeof(id));
   id.design_name = "fuzz-design-with-a-name-longer-than-23";

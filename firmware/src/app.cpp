@@ -7,6 +7,16 @@
 #include "delta6_solver.h"
 #include "generated/delta6_design.h"
 
+// A unit's calibration, when `delta6 codegen --calibration` put one next to the design header
+// (docs/calibration.md); without it the firmware is the plain analytical one.
+#if defined(__has_include)
+#if __has_include("generated/delta6_calibration.h")
+#include "delta6_calibrated.h"
+#include "generated/delta6_calibration.h"
+#define DELTA6_CALIBRATED 1
+#endif
+#endif
+
 // The fastest rate the board sustains without overruns in both stream modes, for the info
 // record and the START check: 350 Hz at 16 MHz (tools/bench_virtual_board.py on the emulated
 // ATmega328P: wrench streams sustain 400 Hz, wrench+raw 350 Hz; the 4809 runs the same code
@@ -42,6 +52,12 @@ volatile uint8_t queue_tail = 0;   // written by the main loop
 volatile uint8_t missed = 0;
 volatile bool latching = false;
 
+#if DELTA6_CALIBRATED
+// The calibrated model's history, and the zero counts it was built on (a new zero restarts it).
+delta6::CalibrationState calibration_state;
+uint16_t calibration_zero[6];
+#endif
+
 class BoardHardware : public delta6::Hardware {
  public:
   uint16_t txSpace() override { return board::txSpace(); }
@@ -60,6 +76,10 @@ class BoardHardware : public delta6::Hardware {
   }
   uint32_t micros() override { return board::micros(); }
   void sampleRateChanged(uint16_t rate_hz) override {
+#if DELTA6_CALIBRATED
+    delta6::calibration_set_period(delta6::calibration::kCalibrationConstants,
+                                   1.0f / static_cast<float>(rate_hz), calibration_state);
+#endif
     board::startSampling(rate_hz);
     board::watchdogStart(rate_hz);
   }
@@ -78,6 +98,13 @@ delta6::Identity identity = {
     DELTA6_MAX_RATE_HZ,
     0,   // serial number: set in setup()
     kEepromAddress,
+#if DELTA6_CALIBRATED
+    delta6::calibration::kName,
+    delta6::calibration::kHash,
+#else
+    nullptr,   // no calibration: the analytical model
+    0,
+#endif
 };
 // Zero counts 0 until the assembly is calibrated (ZERO_HERE, then SAVE_CONFIG).
 const delta6::Config defaults = {
@@ -103,7 +130,21 @@ void process(const Latched& latched) {
     const uint16_t* zero = device.zeroCounts();
     int16_t delta[6];
     for (uint8_t j = 0; j < 6; ++j) delta[j] = delta6::wrap_count_delta(s.counts[j], zero[j]);
+#if DELTA6_CALIBRATED
+    bool zero_changed = false;
+    for (uint8_t j = 0; j < 6; ++j) {
+      if (zero[j] != calibration_zero[j]) {
+        calibration_zero[j] = zero[j];
+        zero_changed = true;
+      }
+    }
+    if (zero_changed) delta6::calibration_reset(calibration_state);
+    s.solver_ok = delta6::solve_calibrated(d::kSolverConstants,
+                                           delta6::calibration::kCalibrationConstants,
+                                           calibration_state, delta, s.wrench) == delta6::kSolveOk;
+#else
     s.solver_ok = delta6::solve_counts(d::kSolverConstants, delta, s.wrench) == delta6::kSolveOk;
+#endif
   } else {
     s.solver_ok = false;   // no wrench without all six angles
     for (uint8_t i = 0; i < 6; ++i) s.wrench[i] = 0.0f;

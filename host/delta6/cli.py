@@ -13,7 +13,7 @@ from delta6.core.errors import UserError
 
 #: Subcommand modules, in the order ``delta6 --help`` lists them.
 COMMAND_MODULES = ("design", "codegen", "virtual", "info", "stream", "log", "tare", "decode",
-                   "convert", "simulate", "diagnose", "flash")
+                   "convert", "simulate", "diagnose", "calibrate", "evaluate", "flash", "train")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -111,7 +111,8 @@ def test_committed_wire_header_is_up_to_date():
 def test_wire_check_reports_a_stale_header_and_the_fix(tmp_path, capsys):
     assert main(["codegen", "--wire", "--check"]) == 0
     stale = tmp_path / "delta6_wire.h"
-    stale.write_text(WIRE.read_text().replace("kInfoSize = 128", "kInfoSize = 127"))
+    size = P.RECORD_SIZES[P.RecordType.INFO]
+    stale.write_text(WIRE.read_text().replace(f"kInfoSize = {size}", f"kInfoSize = {size - 1}"))
     assert main(["codegen", "--wire", "--check", "-o", str(stale)]) == 1
     assert "run: delta6 codegen --wire" in capsys.readouterr().err
     assert main(["codegen", "--wire", "-o", str(stale)]) == 0

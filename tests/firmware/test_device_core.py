@@ -342,10 +342,10 @@ def test_overrange_and_joint_limit(bench):
 
 
 def test_answers_go_first_on_a_full_link_and_every_drop_is_a_counted_gap():
-    """A 140-byte transmit queue at 1.6 kHz: the 132-byte info record only fits into an empty
+    """A 170-byte transmit queue at 1.6 kHz: the 160-byte info record only fits into an empty
     queue, so data records give way until it went out. The host sees exactly the gaps the
     device counts, and the first record after each gap says so."""
-    b = Bench(rate_hz=1000, tx_capacity=140, baud=500_000)
+    b = Bench(rate_hz=1000, tx_capacity=170, baud=500_000)
     records = b.send(C.START, 1600)
     infos = 0
     for _ in range(20):

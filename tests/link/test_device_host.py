@@ -58,7 +58,7 @@ def test_raw_mode_gives_angles_and_the_reference_wrench():
 
 
 def test_commands_are_answered_while_streaming_without_losing_samples():
-    """At a pace the link's spare 10 % carries (a burst of 132-byte info records faster than
+    """At a pace the link's spare 10 % carries (a burst of 160-byte info records faster than
     that makes data records give way, counted as gaps: the next test)."""
     with Device("delta6sim://") as dev:
         dev.start(1000)
@@ -131,10 +131,10 @@ def test_a_vanishing_port_ends_iteration_with_a_clear_error_after_the_last_sampl
 
 
 def test_sequence_gaps_match_what_the_device_dropped():
-    with Device("delta6sim://?tx_capacity=140") as dev:
+    with Device("delta6sim://?tx_capacity=170") as dev:
         dev.start(1600)
         for _ in range(15):
-            dev.info(refresh=True)       # 132-byte answers push data records out of the way
+            dev.info(refresh=True)       # 160-byte answers push data records out of the way
         first = take(dev, 1)[0].seq
         time.sleep(0.05)
         dropped = dev.telemetry().tx_dropped

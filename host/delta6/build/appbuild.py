@@ -17,7 +17,7 @@ SIZE_PROBE = avrbuild.FIRMWARE / "native" / "app_size_probe.cpp"
 
 
 def solver_sources() -> list[Path]:
-    return [avrbuild.CORE_LIB / "delta6_solver.cpp"]
+    return [avrbuild.CORE_LIB / "delta6_solver.cpp", avrbuild.CORE_LIB / "delta6_calibrated.cpp"]
 
 
 def app_sources() -> list[Path]:
@@ -37,12 +37,15 @@ def build_app(include_dir: Path | None = None, *, name: str = "delta6-app",
                                 defines=defines, out_dir=out_dir)
 
 
-def size_check_app(mcu: str = "avrxmega3") -> avrbuild.Image:
+def size_check_app(mcu: str = "avrxmega3", include_dir: Path | None = None,
+                   name: str = "delta6-app-probe") -> avrbuild.Image:
     """The application's portable part (app.cpp, solver, protocol core) on ``mcu`` with a
-    do-nothing board layer: what it costs on the ATmega4809's instruction set. The 4809 board
+    do-nothing board layer: what it costs on the ATmega4809's instruction set (``include_dir``:
+    a design's generated headers, with or without a calibration). The 4809 board
     layer itself needs the 4809's device headers, which Debian lacks."""
     sources = [APP_DIR / "app.cpp", SIZE_PROBE, *solver_sources(), *nativebuild.core_sources()]
-    return avrbuild.size_check(f"delta6-app-probe-{mcu}", sources,
-                               include_dirs=[avrbuild.COMMITTED_DESIGN_INCLUDE, APP_DIR,
+    include = include_dir if include_dir is not None else avrbuild.COMMITTED_DESIGN_INCLUDE
+    return avrbuild.size_check(f"{name}-{mcu}", sources,
+                               include_dirs=[include, APP_DIR,
                                              avrbuild.CORE_LIB],
                                defines=["F_CPU=16000000UL"], mcu=mcu)

@@ -75,6 +75,11 @@ def log_meta(info: Info, port: str, command: str) -> dict:
         "lsb": " ".join(f"{v:g}" for v in info.lsb),
         "zero_counts": " ".join(map(str, info.zero_counts)),
         "tare": " ".join(f"{v:.9g}" for v in info.tare),
+        # The calibration the board applies (docs/calibration.md), when there is one: a host
+        # refuses to evaluate the log against another.
+        **({"calibration": info.calibration_name,
+            "calibration_hash": f"0x{info.calibration_hash:08x}"}
+           if info.calibration_hash else {}),
     }
 
 

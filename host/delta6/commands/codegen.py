@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from delta6.build import avrbuild
+from delta6.core import calibration as calibration_mod
 from delta6.core import design as design_mod
 from delta6.core import paths
 from delta6.core.errors import UserError
@@ -15,10 +16,12 @@ from delta6.link.protocol import VERSION as PROTOCOL_VERSION
 from delta6_codegen.wire_header import HEADER_RELPATH as WIRE_HEADER_RELPATH
 
 NAME = "codegen"
-HELP = ("write the firmware header generated/delta6_design.h for a design "
+HELP = ("write the firmware header generated/delta6_design.h for a design, and with "
+        "--calibration a unit's generated/delta6_calibration.h next to it "
         "(--build: into build/designs/NAME/ and build the ATmega328P firmware image there), "
         "or with --wire the protocol's generated/delta6_wire.h")
 HEADER_RELPATH = Path("generated") / "delta6_design.h"
+CALIBRATION_HEADER = "delta6_calibration.h"
 COMMITTED_HEADER = avrbuild.COMMITTED_DESIGN_INCLUDE / HEADER_RELPATH
 WIRE_RELPATH = Path(WIRE_HEADER_RELPATH)
 
@@ -37,6 +40,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--build", action="store_true",
                         help="also build the ATmega328P firmware application for this design "
                              "with the local avr-gcc (the committed header is left alone)")
+    parser.add_argument("--calibration", metavar="CAL.toml", type=Path,
+                        help="compile a unit's calibration (delta6 calibrate) into the firmware: "
+                             f"writes {CALIBRATION_HEADER} next to the design header; without "
+                             "it, a calibration header there is removed")
     parser.add_argument("--check", action="store_true",
                         help="write nothing; exit 1 if the header differs from what the design "
                              "(or with --wire, the protocol) generates")
@@ -61,11 +68,26 @@ def header_text(path: Path) -> tuple[design_mod.Design, str]:
     return design, render(design, source_label(path))
 
 
-def output_path(args: argparse.Namespace, design: design_mod.Design) -> Path:
+def calibration_text(design: design_mod.Design, design_path: Path, cal_path: Path | None):
+    """The calibration header for ``cal_path`` (None: no calibration, no header)."""
+    if cal_path is None:
+        return None, None
+    from delta6_codegen import render_calibration
+    cal = calibration_mod.load(cal_path)
+    cal.check_design(design)
+    return cal, render_calibration(design, cal, source_label(design_path), source_label(cal_path))
+
+
+def build_name(design: design_mod.Design, cal=None) -> str:
+    """The build directory's name: one per design, and one per calibrated unit."""
+    return design.name if cal is None else f"{design.name}-cal-{cal.hash32():08x}"
+
+
+def output_path(args: argparse.Namespace, design: design_mod.Design, cal=None) -> Path:
     if args.output is not None:
         return args.output
     if args.build:
-        return avrbuild.design_include_dir(design.name) / HEADER_RELPATH
+        return avrbuild.design_include_dir(build_name(design, cal)) / HEADER_RELPATH
     return COMMITTED_HEADER
 
 
@@ -87,14 +109,21 @@ def run(args: argparse.Namespace) -> int:
     if args.build or args.output is None:
         paths.checkout()    # the firmware tree the header belongs to, or one line saying so
     design, text = header_text(args.design)
-    out = output_path(args, design)
+    cal, cal_text = calibration_text(design, args.design, args.calibration)
+    out = output_path(args, design, cal)
+    cal_out = out.with_name(CALIBRATION_HEADER)
     if args.check:
-        return check(out, text, source_label(args.design),
-                     f"delta6 codegen {source_label(args.design)}")
+        return _check(args, out, text, cal_out, cal_text)
     verb = "wrote" if _write_if_changed(out, text) else "unchanged:"
     print(f"{verb} {_rel(out)} for design '{design.name}' (hash 0x{design.hash32():08x})")
+    if cal is not None:
+        verb = "wrote" if _write_if_changed(cal_out, cal_text) else "unchanged:"
+        print(f"{verb} {_rel(cal_out)} for calibration '{cal.name}' (hash 0x{cal.hash32():08x})")
+    elif cal_out.exists():
+        _remove(cal_out)
+        print(f"removed {_rel(cal_out)}: the firmware is the uncalibrated one")
     if args.build:
-        image = build_image(design, include_dir_of(out))
+        image = build_image(design, include_dir_of(out), cal)
         sizes = image.sizes
         print(f"built {_rel(image.elf)} and .hex ({image.mcu}): flash {sizes.flash} B of "
               f"{avrbuild.NANO.flash_bytes}, static RAM {sizes.ram} B of {avrbuild.NANO.ram_bytes}")
@@ -104,9 +133,9 @@ def run(args: argparse.Namespace) -> int:
 def run_wire(args: argparse.Namespace) -> int:
     """``--wire``: the core's generated/delta6_wire.h from delta6.link.protocol."""
     from delta6_codegen.wire_header import COMMAND, render_wire
-    if args.design is not None or args.build:
-        raise UserError("--wire takes no design file and no --build: the wire layout is the "
-                        "same for every design")
+    if args.design is not None or args.build or args.calibration is not None:
+        raise UserError("--wire takes no design file, --calibration or --build: the wire "
+                        "layout is the same for every design")
     out = args.output if args.output is not None else paths.checkout() / WIRE_RELPATH
     text = render_wire()
     if args.check:
@@ -129,21 +158,55 @@ def check(out: Path, text: str, source: str, command: str) -> int:
     return 0
 
 
-def build_image(design: design_mod.Design, include_dir: Path) -> avrbuild.Image:
-    """The firmware application for ``design`` (header under ``include_dir``), in
-    build/designs/NAME/atmega328p/."""
+def _check(args, out: Path, text: str, cal_out: Path, cal_text: str | None) -> int:
+    """``--check`` of the design header and of the calibration header (or its absence)."""
+    label = source_label(args.design)
+    command = f"delta6 codegen {label}" + (f" --calibration {source_label(args.calibration)}"
+                                           if args.calibration else "")
+    status = check(out, text, label, command)
+    if _read(cal_out) != cal_text:
+        print(f"{_rel(cal_out)} is out of date with {label}; run: {command}", file=sys.stderr)
+        status = 1
+    return status
+
+
+def _read(path: Path) -> str | None:
+    try:
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return None
+
+
+def _remove(path: Path) -> None:
+    try:
+        path.unlink()
+    except OSError as exc:
+        raise UserError(f"cannot remove {path}: {exc.strerror}") from None
+
+
+def build_image(design: design_mod.Design, include_dir: Path, cal=None) -> avrbuild.Image:
+    """The firmware application for ``design`` (headers under ``include_dir``), in
+    build/designs/NAME/atmega328p/ (NAME-cal-HASH for a calibrated unit)."""
     from delta6.build.appbuild import build_app
-    return build_app(include_dir, name=f"delta6-{design.name}",
-                     out_dir=avrbuild.design_build_dir(design.name) / "atmega328p")
+    name = build_name(design, cal)
+    return build_app(include_dir, name=f"delta6-{name}",
+                     out_dir=avrbuild.design_build_dir(name) / "atmega328p")
 
 
-def design_firmware(path: Path) -> avrbuild.Image:
-    """Generate ``path``'s header into build/designs/NAME/include/ (the committed header is
-    left alone) and build the application for it: what ``delta6 virtual --design`` runs."""
+def design_firmware(path: Path, calibration: Path | None = None) -> avrbuild.Image:
+    """Generate ``path``'s header (and ``calibration``'s) into build/designs/NAME/include/
+    (the committed headers are left alone) and build the application for it: what
+    ``delta6 virtual --design [--calibration]`` runs."""
     design, text = header_text(path)
-    header = avrbuild.design_include_dir(design.name) / HEADER_RELPATH
+    cal, cal_text = calibration_text(design, path, calibration)
+    header = avrbuild.design_include_dir(build_name(design, cal)) / HEADER_RELPATH
     _write_if_changed(header, text)
-    return build_image(design, include_dir_of(header))
+    cal_header = header.with_name(CALIBRATION_HEADER)
+    if cal is not None:
+        _write_if_changed(cal_header, cal_text)
+    elif cal_header.exists():
+        _remove(cal_header)
+    return build_image(design, include_dir_of(header), cal)
 
 
 def _write_if_changed(path: Path, text: str) -> bool:

@@ -31,6 +31,8 @@ def run(args: argparse.Namespace) -> int:
         f"Delta6 on {args.port}: design '{info.design_name}' (hash 0x{info.design_hash:08x}), "
         f"firmware {info.firmware_version}, protocol {info.protocol_version}, "
         f"serial 0x{info.serial_number:08x}",
+        (f"  calibration '{info.calibration_name}' (hash 0x{info.calibration_hash:08x})"
+         if info.calibration_hash else "  no calibration: the analytical model"),
         f"  rate {info.rate_hz} Hz (board max {info.max_rate_hz} Hz; link at {info.baud} baud "
         f"carries {link_rate_limit(info.baud, Mode.WRENCH)} Hz wrench, "
         f"{link_rate_limit(info.baud, Mode.WRENCH_RAW)} Hz wrench+raw)",

@@ -24,7 +24,7 @@ from delta6.twin import (
     write_log,
 )
 from delta6.twin.scenarios import SCENARIO_HELP, refuse_repeats
-from delta6.twin.truth import truth_path
+from delta6.twin.truth import read_truth, same_unit, truth_path
 
 NAME = "simulate"
 HELP = "simulate a calibration run (digital twin): a log of encoder angles and reference wrench"
@@ -53,6 +53,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--record-temp", action="store_true",
                         help="write temp_c even without thermal_drift (so that the column's "
                              "presence reveals nothing)")
+    parser.add_argument("--unit", metavar="RUN.truth.json",
+                        help="simulate the same unit as a previous run (its design, effects and "
+                             "parameters, the same rig) with a new trajectory, noise and "
+                             "temperature history drawn from --seed")
     parser.add_argument("--list", action="store_true",
                         help="list the effects (parameters, units, realistic ranges) and "
                              "scenarios, then exit")
@@ -87,15 +91,21 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"cannot write {out}: directory {out.parent} does not exist")
     if out.is_dir():
         raise UserError(f"cannot write {out}: it is a directory")
-    design = load_checked(args.design or DEFAULT_DESIGN)
-    effects = _effects(args, seed, magnitude)
+    if args.unit:
+        kwargs = _unit(args, seed, magnitude)
+        if args.record_temp:
+            kwargs["record_temp"] = True
+    else:
+        kwargs = {"design": load_checked(args.design or DEFAULT_DESIGN),
+                  "effects": _effects(args, seed, magnitude), "seed": seed,
+                  "record_temp": True if args.record_temp else None,
+                  "scenario": args.scenario}
+    effects = kwargs["effects"]
 
     progress = Progress(sys.stderr, enabled=duration * rate >= 20_000)
     started = time.perf_counter()
     try:
-        result = simulate(design, effects, duration, rate, seed,
-                          record_temp=True if args.record_temp else None,
-                          scenario=args.scenario, progress=progress.stage)
+        result = simulate(duration_s=duration, rate_hz=rate, progress=progress.stage, **kwargs)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     simulated = time.perf_counter() - started
@@ -104,6 +114,23 @@ def run(args: argparse.Namespace) -> int:
     written = time.perf_counter() - started - simulated
     print(summary(result, effects, log_path, truth_file, simulated, written))
     return 0
+
+
+def _unit(args, seed: int, magnitude: float | None) -> dict:
+    """``simulate`` arguments for the unit of a previous run (``--unit``)."""
+    given = [flag for flag, on in (("--scenario", args.scenario), ("--effect", args.effect),
+                                   ("--random", args.random),
+                                   ("--magnitude", magnitude is not None)) if on]
+    if given:
+        raise UserError(f"--unit takes the effects of the recorded run; drop {given[0]}")
+    kwargs = same_unit(read_truth(args.unit), seed)
+    if args.design:
+        design = load_checked(args.design)
+        if design.hash32() != kwargs["design"].hash32():
+            raise UserError(f"{args.unit} was simulated with design "
+                            f"'{kwargs['design'].name}' (hash 0x{kwargs['design'].hash32():08x}),"
+                            f" not {args.design}")
+    return kwargs
 
 
 def _effects(args, seed: int, magnitude: float | None):

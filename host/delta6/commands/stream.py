@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -20,7 +21,11 @@ from delta6.commands._port import (
     start_stream,
 )
 from delta6.commands._termplot import RollingPlot
+from delta6.core import calibration as calibration_mod
+from delta6.core.design import load
 from delta6.core.errors import UserError
+from delta6.core.paths import DEFAULT_DESIGN
+from delta6.learning import LearnedEstimator
 from delta6.link.logfile import THETA_COLUMNS, WRENCH_COLUMNS
 from delta6.link.ros2msg import DEFAULT_FRAME_ID
 
@@ -37,6 +42,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--interval", type=number("--interval", low=0, low_open=True),
                         default=0.1, metavar="S",
                         help="seconds between display updates (default 0.1)")
+    parser.add_argument("--model", metavar="MODEL.onnx",
+                        help="the wrench of a learned estimator (delta6 train) instead of the "
+                             "device's, in every output: streams the raw counts at the model's "
+                             "rate")
+    parser.add_argument("--design", default=str(DEFAULT_DESIGN), metavar="DESIGN.toml",
+                        help="with --model: the device's design (default: the paper's)")
+    parser.add_argument("--calibration", metavar="CAL.toml",
+                        help="with --model: the calibration a residual model was trained over "
+                             "(applied on the host to the raw counts)")
     parser.add_argument("--format", choices=FORMATS, default="table",
                         help="table: one readout line updated in place (default); csv, jsonl: "
                              "every sample on stdout, for piping")
@@ -118,17 +132,43 @@ class _Screen:
         pass
 
 
+def learned_estimator(args: argparse.Namespace):
+    """The streaming estimator of ``--model`` (None without it); the stream is then raw, at
+    the model's rate."""
+    if args.model is None:
+        if args.calibration:
+            raise UserError("--calibration goes with --model (a residual over a calibration)")
+        return None
+    calibration = calibration_mod.load(args.calibration) if args.calibration else None
+    estimator = LearnedEstimator(args.model, design=load(args.design),
+                                 calibration=calibration).streaming()
+    model_rate = estimator.estimator.rate_hz
+    if args.rate is not None and abs(args.rate / model_rate - 1) > 0.02:
+        raise UserError(f"--rate {args.rate}: {args.model} was trained on samples at "
+                        f"{model_rate:g} Hz")
+    if abs(model_rate - round(model_rate)) > 1e-6:
+        raise UserError(f"{args.model} was trained at {model_rate:g} Hz, which the device "
+                        "cannot sample at")
+    args.rate, args.raw = int(round(model_rate)), True
+    return estimator
+
+
 def run(args: argparse.Namespace) -> int:
     if args.plot and args.format != "table":
         raise UserError("--plot draws on the terminal; it does not combine with --format "
                         f"{args.format}")
-    raw = bool(args.raw)
     out = sys.stdout
     display = _Screen(out) if args.plot else Progress(out) if args.format == "table" else None
     plot = RollingPlot(args.plot_seconds) if args.plot else None
     live = None
+    learned = learned_estimator(args)
+    raw = bool(args.raw)
     with open_device(args) as dev:
+        if learned is not None:
+            learned.check_device(dev.info())
         rate = start_stream(dev, args)
+        if learned is not None:
+            print(f"learned estimator: {learned.estimator.card.describe()}", file=sys.stderr)
         if args.foxglove:
             from delta6.link.foxglovelive import FoxgloveLive
             info = dev.info()
@@ -146,6 +186,9 @@ def run(args: argparse.Namespace) -> int:
         try:
             while args.duration is None or time.monotonic() - started < args.duration:
                 block = dev.read_block()
+                if learned is not None:
+                    block = dataclasses.replace(
+                        block, wrench=learned.update_block(block.t, block.theta))
                 if live is not None:
                     live.publish(block)
                 if args.format == "csv":

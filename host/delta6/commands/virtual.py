@@ -28,6 +28,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--design", metavar="DESIGN.toml", type=Path,
                         help="build the firmware for this design (default: the committed "
                              "header, designs/delta6.toml)")
+    parser.add_argument("--calibration", metavar="CAL.toml", type=Path,
+                        help="run the firmware with this unit's calibration compiled in "
+                             "(delta6 calibrate; with --design, or the default design)")
     motion = parser.add_mutually_exclusive_group()
     motion.add_argument("--replay", metavar="LOG.csv", type=Path,
                         help="encoder angles over time: a log with t and theta_e1..6 columns "
@@ -85,9 +88,9 @@ def run(args: argparse.Namespace) -> int:
     if args.loop and args.replay is None:
         raise UserError("--loop goes with --replay")
     run_of_twin = _simulate_twin(args) if args.twin else None
-    if args.design is not None:
+    if args.design is not None or args.calibration is not None:
         from delta6.commands.codegen import design_firmware
-        image = design_firmware(args.design)
+        image = design_firmware(args.design or Path(DEFAULT_DESIGN), args.calibration)
     else:
         image = vb.firmware()
     with tempfile.TemporaryDirectory(prefix="delta6-virtual-") as tmp:

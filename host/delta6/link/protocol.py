@@ -20,7 +20,7 @@ from delta6.link import cobs
 from delta6.link.crc import crc16
 from delta6.link.layout import Field, Layout
 
-VERSION = (1, 0)
+VERSION = (1, 1)
 
 #: The recommended UART rate (docs/protocol.md, "Baud rate"): exact on 16 MHz AVRs, carries
 #: 1 kHz of wrench records at half load.
@@ -171,7 +171,9 @@ RECORD_LAYOUTS = {
         Field("lsb_exponent", "b", 6), Field("rate_hz", "H"), Field("max_rate_hz", "H"),
         Field("status", "H"), Field("streaming", "B"), Field("reserved", "B"),
         Field("baud", "I"), Field("serial_number", "I"), Field("zero_counts", "H", 6),
-        Field("tare", "f", 6), Field("joint_limit_rad", "f")]),
+        Field("tare", "f", 6), Field("joint_limit_rad", "f"),
+        # 1.1: the calibration the firmware applies (hash 0 and no name: none).
+        Field("calibration_hash", "I"), Field("calibration_name", "s", 24)]),
     RecordType.ACK: Layout("ACK", [_TYPE, _REQUEST, Field("command", "B"), Field("value", "I")]),
     RecordType.NACK: Layout("NACK", [_TYPE, _REQUEST, Field("command", "B"),
                                      Field("reason", "B"), Field("detail", "I")]),
@@ -185,6 +187,8 @@ RECORD_LAYOUTS = {
     RecordType.EVENT: Layout("EVENT", [_TYPE, Field("code", "B"), Field("arg", "I")]),
 }
 RECORD_SIZES = {t: layout.size for t, layout in RECORD_LAYOUTS.items()}
+#: INFO as protocol 1.0 sent it (without the calibration fields), still accepted.
+INFO_SIZE_1_0 = RECORD_LAYOUTS[RecordType.INFO].offsets["calibration_hash"]
 _WRENCH = RECORD_LAYOUTS[RecordType.WRENCH].struct
 _WRENCH_RAW = RECORD_LAYOUTS[RecordType.WRENCH_RAW].struct
 
@@ -273,6 +277,8 @@ class Info(NamedTuple):
     zero_counts: tuple
     tare: tuple
     joint_limit_rad: float
+    calibration_hash: int = 0      # 1.1; 0: the analytical model, no calibration
+    calibration_name: str = ""
 
     @property
     def lsb(self) -> np.ndarray:
@@ -363,6 +369,8 @@ def parse_payload(payload: bytes):
     size = RECORD_SIZES.get(kind)
     if size is None:
         raise ProtocolError(f"unknown record type 0x{kind:02x}")
+    if kind == RecordType.INFO and INFO_SIZE_1_0 <= len(payload) < size:
+        payload = bytes(payload) + bytes(size - len(payload))   # a 1.0 device: no calibration
     if len(payload) < size:
         raise ProtocolError(f"record type 0x{kind:02x} has {len(payload)} bytes, needs {size}")
     # Data records by position, twice as fast as by name (the order is checked at import):
@@ -377,8 +385,8 @@ def parse_payload(payload: bytes):
     del fields["type"]
     if kind == RecordType.INFO:
         del fields["reserved"]
-        fields["design_name"] = fields["design_name"].split(b"\x00", 1)[0].decode("ascii",
-                                                                                   "replace")
+        for key in ("design_name", "calibration_name"):
+            fields[key] = fields[key].split(b"\x00", 1)[0].decode("ascii", "replace")
         fields["streaming"] = bool(fields["streaming"])
     return _RECORD_TUPLES[kind](**fields)
 
@@ -421,6 +429,8 @@ def encode_record(record) -> bytes:
     if kind == RecordType.INFO:
         name_field = RECORD_LAYOUTS[kind].field("design_name")
         fields.update(design_name=record.design_name.encode("ascii")[:name_field.count - 1],
+                      calibration_name=record.calibration_name.encode("ascii")[
+                          :name_field.count - 1],
                       streaming=int(record.streaming), reserved=0)
     return frame(RECORD_LAYOUTS[kind].pack(type=kind, **fields))
 

@@ -36,6 +36,7 @@ from delta6.twin.truth import (
                       effects_from_truth,
                       read_truth,
                       replay_arguments,
+                      same_unit,
                       truth_path,
                       without,
                       write_truth,
@@ -47,5 +48,5 @@ __all__ = [
     "EffectRequest", "build_effects", "make_effect", "parse_request", "random_effect",
     "random_effects", "scenario_effects", "SimResult", "simulate", "TemperatureSettings",
     "FunctionPath", "RandomTrajectory", "TrajectorySettings", "effects_from_truth",
-    "read_truth", "replay_arguments", "truth_path", "write_truth", "without", "registry_info",
+    "read_truth", "replay_arguments", "same_unit", "truth_path", "write_truth", "without", "registry_info",
 ]

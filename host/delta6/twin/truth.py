@@ -102,6 +102,17 @@ def replay_arguments(truth: dict) -> dict:
     }
 
 
+def same_unit(truth: dict, seed: int) -> dict:
+    """``simulate`` arguments for the same unit as the recorded run (the same design, effects
+    and parameters, the same rig) in a new run: ``seed`` draws a new trajectory, new noise and
+    a new temperature history. The caller sets the duration and the rate."""
+    args = replay_arguments(truth)
+    for key in ("duration_s", "rate_hz", "seed"):
+        del args[key]
+    args["seed"] = seed
+    return args
+
+
 def without(truth: dict, names) -> dict:
     """``simulate`` arguments for the recorded run with some effects removed (same seed, same
     trajectory, same noise): the analytical model's error on that run is what is left when the

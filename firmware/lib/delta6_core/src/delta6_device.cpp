@@ -474,6 +474,11 @@ uint16_t Device::buildInfo(uint8_t request_id) {
   putU32(p + kInfoOffBaud, id_.baud);
   putU32(p + kInfoOffSerialNumber, id_.serial_number);
   putF32(p + kInfoOffJointLimitRad, id_.joint_limit_rad);
+  putU32(p + kInfoOffCalibrationHash, id_.calibration_hash);
+  for (uint8_t i = 0; i < kInfoCalibrationNameBytes - 1 && id_.calibration_name &&
+                      id_.calibration_name[i]; ++i) {
+    p[kInfoOffCalibrationName + i] = static_cast<uint8_t>(id_.calibration_name[i]);
+  }
   return finishFrame(tx_, kInfoSize);
 }
 

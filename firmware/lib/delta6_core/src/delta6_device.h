@@ -53,6 +53,8 @@ struct Identity {
   uint16_t max_rate_hz;      // the fastest loop the board sustains
   uint32_t serial_number;    // board-specific identifier, 0 if none
   uint16_t eeprom_address;   // where the configuration blob lives
+  const char* calibration_name;  // the calibration compiled in (ASCII, <= 23 characters), or
+  uint32_t calibration_hash;     // nullptr and 0: the analytical model (INFO, protocol 1.1)
 };
 
 // The persistent configuration (saved to EEPROM only by the save command).

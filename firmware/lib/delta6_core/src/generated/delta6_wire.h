@@ -11,7 +11,7 @@ namespace delta6 {
 namespace proto {
 
 const uint8_t kVersionMajor = 1;
-const uint8_t kVersionMinor = 0;
+const uint8_t kVersionMinor = 1;
 
 // --- records (device -> host): type, payload size (type byte included, CRC
 // excluded) and the offset of every field (docs/protocol.md section 3) ---
@@ -34,7 +34,7 @@ const uint8_t kWrenchRawOffWrench = 9;  // 6 x i16
 const uint8_t kWrenchRawOffCounts = 21;  // 6 x u16
 
 const uint8_t kInfo = 0x03;
-const uint8_t kInfoSize = 128;
+const uint8_t kInfoSize = 156;
 const uint8_t kInfoOffType = 0;  // u8
 const uint8_t kInfoOffRequestId = 1;  // u8
 const uint8_t kInfoOffProtocol = 2;  // 2 x u8
@@ -56,6 +56,9 @@ const uint8_t kInfoOffSerialNumber = 84;  // u32
 const uint8_t kInfoOffZeroCounts = 88;  // 6 x u16
 const uint8_t kInfoOffTare = 100;  // 6 x f32
 const uint8_t kInfoOffJointLimitRad = 124;  // f32
+const uint8_t kInfoOffCalibrationHash = 128;  // u32
+const uint8_t kInfoOffCalibrationName = 132;  // 24 x char
+const uint8_t kInfoCalibrationNameBytes = 24;  // NUL-padded
 
 const uint8_t kAck = 0x04;
 const uint8_t kAckSize = 7;
@@ -99,10 +102,10 @@ const uint8_t kEventOffType = 0;  // u8
 const uint8_t kEventOffCode = 1;  // u8
 const uint8_t kEventOffArg = 2;  // u32
 
-const uint8_t kMaxRecordSize = 128;
+const uint8_t kMaxRecordSize = 156;
 // Bytes on the wire beyond the payload: CRC, one COBS code byte, the delimiter.
 const uint8_t kFrameOverhead = 4;
-const uint8_t kMaxFrameBytes = 132;
+const uint8_t kMaxFrameBytes = 160;
 
 // --- commands (host -> device): type, request id, arguments; each command's
 // exact payload size (docs/protocol.md section 4) ---

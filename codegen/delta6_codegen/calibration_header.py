@@ -1,0 +1,211 @@
+"""Render firmware/include/generated/delta6_calibration.h: a unit's calibration for the firmware.
+
+``calibration_constants(design, calibration)`` computes the fields of
+``delta6::CalibrationConstants`` (firmware/lib/delta6_core/src/delta6_calibrated.h) in double
+precision and rounds them once to float32, in the struct's order; the header and the native
+tests use the same numbers. The output is a pure function of its inputs.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from delta6.core.calibration import Calibration
+from delta6.core.design import Design
+from delta6.core.model import ENCODER_COUNT_RAD, NOMINAL_PHI
+
+from .design_header import _table, c_float, c_string
+from .solver_constants import TABLE_STEP, _coarse, f32, solver_constants
+
+#: Must equal delta6::kCalibrationConstantsVersion, kMaxPlayRadii, kMaxSignSpeeds,
+#: kTorqueShift.
+CALIBRATION_VERSION = 3
+MAX_RADII = 4
+MAX_SPEEDS = 4
+TORQUE_SHIFT = 28
+COMMAND = "delta6 codegen"
+TABLE_NAMES = tuple(f"kTable{j}" for j in range(1, 7))
+
+
+@dataclass(frozen=True)
+class CalibrationConstants:
+    """The struct's fields in order (floats rounded to float32, fixed-point coefficients to
+    integers); ``tables`` are the six coarse tables the ``table`` pointers point to."""
+
+    kx: tuple
+    kw: tuple                  # 6 rows of MAX_RADII
+    kd: tuple
+    k0: tuple
+    direction_half: int
+    radii: int
+    radius: tuple
+    speed_tau: float
+    speeds: int
+    breakpoint: tuple
+    slope: tuple               # 6 rows of MAX_SPEEDS + 1
+    offset: tuple              # 6 rows of MAX_SPEEDS + 1
+    table: tuple               # names of the six tables
+    ed: tuple
+    elbow: tuple
+    ux: tuple
+    uy: tuple
+    d: tuple
+    lb_sq: tuple
+    half_dlb_sq: tuple
+    gimbal: tuple
+    tilt: float
+    c: float
+    min_det: float
+    tables: tuple = ()         # six float32 arrays (n, 3), not a struct field
+
+
+FIELDS = tuple(f for f in CalibrationConstants.__dataclass_fields__ if f != "tables")
+
+
+class CalibrationRangeError(ValueError):
+    """A calibration the firmware's fixed-point sums cannot hold."""
+
+
+def _f(values) -> tuple:
+    return tuple(f32(v) for v in np.ravel(values))
+
+
+def _q(values) -> tuple:
+    return tuple(int(round(v * 2.0 ** TORQUE_SHIFT)) for v in np.ravel(values))
+
+
+def _padded(rows: np.ndarray, width: int, convert=_f) -> tuple:
+    out = np.zeros((rows.shape[0], width))
+    out[:, :rows.shape[1]] = rows
+    return tuple(convert(row) for row in out)
+
+
+def calibration_constants(design: Design, cal: Calibration) -> CalibrationConstants:
+    """The firmware's constants for ``cal`` (checked against ``design``)."""
+    cal.check_design(design)
+    radii = np.asarray(cal.hysteresis_radii_counts, dtype=float)
+    speeds = np.asarray(cal.friction_speeds_rad_s, dtype=float)
+    if len(radii) > MAX_RADII or len(speeds) > MAX_SPEEDS:
+        raise CalibrationRangeError(f"the firmware takes at most {MAX_RADII} play radii and "
+                                    f"{MAX_SPEEDS} sign speeds")
+    mm = 1e-3
+    a = design.a_mm + cal.delta_a_mm
+    b = design.b_mm + cal.delta_b_mm
+    la = (design.la_mm + cal.delta_la_mm) * mm
+    lb = (design.lb_mm + cal.delta_lb_mm) * mm
+    phi = NOMINAL_PHI + cal.delta_azimuth_rad
+    lb_sq = lb ** 2
+    half = cal.direction_half_counts
+    rate = design.k * cal.rate_ratio
+    kx = rate * ENCODER_COUNT_RAD
+    kw = cal.hysteresis_nm / radii
+    kd = (rate * 0.5 * cal.backlash_play_rad + cal.presliding_nm) / half
+    # The int32 sum must hold its largest value over the joint box and every play state.
+    sc = solver_constants(design)
+    worst = (np.abs(kx) * sc.limit_counts + np.abs(kd) * 2 * half
+             + (np.abs(kw) * radii).sum(axis=1)) * 2.0 ** TORQUE_SHIFT
+    if np.any(worst >= 2.0 ** 31):
+        raise CalibrationRangeError("the calibration's torque terms exceed the firmware's "
+                                    "fixed-point range (hysteresis weights too large?)")
+    # Friction as a piecewise-linear function: on segment k of |v| (k speeds below it) the
+    # first k signs are saturated (+-c_s), the others linear (c_s v / V_s).
+    order = np.argsort(speeds)
+    c = cal.friction_sign_nm[:, order]
+    v_sorted = speeds[order]
+    slope = np.stack([cal.viscous_nm_s_per_rad + (c[:, k:] / v_sorted[k:]).sum(axis=1)
+                      for k in range(len(speeds) + 1)], axis=1)
+    offset = np.stack([c[:, :k].sum(axis=1) for k in range(len(speeds) + 1)], axis=1)
+    # Each joint's coarse table holds its constant angle corrections, as the solver's tables.
+    rows = sc.branch_table.shape[0]
+    coarse = (np.arange(rows) * TABLE_STEP - sc.table_origin) * ENCODER_COUNT_RAD
+    tables = tuple(
+        _coarse(coarse, la[j], design.theta_offset_rad + cal.delta_rest_angle_rad[j]
+                - cal.offset_rad[j]) if j < 3 else _coarse(coarse, 1.0, -cal.offset_rad[j])
+        for j in range(6))
+    return CalibrationConstants(
+        kx=_q(kx), kw=_padded(kw, MAX_RADII, _q), kd=_q(kd), k0=_f(-rate * cal.offset_rad),
+        direction_half=int(half), radii=len(radii),
+        radius=tuple(int(r) for r in radii) + (1,) * (MAX_RADII - len(radii)),
+        speed_tau=f32(cal.speed_filter_s), speeds=len(speeds),
+        breakpoint=_f(np.concatenate([speeds[order], np.full(MAX_SPEEDS - len(speeds), 1e30)])),
+        slope=_padded(slope, MAX_SPEEDS + 1), offset=_padded(offset, MAX_SPEEDS + 1),
+        table=TABLE_NAMES, ed=_f(0.5 * cal.backlash_play_rad / half),
+        elbow=_f(cal.elbow_rad_per_nm),
+        ux=_f(np.cos(phi)), uy=_f(np.sin(phi)), d=_f((a - b) * mm),
+        lb_sq=_f(lb_sq), half_dlb_sq=_f(0.5 * (lb_sq - lb_sq[0])),
+        gimbal=_f(cal.gimbal_misalignment_rad),
+        tilt=f32(cal.tilt_rad_per_nm), c=f32(design.c_mm * mm),
+        # The determinant of the trilateration is sqrt(3)/2 times the solver's S for a
+        # symmetric geometry: the same guard, well inside what the design check proves.
+        min_det=f32(math.sqrt(3.0) / 2.0 * sc.min_area),
+        tables=tables,
+    )
+
+
+def _value(v) -> str:
+    if isinstance(v, str):
+        return v
+    if isinstance(v, tuple):
+        return "{" + ", ".join(_value(x) for x in v) + "}"
+    if isinstance(v, int):
+        return str(v)
+    return c_float(v)
+
+
+def render(design: Design, cal: Calibration, design_label: str, calibration_label: str) -> str:
+    """The header text; the labels name the design and calibration files in the banner."""
+    k = calibration_constants(design, cal)
+    command = f"{COMMAND} {design_label} --calibration {calibration_label}"
+    lines = [
+        "// GENERATED FILE - DO NOT EDIT.",
+        f"// Written by `{command}`.",
+        "// The firmware applies this unit's calibration when this header sits next to",
+        "// delta6_design.h; `delta6 codegen` without --calibration removes it. tests/firmware/",
+        "// test_calibrated_native.py fails when the committed header is stale.",
+        "#ifndef DELTA6_GENERATED_CALIBRATION_H",
+        "#define DELTA6_GENERATED_CALIBRATION_H",
+        "",
+        "#include <stdint.h>",
+        "",
+        '#include "delta6_calibrated.h"',
+        '#include "delta6_fastmath.h"',
+        '#include "generated/delta6_design.h"',
+        "",
+        "namespace delta6 {",
+        "namespace calibration {",
+        "",
+        f"constexpr char kName[] = {c_string(cal.name)};",
+        "// delta6.core.calibration.Calibration.hash32(): which calibration a board applies.",
+        f"constexpr uint32_t kHash = 0x{cal.hash32():08X}UL;",
+        f"constexpr uint32_t kDesignHash = 0x{cal.design_hash:08X}UL;",
+        f"// Corrects: {', '.join(cal.effects) or 'nothing'}.",
+        "",
+        "// Each joint's coarse table (fastmath::table_cos_sin, rows as the design's): joints",
+        "// 1..3 la_i (cos, sin, sum)(theta_offset + rest_i - offset_i + q), joints 4..6",
+        "// (cos, sin, sum)(q - offset_j).",
+    ]
+    for name, table in zip(TABLE_NAMES, k.tables):
+        lines += _table(name, table, f"{name}") + [""]
+    lines += ["const CalibrationConstants kCalibrationConstants DELTA6_FLASH = {"]
+    for name in FIELDS:
+        lines.append(f"    {_value(getattr(k, name))},  // {name}")
+    lines += [
+        "};",
+        "",
+        "}  // namespace calibration",
+        "}  // namespace delta6",
+        "",
+        f"static_assert(delta6::kCalibrationConstantsVersion == {CALIBRATION_VERSION},",
+        f'              "delta6_calibration.h is older than the firmware: rerun {COMMAND}");',
+        f"static_assert(delta6::kMaxPlayRadii == {MAX_RADII} && "
+        f"delta6::kMaxSignSpeeds == {MAX_SPEEDS} && delta6::kTorqueShift == {TORQUE_SHIFT},",
+        f'              "delta6_calibration.h was generated for other sizes: rerun {COMMAND}");',
+        "static_assert(delta6::calibration::kDesignHash == delta6::design::kHash,",
+        '              "delta6_calibration.h was fitted for another design than delta6_design.h");',
+        "",
+        "#endif  // DELTA6_GENERATED_CALIBRATION_H",
+        "",
+    ]
+    return "\n".join(lines)

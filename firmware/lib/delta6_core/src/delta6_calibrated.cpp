@@ -1,0 +1,248 @@
+// The calibrated model; see delta6_calibrated.h. Constants live in flash on the AVR, so every
+// read goes through the fastmath flash helpers.
+#include "delta6_calibrated.h"
+
+#include "delta6_fastmath.h"
+
+#if defined(__AVR__)
+#include <avr/pgmspace.h>
+#endif
+
+// Stage markers for a cycle profile (as in delta6_solver.cpp): only a profile build defines
+// DELTA6_SOLVER_PROFILE and provides the hook header; elsewhere they vanish.
+#ifdef DELTA6_SOLVER_PROFILE
+#include "delta6_solver_profile_hooks.h"
+#else
+#define DELTA6_PROFILE_MARK(stage) ((void)0)
+#endif
+
+namespace delta6 {
+namespace {
+
+using fastmath::absf;
+using fastmath::flash_float;
+
+// One encoder count, rad (2 pi / 2^14).
+constexpr float kCountRad = 3.83495197e-4f;
+
+inline int16_t flash_i16(const int16_t* p) {
+#if defined(__AVR__)
+    return static_cast<int16_t>(pgm_read_word(p));
+#else
+    return *p;
+#endif
+}
+
+inline int32_t flash_i32(const int32_t* p) {
+#if defined(__AVR__)
+    return static_cast<int32_t>(pgm_read_dword(p));
+#else
+    return *p;
+#endif
+}
+
+inline const float* flash_table(const float* const* p) {
+#if defined(__AVR__)
+    return reinterpret_cast<const float*>(pgm_read_word(p));
+#else
+    return *p;
+#endif
+}
+
+inline uint8_t flash_u8(const uint8_t* p) {
+#if defined(__AVR__)
+    return pgm_read_byte(p);
+#else
+    return *p;
+#endif
+}
+
+inline int16_t clamp_play(int16_t y, int16_t x, int16_t r) {
+    const int16_t lo = static_cast<int16_t>(x - r), hi = static_cast<int16_t>(x + r);
+    return y < lo ? lo : (y > hi ? hi : y);
+}
+
+// x * 2^-k for a float converted from a non-zero int32 (normal, exponent >= 127): subtracts k
+// from the exponent field instead of calling the float multiply.
+inline float scale_down(float x, uint8_t k) {
+    if (fastmath::bits_of(x) == 0) return x;
+    return fastmath::float_of(fastmath::bits_of(x) - (static_cast<uint32_t>(k) << 23));
+}
+
+inline bool negative(float x) { return (fastmath::bits_of(x) & 0x80000000ul) != 0; }
+
+uint8_t fail(uint8_t status, float wrench[6]) {
+    for (uint8_t i = 0; i < 6; ++i) wrench[i] = 0.0f;
+    return status;
+}
+
+// (a, b) <- (c a + s b, c b - s a): a plane rotation by -angle (as in the solver).
+inline void rotate_back(float c, float s, float& a, float& b) {
+    const float a1 = c * a + s * b;
+    b = c * b - s * a;
+    a = a1;
+}
+
+}  // namespace
+
+void calibration_reset(CalibrationState& s) { s.started = 0; }
+
+void calibration_set_period(const CalibrationConstants& c, float period_s,
+                            CalibrationState& s) {
+    const float tau = flash_float(&c.speed_tau);
+    if (!(period_s > 0.0f)) {
+        s.speed_a = 1.0f;
+        s.speed_g = 0.0f;
+        return;
+    }
+    s.speed_a = tau / (tau + period_s);
+    s.speed_g = (1.0f - s.speed_a) * kCountRad / period_s;
+}
+
+uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& cc,
+                         CalibrationState& st, const int16_t delta[6], float wrench[6]) {
+    const uint8_t radii = flash_u8(&cc.radii);
+    const uint8_t speeds = flash_u8(&cc.speeds);
+    const int16_t half = flash_i16(&cc.direction_half);
+    if (!st.started) {
+        for (uint8_t j = 0; j < 6; ++j) {
+            st.last[j] = delta[j];
+            st.direction2[j] = static_cast<int16_t>(2 * delta[j]);
+            for (uint8_t r = 0; r < kMaxPlayRadii; ++r) st.play[j][r] = delta[j];
+            st.speed[j] = 0.0f;
+        }
+        st.started = 1;
+    }
+    // 1-3: the history, the joint torques (count terms in int32) and the varying part of
+    // each angle's correction (dir2: 2x - y2, the direction of motion in half counts).
+    float tau[6];
+    int16_t dir2[6];
+    for (uint8_t j = 0; j < 6; ++j) {
+        const int16_t x = delta[j];
+        const int16_t x2 = static_cast<int16_t>(2 * x);
+        const int16_t y2 = clamp_play(st.direction2[j], x2, half);
+        st.direction2[j] = y2;
+        dir2[j] = static_cast<int16_t>(x2 - y2);
+        int32_t sum = flash_i32(&cc.kx[j]) * x + flash_i32(&cc.kd[j]) * dir2[j];
+        for (uint8_t r = 0; r < radii; ++r) {
+            const int16_t y = clamp_play(st.play[j][r], x, flash_i16(&cc.radius[r]));
+            st.play[j][r] = y;
+            sum += flash_i32(&cc.kw[j][r]) * static_cast<int16_t>(x - y);
+        }
+        const float v = st.speed_a * st.speed[j]
+                        + st.speed_g * static_cast<float>(x - st.last[j]);
+        st.speed[j] = v;
+        st.last[j] = x;
+        // Friction: the segment of |v| among the breakpoints, then one multiply.
+        const float av = absf(v);
+        uint8_t seg = 0;
+        while (seg < speeds && fastmath::at_least(av, flash_float(&cc.breakpoint[seg]))) ++seg;
+        const float off = flash_float(&cc.offset[j][seg]);
+        const float t = scale_down(static_cast<float>(sum), kTorqueShift) + flash_float(&cc.k0[j])
+                        + flash_float(&cc.slope[j][seg]) * v + (negative(v) ? -off : off);
+        tau[j] = t;
+    }
+    DELTA6_PROFILE_MARK(21);
+    // The joint box, on the counts as the analytical solver has it.
+    for (uint8_t i = 0; i < 6; ++i) {
+        if (delta[i] > k.limit_counts || delta[i] < -k.limit_counts) {
+            return fail(kSolveOutOfBox, wrench);
+        }
+    }
+    // 4: trig from each joint's table (constant corrections included), turned by the varying
+    // part e: on the branches (backlash and the elbow's turn, |e| < 0.05 rad) to second
+    // order, cos e = 1 - e^2/2, sin e = e; on the gimbal (backlash alone, |e| < 0.01 rad) to
+    // first order; within 2e-6 of the amplitude either way.
+    float cs[6], sn[6];
+    for (uint8_t j = 0; j < 6; ++j) {
+        const uint16_t biased = static_cast<uint16_t>(delta[j] + k.table_origin);
+        float c0, s0;
+        fastmath::table_cos_sin(flash_table(&cc.table[j]), k.fine_table, biased, &c0, &s0);
+        float e = flash_float(&cc.ed[j]) * static_cast<float>(dir2[j]);
+        if (j < 3) e += flash_float(&cc.elbow[j]) * tau[j];
+        if ((fastmath::bits_of(e) & 0x7FFFFFFFul) != 0) {
+            // c' = c (1 - e^2/2) - s e, s' = s (1 - e^2/2) + c e; the e^2 term on the branches.
+            float c1 = c0 - s0 * e, s1 = s0 + c0 * e;
+            if (j < 3) {
+                const float h = fastmath::scale2(e * e, -1);
+                c1 -= c0 * h;
+                s1 -= s0 * h;
+            }
+            c0 = c1;
+            s0 = s1;
+        }
+        cs[j] = c0;
+        sn[j] = s0;
+    }
+    DELTA6_PROFILE_MARK(22);
+    // 5: sphere centres c_i = r_i u_i + h_i z and the general trilateration.
+    float cx[3], cy[3], r[3];
+    for (uint8_t i = 0; i < 3; ++i) {
+        r[i] = flash_float(&cc.d[i]) + cs[i];
+        cx[i] = r[i] * flash_float(&cc.ux[i]);
+        cy[i] = r[i] * flash_float(&cc.uy[i]);
+    }
+    const float h1 = sn[0];
+    // P . A_j = e_j with A_j = c_j - c_1, e_j = (|c_j|^2 - |c_1|^2 - lb_j^2 + lb_1^2) / 2,
+    // and |c_i|^2 = r_i^2 + h_i^2 (u_i is a unit vector).
+    const float a2x = cx[1] - cx[0], a2y = cy[1] - cy[0], a2z = sn[1] - h1;
+    const float a3x = cx[2] - cx[0], a3y = cy[2] - cy[0], a3z = sn[2] - h1;
+    const float h1_sq = h1 * h1;
+    const float c1_sq = r[0] * r[0] + h1_sq;
+    const float e2 = fastmath::scale2(r[1] * r[1] + sn[1] * sn[1] - c1_sq, -1)
+                     - flash_float(&cc.half_dlb_sq[1]);
+    const float e3 = fastmath::scale2(r[2] * r[2] + sn[2] * sn[2] - c1_sq, -1)
+                     - flash_float(&cc.half_dlb_sq[2]);
+    const float det = a2x * a3y - a2y * a3x;
+    if (!fastmath::at_least(det, flash_float(&cc.min_det))) return fail(kSolveSingular, wrench);
+    const float inv = 1.0f / det;
+    const float ax = (a2y * a3z - a3y * a2z) * inv, bx = (a3y * e2 - a2y * e3) * inv;
+    const float ay = (a3x * a2z - a2x * a3z) * inv, by = (a2x * e3 - a3x * e2) * inv;
+    const float ex = bx - cx[0], ey = by - cy[0];
+    const float qa = ax * ax + ay * ay + 1.0f;
+    const float qb = ax * ex + ay * ey - h1;
+    const float qc = ex * ex + ey * ey + h1_sq - flash_float(&cc.lb_sq[0]);
+    const float disc = qb * qb - qa * qc;
+    if (!fastmath::at_least(disc, k.min_height_sq * qa)) return fail(kSolveNoSolution, wrench);
+    const float z = (fastmath::sqrt32(disc) - qb) / qa;
+    const float x = ax * z + bx, y = ay * z + by;
+    DELTA6_PROFILE_MARK(23);
+    // Statics: link i carries tau_i v_i / G_i, G_i = (u_i . v_i) h_i - v_iz rho_i.
+    float f[3] = {0.0f, 0.0f, 0.0f};
+    for (uint8_t i = 0; i < 3; ++i) {
+        const float vx = x - cx[i], vy = y - cy[i], vz = z - sn[i];
+        const float uv = flash_float(&cc.ux[i]) * vx + flash_float(&cc.uy[i]) * vy;
+        const float g = uv * sn[i] - vz * cs[i];
+        if (!fastmath::at_least(absf(g), k.min_lever)) return fail(kSolveSingular, wrench);
+        const float s = tau[i] / g;
+        f[0] -= s * vx;
+        f[1] -= s * vy;
+        f[2] -= s * vz;
+    }
+    DELTA6_PROFILE_MARK(24);
+    // The gimbal: F_E0 = F - w x F, w = gimbal + tilt * (M + c z x F).
+    const float c = flash_float(&cc.c), tilt = flash_float(&cc.tilt);
+    const float wx = flash_float(&cc.gimbal[0]) + tilt * (tau[3] - c * f[1]);
+    const float wy = flash_float(&cc.gimbal[1]) + tilt * (tau[4] + c * f[0]);
+    const float wz = flash_float(&cc.gimbal[2]) + tilt * tau[5];
+    float w[6] = {
+        f[0] - (wy * f[2] - wz * f[1]),
+        f[1] - (wz * f[0] - wx * f[2]),
+        f[2] - (wx * f[1] - wy * f[0]),
+        tau[3], tau[4], tau[5],
+    };
+    DELTA6_PROFILE_MARK(25);
+    // Eq. (12) with the corrected gimbal angles: R^T = Ry^T Rx^T Rz^T.
+    for (uint8_t v = 0; v < 6; v += 3) {
+        rotate_back(cs[5], sn[5], w[v], w[v + 1]);
+        rotate_back(cs[3], sn[3], w[v + 1], w[v + 2]);
+        rotate_back(cs[4], sn[4], w[v + 2], w[v]);
+    }
+    for (uint8_t i = 0; i < 6; ++i) {
+        if (!fastmath::is_finite(w[i])) return fail(kSolveNonFinite, wrench);
+    }
+    for (uint8_t i = 0; i < 6; ++i) wrench[i] = w[i];
+    return kSolveOk;
+}
+
+}  // namespace delta6

@@ -1,0 +1,220 @@
+"""Fit a calibration to a calibration log.
+
+1. **Which effects.** The gap diagnosis (``delta6.diagnosis``) names the effects present; the
+   correctable ones are taken, then any other correctable family that still lowers the
+   time-blocked held-out error of the calibrated model by more than ``MIN_EXTRA_GAIN`` of what
+   is left (at the lower 5 % of a block bootstrap) is added: the diagnosis names an effect only
+   when it can tell it apart; a calibration may also use a family that merely helps. Or the
+   user names the effects (``--effect``). The reference sensor's latency, when present, is
+   fitted as a property of the rig (never applied); thermal drift is not corrected.
+2. **Held-out check.** The last ``HELDOUT_BLOCKS`` of the log's ``N_BLOCKS`` time blocks are
+   held out (one buffer block before them); the calibration fitted on the rest is scored there:
+   the Table V before (analytical model) and after (calibrated model) in the file.
+3. **The fit.** Gauss-Newton on the calibrated model itself: the columns (``families``) are
+   the model's first-order response around the analytical model; each iteration solves the
+   normal equations for the residual of the *nonlinear* calibrated model (FS-normalised, all
+   six axes) and updates the calibration. Then the final calibration is fitted on all blocks.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from delta6 import __version__
+from delta6.calibration.families import Context, families
+from delta6.core import accuracy
+from delta6.core.calibrated import CalibratedModel, counts_from_angles, sample_period
+from delta6.core.calibration import CORRECTED, NOT_APPLIED, Calibration, neutral
+from delta6.core.design import Design
+from delta6.core.errors import UserError
+from delta6.diagnosis import selection
+from delta6.diagnosis.data import GapData
+from delta6.diagnosis.run import diagnose_data
+from delta6.diagnosis.terms import Term
+
+LATENCY = "sensor_latency"
+N_BLOCKS = 40
+HELDOUT_BLOCKS = 8
+MIN_EXTRA_GAIN = 0.01
+EXTRA_CONFIDENCE = 0.95
+ITERATIONS = 3
+FINAL_ITERATIONS = 2
+
+
+@dataclass
+class CalibrationFit:
+    calibration: Calibration
+    heldout_before: dict          # Table V of the analytical model on the held-out blocks
+    heldout_after: dict           # ... of the calibrated model (latency not applied)
+    latency_s: float | None       # the rig's, when fitted
+    diagnosis: dict | None = None
+    chosen_by: str = "diagnosis"
+    seconds: float = 0.0
+    notes: list = field(default_factory=list)
+
+
+def _latency_term(data: GapData) -> Term:
+    def build(d):
+        return -np.gradient(d.model, d.t, axis=0)[:, :, None]
+    return Term(LATENCY, "time", ("latency_s",), "s", build)
+
+
+def _terms(ctx: Context, fams: dict) -> list[Term]:
+    out = []
+    for name, fam in fams.items():
+        out.append(Term(name, "calibration", fam.param_names, "",
+                        lambda d, fam=fam: fam.columns(ctx)))
+    return out
+
+
+def _table(err_pct: np.ndarray) -> dict:
+    t = accuracy.table(err_pct, (95, 99, 100))
+    return {"p95_pct": t["p95"], "p99_pct": t["p99"], "max_pct": t["p100"]}
+
+
+class _Fitter:
+    """The problem (columns of every family, FS-normalised, with per-block Gram matrices) and
+    the Gauss-Newton iterations on a chosen subset."""
+
+    def __init__(self, data: GapData, settings: Calibration, with_latency: bool, progress):
+        self.data = data
+        self.counts = counts_from_angles(data.theta)
+        self.dt = sample_period(data.t)
+        self.settings = settings
+        terms, _ = CalibratedModel(data.design, settings).joint_terms(self.counts, self.dt)
+        self.families = families(settings)
+        ctx = Context(data, terms, settings)
+        all_terms = _terms(ctx, self.families) + ([_latency_term(data)] if with_latency else [])
+        self.problem = selection.build_problem(data, all_terms, n_blocks=N_BLOCKS,
+                                               progress=progress)
+
+    def rows(self, blocks) -> np.ndarray:
+        b = self.problem.bounds
+        return np.concatenate([np.arange(b[i], b[i + 1]) for i in blocks])
+
+    def fit(self, cal: Calibration, names: list[str], blocks, iterations: int,
+            latency: float = 0.0) -> tuple[Calibration, float]:
+        p = self.problem
+        cols = p.cols(names)
+        if len(cols) == 0:
+            return cal, latency
+        gram = p.gram[np.ix_(blocks, cols, cols)].sum(axis=0)
+        rows = self.rows(blocks)
+        x = p.x[rows][:, :, cols].reshape(-1, len(cols))
+        fs = self.data.fs
+        for _ in range(iterations):
+            pred = self.predict(cal, latency)
+            r = ((self.data.reference - pred) / fs)[rows].reshape(-1)
+            step = selection.solve(gram, x.T @ r)
+            at = 0
+            for name in names:
+                width = p.slices[name].stop - p.slices[name].start
+                part = step[at:at + width]
+                at += width
+                if name == LATENCY:
+                    latency += float(part[0])
+                else:
+                    cal = self.families[name].apply(cal, part)
+        return cal, latency
+
+    def predict(self, cal: Calibration, latency: float = 0.0) -> np.ndarray:
+        """What the reference should read: the calibrated wrench, late by the rig's latency."""
+        w, _ = CalibratedModel(self.data.design, cal).run(self.counts, self.dt)
+        if latency:
+            w = w - latency * np.gradient(w, self.data.t, axis=0)
+        return w
+
+
+def _extend(fitter: _Fitter, chosen: list[str], rng, progress) -> list[str]:
+    """Add correctable families that still lower the held-out error (module docstring)."""
+    p = fitter.problem
+    chosen = list(chosen)
+    current = selection.heldout_block_sse(p, chosen)
+    while True:
+        remaining = [f for f in fitter.families if f not in chosen]
+        if not remaining:
+            return chosen
+        trials = {f: selection.heldout_block_sse(p, chosen + [f]) for f in remaining}
+        best = max(trials, key=lambda f: selection.gain(current, trials[f]))
+        boot = selection.bootstrap_gain(current, trials[best], rng, n_boot=1000)
+        low = float(np.quantile(boot, 1.0 - EXTRA_CONFIDENCE))
+        if low <= MIN_EXTRA_GAIN:
+            return chosen
+        if progress:
+            progress(f"calibration also uses {best}: held-out error "
+                     f"-{100 * selection.gain(current, trials[best]):.1f} %")
+        chosen.append(best)
+        current = trials[best]
+
+
+def check_effects(effects) -> None:
+    for e in effects:
+        if e == "thermal_drift":
+            raise UserError("thermal_drift cannot be corrected on the device: "
+                            + NOT_APPLIED["thermal_drift"])
+        if e not in CORRECTED and e != LATENCY:
+            raise UserError(f"unknown effect {e!r} (one of {', '.join(CORRECTED + (LATENCY,))})")
+
+
+def calibrate(log, design: Design, *, effects=None, name: str | None = None,
+              source: str = "", settings: Calibration | None = None, seed: int = 0,
+              progress=None) -> CalibrationFit:
+    """Fit a calibration of ``design`` to ``log`` (a ``LogData``). ``effects``: the effects
+    to correct (None: the diagnosis's findings, extended; see the module docstring)."""
+    started = time.perf_counter()
+    data = GapData.from_log(log, design)
+    base = settings or neutral(design)
+    diagnosis = None
+    notes = []
+    if effects is None:
+        diagnosis = diagnose_data(data, seed=seed, progress=progress)
+        present = diagnosis["present"]
+        with_latency = LATENCY in present
+        chosen = [e for e in present if e in CORRECTED]
+        notes += [f"{e}: {NOT_APPLIED[e]}" for e in present if e in NOT_APPLIED]
+        chosen_by = "diagnosis"
+    else:
+        check_effects(effects)
+        with_latency = LATENCY in effects
+        chosen = [e for e in dict.fromkeys(effects) if e in CORRECTED]
+        chosen_by = "--effect"
+    if progress:
+        progress("calibration columns")
+    fitter = _Fitter(data, base, with_latency, progress)
+    if effects is None:
+        chosen = _extend(fitter, chosen, np.random.default_rng(seed), progress)
+    names = chosen + ([LATENCY] if with_latency else [])
+
+    held = np.arange(N_BLOCKS - HELDOUT_BLOCKS, N_BLOCKS)
+    train = np.arange(0, N_BLOCKS - HELDOUT_BLOCKS - 1)
+    if progress:
+        progress("fitting on the training blocks")
+    start = base.with_(effects=tuple(chosen))
+    cal, latency = fitter.fit(start, names, train, ITERATIONS)
+    rows = fitter.rows(held)
+    before = _table(data.residual_pct[rows])
+    calibrated = fitter.predict(cal)          # what the board gives: no latency
+    after = _table((100.0 * (calibrated - data.reference) / data.fs)[rows])
+    if progress:
+        progress("fitting on all blocks")
+    cal, latency = fitter.fit(cal, names, np.arange(N_BLOCKS), FINAL_ITERATIONS, latency)
+    seconds = time.perf_counter() - started
+    fit_record = {
+        "log": source, "samples": len(data), "duration_s": float(data.t[-1] - data.t[0]),
+        "rate_hz": 1.0 / sample_period(data.t), "created_by": f"delta6 {__version__} calibrate",
+        "effects_chosen_by": chosen_by,
+        "diagnosis_present": list(diagnosis["present"]) if diagnosis else [],
+        "heldout": f"last {HELDOUT_BLOCKS} of {N_BLOCKS} time blocks (one buffer block); "
+                   "the parameters below are refitted on the whole log",
+        "not_applied": notes,
+        "seconds": round(seconds, 2),
+        "heldout_before": before, "heldout_after": after,
+    }
+    if with_latency:
+        fit_record["rig_latency_s"] = latency
+    cal = cal.with_(name=name or base.name, fit=fit_record)
+    return CalibrationFit(calibration=cal, heldout_before=before, heldout_after=after,
+                          latency_s=latency if with_latency else None, diagnosis=diagnosis,
+                          chosen_by=chosen_by, seconds=seconds, notes=notes)

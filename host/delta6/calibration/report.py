@@ -1,0 +1,72 @@
+"""The calibration report: Markdown with two plots (headless matplotlib)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from delta6.core.calibrated import CalibratedModel
+from delta6.core.calibration import SECTIONS
+from delta6.core.model import AXES, wrench
+from delta6.core.spec import full_scale
+from delta6.diagnosis.report import pyplot
+
+
+def _row(label: str, values) -> str:
+    return f"| {label} | " + " | ".join(f"{v:.2f}" for v in values) + " |"
+
+
+def write_report(fit, log, design, out_dir, source: str = "") -> Path:
+    """Write ``calibration.md`` and its plots into ``out_dir``; returns the report's path."""
+    plt = pyplot()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    cal = fit.calibration
+    fs = full_scale(design)
+    before = 100.0 * (wrench(design, log.theta) - log.wrench) / fs
+    after = 100.0 * (CalibratedModel(design, cal).predict(log) - log.wrench) / fs
+
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    x = np.arange(6)
+    ax.bar(x - 0.2, fit.heldout_before["p99_pct"], 0.4, label="analytical")
+    ax.bar(x + 0.2, fit.heldout_after["p99_pct"], 0.4, label="calibrated")
+    ax.set_xticks(x, AXES)
+    ax.set_ylabel("held-out p99 |error|, % FS")
+    ax.legend()
+    fig.savefig(out / "heldout_p99.png", dpi=110, bbox_inches="tight")
+    plt.close(fig)
+
+    fig, axes = plt.subplots(6, 1, figsize=(8, 9), sharex=True)
+    for i, ax in enumerate(axes):
+        ax.plot(log.t, before[:, i], lw=0.4, label="analytical")
+        ax.plot(log.t, after[:, i], lw=0.4, label="calibrated")
+        ax.set_ylabel(f"{AXES[i]} % FS")
+    axes[0].legend(loc="upper right")
+    axes[-1].set_xlabel("t, s (the held-out blocks are the last fifth)")
+    fig.savefig(out / "residual.png", dpi=90, bbox_inches="tight")
+    plt.close(fig)
+
+    lines = [f"# Delta6 calibration '{cal.name}'{': ' + source if source else ''}", "",
+             f"Design `{cal.design_name}` (0x{cal.design_hash:08x}); calibration hash "
+             f"0x{cal.hash32():08x}; {len(log)} samples; fitted in {fit.seconds:.1f} s.", "",
+             "Corrects: " + (", ".join(f"**{e}**" for e in cal.effects) or "nothing")
+             + f" (chosen by {fit.chosen_by}).", ""]
+    if fit.latency_s is not None:
+        lines += [f"The reference sensor is late by {1e3 * fit.latency_s:.1f} ms: fitted as a "
+                  "property of the rig, not applied on the board.", ""]
+    lines += [f"- {n}" for n in fit.notes]
+    lines += ["", "## Held-out Table V (% FS)", "", "| | " + " | ".join(AXES) + " |",
+              "|---|" + "---|" * 6]
+    for label, table in (("analytical", fit.heldout_before), ("calibrated", fit.heldout_after)):
+        for key in ("p95_pct", "p99_pct", "max_pct"):
+            lines.append(_row(f"{label} {key[:-4]}", table[key]))
+    lines += ["", "![held-out p99](heldout_p99.png)", "", "## Parameters", ""]
+    for section, pairs in SECTIONS.items():
+        lines.append(f"- **{section}**: " + "; ".join(
+            f"{key} = {np.round(np.asarray(getattr(cal, attr), dtype=float), 6).tolist()}"
+            for key, attr in pairs))
+    lines += ["", "## Residual over the log (fit and held-out blocks)", "",
+              "![residual](residual.png)", ""]
+    path = out / "calibration.md"
+    path.write_text("\n".join(lines))
+    return path

@@ -1,0 +1,83 @@
+"""``delta6 calibrate``: fit a unit's calibration from a calibration log (docs/calibration.md)."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from delta6.calibration import calibrate
+from delta6.calibration.report import write_report
+from delta6.core import calibration as calibration_mod
+from delta6.core.calibration import CORRECTED, NAME_LIMIT
+from delta6.core.errors import UserError
+from delta6.core.model import AXES
+from delta6.core.paths import DEFAULT_DESIGN
+from delta6.core.workspace import load_checked
+from delta6.link.logfile import read_log
+
+NAME = "calibrate"
+HELP = "fit a calibration (corrections to the analytical model) for one unit from a log"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("log", metavar="LOG.csv", help="calibration log with t, theta_e1..6, "
+                        "Fx..Mz (docs/log-format.md)")
+    parser.add_argument("--design", default=str(DEFAULT_DESIGN), metavar="DESIGN.toml",
+                        help="the design the log was recorded with")
+    parser.add_argument("-o", "--output", required=True, metavar="CAL.toml",
+                        help="calibration file to write")
+    parser.add_argument("--effect", action="append", metavar="NAME",
+                        help="correct this effect (repeatable; default: what the gap diagnosis "
+                             f"finds). One of {', '.join(CORRECTED)}, or sensor_latency (the "
+                             "rig's: fitted, not applied)")
+    parser.add_argument("--name", metavar="NAME",
+                        help=f"the calibration's name (ASCII, at most {NAME_LIMIT} characters; "
+                             "the board reports it); default: the output file's stem")
+    parser.add_argument("--report", metavar="OUT_DIR",
+                        help="write a Markdown report with plots into this directory")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the block bootstrap")
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+
+
+def run(args: argparse.Namespace) -> int:
+    design = load_checked(args.design)
+    out = Path(args.output)
+    if not out.parent.is_dir():
+        raise UserError(f"cannot write {out}: directory {out.parent} does not exist")
+    name = args.name or out.name.removesuffix(".toml")[:NAME_LIMIT]
+    log = read_log(args.log)
+    calibration_mod.check_log_meta(log.meta, design, source=str(args.log))
+
+    def progress(message: str) -> None:
+        if not args.quiet:
+            print(f"  {message}", file=sys.stderr, flush=True)
+
+    fit = calibrate(log, design, effects=args.effect, name=name, source=Path(args.log).name,
+                    seed=args.seed, progress=progress)
+    calibration_mod.save(fit.calibration, out)
+    if args.report:
+        path = write_report(fit, log, design, args.report, source=str(args.log))
+        progress(f"report: {path}")
+    print(summary(fit, out))
+    return 0
+
+
+def summary(fit, out: Path) -> str:
+    cal = fit.calibration
+
+    def row(label, values):
+        return f"  {label:<22}" + "".join(f"{v:>8.2f}" for v in values)
+
+    lines = [f"wrote {out}: calibration '{cal.name}' (hash 0x{cal.hash32():08x}) for design "
+             f"'{cal.design_name}' (0x{cal.design_hash:08x}), fitted in {fit.seconds:.1f} s",
+             "corrects: " + (", ".join(cal.effects) or "nothing (no significant unmodelled "
+                                                        "effect)")
+             + f" (chosen by {fit.chosen_by})"]
+    if fit.latency_s is not None:
+        lines.append(f"rig latency {1e3 * fit.latency_s:.1f} ms: fitted, not applied on the board")
+    lines += [f"  {n}" for n in fit.notes]
+    lines.append("held-out p99 |error|, % FS:" )
+    lines.append(f"  {'':<22}" + "".join(f"{a:>8}" for a in AXES))
+    lines.append(row("analytical", fit.heldout_before["p99_pct"]))
+    lines.append(row("calibrated", fit.heldout_after["p99_pct"]))
+    return "\n".join(lines)

@@ -1,0 +1,88 @@
+"""``delta6 evaluate``: the paper's Table V for the analytical model and, with a calibration,
+the calibrated model, and learned estimators (``--model``), on a log with reference wrenches
+(``delta6.evaluation.tablev``); ``--plot`` draws their error distributions."""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from delta6.core import calibration as calibration_mod
+from delta6.core.calibrated import CalibratedModel
+from delta6.core.errors import UserError
+from delta6.core.paths import DEFAULT_DESIGN
+from delta6.core.spec import full_scale
+from delta6.core.workspace import load_checked
+from delta6.evaluation import tablev
+from delta6.evaluation.error_plot import plot_errors
+from delta6.learning import LearnedEstimator
+from delta6.link.logfile import read_log
+
+NAME = "evaluate"
+HELP = ("Table V (p95, p99, max |error| per axis, % FS) of the analytical model, the "
+        "calibrated model (--calibration) and learned estimators (--model) on a log with "
+        "reference wrenches")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("log", metavar="LOG.csv", help="log with t, theta_e1..6, Fx..Mz "
+                        "(docs/log-format.md)")
+    parser.add_argument("--design", default=str(DEFAULT_DESIGN), metavar="DESIGN.toml",
+                        help="the design the log was recorded with")
+    parser.add_argument("--calibration", metavar="CAL.toml",
+                        help="also evaluate the calibrated model (delta6 calibrate)")
+    parser.add_argument("--model", nargs="+", action="extend", default=[], metavar="M.onnx",
+                        help="learned estimators (delta6 train), one row each, named after the "
+                             "file; a residual over a calibration needs that --calibration")
+    parser.add_argument("--json", metavar="OUT.json", help="write the table as JSON")
+    parser.add_argument("--plot", metavar="OUT.png",
+                        help="plot the error distributions of every row (needs matplotlib)")
+
+
+def estimators(args, design, log) -> list:
+    """The rows: the analytical model always, the calibrated model with --calibration, then
+    each --model in the order given."""
+    rows = [tablev.Analytical(design)]
+    cal = None
+    if args.calibration:
+        cal = calibration_mod.load(args.calibration)
+        calibration_mod.check_log_meta(log.meta, design, cal, source=str(args.log))
+        rows.append(CalibratedModel(design, cal))
+    else:
+        calibration_mod.check_log_meta(log.meta, design, source=str(args.log))
+    rows += [LearnedEstimator(path, design=design, calibration=cal) for path in args.model]
+    names = [r.name for r in rows]
+    if len(set(names)) != len(names):
+        raise UserError("two rows would share a name (rows are named after the model files): "
+                        + ", ".join(names))
+    return rows
+
+
+class Computed:
+    """An estimator whose predictions are already known (computed once for the table and
+    the plot)."""
+
+    def __init__(self, name: str, estimate):
+        self.name, self.estimate = name, estimate
+
+    def predict(self, log):
+        return self.estimate
+
+
+def run(args: argparse.Namespace) -> int:
+    design = load_checked(args.design)
+    log = read_log(args.log)
+    if len(log) == 0:
+        raise UserError(f"{args.log}: no samples")
+    rows = [Computed(e.name, e.predict(log)) for e in estimators(args, design, log)]
+    result = tablev.table(rows, log, design)
+    if args.json:
+        try:
+            Path(args.json).write_text(json.dumps(result, indent=1) + "\n")
+        except OSError as exc:
+            raise UserError(f"cannot write {args.json}: {exc.strerror}") from None
+    if args.plot:
+        plot_errors({r.name: r.estimate for r in rows}, log.wrench, full_scale(design), args.plot,
+                    title=f"|error| distributions on {Path(args.log).name}")
+    print(tablev.format_table(result))
+    return 0

@@ -1,0 +1,164 @@
+"""The calibrated model: the analytical model with a unit's calibration applied, causally.
+
+One implementation serves the host (``delta6 evaluate``, applying a calibration to streamed
+raw counts), the tests and the firmware checks; the firmware's C++ version
+(``firmware/lib/delta6_core/src/delta6_calibrated.cpp``) computes the same thing in float32
+and is cross-checked against this one. Every term uses the present and past samples only,
+through a few numbers of state per joint (:class:`ModelState`), in one pass per sample:
+
+1. **history features** of each joint's count x (signed counts from the zero, as the board
+   has them): the direction of motion ``d`` (a play of +-``direction_half_counts``/2 counts:
+   +1 after rising, -1 after falling), hysteresis states ``h_r = (x - play_r(x)) / r`` for the
+   play radii r (whole counts: the plays stay whole numbers, exactly, on both sides), and the
+   joint speed ``v``, a first-order filtered difference (time constant ``speed_filter_s``).
+2. **angle side**: theta = x * count - offset + backlash_play / 2 * d (the link leads its
+   encoder by half the play in the direction of motion).
+3. **torque**: tau = k * rate_ratio * theta + sum_r w_r h_r
+   + sum_s c_s clamp(v / V_s, -1, 1) + viscous * v + presliding * d.
+4. **geometry**: each branch has its own a, b, la, lb, azimuth and rest angle; the elbow turns
+   by ``elbow_rad_per_nm * tau_i`` (load-dependent compliance, kinematics only).
+5. **statics** (eqs. 2-11) with those torques in that geometry, then the gimbal: the force
+   turns by the small rotation w = gimbal_misalignment + tilt * (moment about the platform
+   centre), F_E0 = F - w x F; eq. (12) with the corrected angles of joints 4..6.
+
+The reference sensor's latency is not applied: it belongs to the calibration rig.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from delta6.core import model
+from delta6.core.calibration import Calibration
+from delta6.core.design import Design
+from delta6.core.model import ENCODER_COUNT_RAD, Params
+from delta6.core.operators import affine_scan, play
+
+
+@dataclass
+class ModelState:
+    """The history a calibrated model carries from one sample to the next, per joint:
+    the direction play (half counts), the hysteresis plays (counts), the filtered speed
+    (rad/s) and the last count. The board keeps the same numbers."""
+
+    direction2: np.ndarray   # (6,)
+    plays: np.ndarray        # (6, R)
+    speed: np.ndarray        # (6,)
+    last: np.ndarray         # (6,)
+
+    @classmethod
+    def settled(cls, counts0, radii_count: int) -> "ModelState":
+        """At rest at ``counts0``: every play centred on it, no speed."""
+        x = np.asarray(counts0, dtype=float)
+        return cls(direction2=2.0 * x, plays=np.repeat(x[:, None], radii_count, axis=1),
+                   speed=np.zeros(6), last=x.copy())
+
+
+@dataclass
+class JointTerms:
+    theta: np.ndarray        # (n, 6) corrected joint angles, rad
+    torque: np.ndarray       # (n, 6) joint torques, N*m
+    direction: np.ndarray    # (n, 6) in [-1, 1]
+    hysteresis: np.ndarray   # (n, 6, R) in [-1, 1]
+    speed: np.ndarray        # (n, 6) rad/s
+
+
+def counts_from_angles(theta: np.ndarray) -> np.ndarray:
+    """Encoder angles (rad) as signed whole counts, what the board computes from."""
+    return np.round(np.asarray(theta, dtype=float) / ENCODER_COUNT_RAD)
+
+
+def sample_period(t: np.ndarray) -> float:
+    """The sample period of a log (median step; logs are sampled uniformly up to jitter)."""
+    t = np.asarray(t, dtype=float)
+    return float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+
+
+def speed_filter(tau: float, dt: float) -> tuple[float, float]:
+    """v_n = a v_(n-1) + g (x_n - x_(n-1)): backward-Euler low pass of the count difference
+    (rad/s per count step). Returns (a, g)."""
+    if dt <= 0:
+        return 1.0, 0.0
+    a = tau / (tau + dt)
+    return a, (1.0 - a) * ENCODER_COUNT_RAD / dt
+
+
+class CalibratedModel:
+    """The analytical model of ``design`` with ``calibration`` applied (see the module doc).
+
+    Also an estimator for ``delta6.evaluation.tablev``: ``name`` and ``predict(log)``.
+    """
+
+    name = "calibrated"
+
+    def __init__(self, design: Design, calibration: Calibration):
+        calibration.check_design(design)
+        self.design = design
+        self.cal = calibration
+        c = calibration
+        nominal = Params.from_design(design)
+        mm = 1e-3
+        self.params = nominal.with_(
+            a=nominal.a + c.delta_a_mm * mm, b=nominal.b + c.delta_b_mm * mm,
+            la=nominal.la + c.delta_la_mm * mm, lb=nominal.lb + c.delta_lb_mm * mm,
+            phi=nominal.phi + c.delta_azimuth_rad,
+            offset=nominal.offset + c.delta_rest_angle_rad)
+        self.radii = np.asarray(c.hysteresis_radii_counts, dtype=float)
+
+    # -- the pieces ---------------------------------------------------------------------------
+
+    def joint_terms(self, counts: np.ndarray, dt: float, state: ModelState | None = None
+                    ) -> tuple[JointTerms, ModelState]:
+        """Steps 1-3 for samples ``counts`` (n, 6) taken every ``dt`` seconds."""
+        c = self.cal
+        x = np.asarray(counts, dtype=float)
+        if x.ndim != 2 or x.shape[1] != 6:
+            raise ValueError(f"counts must have shape (n, 6), got {x.shape}")
+        if state is None:
+            state = ModelState.settled(x[0], len(self.radii))
+        half = float(c.direction_half_counts)
+        y2 = play(2.0 * x, half, state.direction2)
+        direction = (2.0 * x - y2) / half
+        yr = play(x[:, :, None], self.radii, state.plays)
+        hysteresis = (x[:, :, None] - yr) / self.radii
+        a, g = speed_filter(c.speed_filter_s, dt)
+        step = np.diff(x, axis=0, prepend=state.last[None, :])
+        speed = affine_scan(np.full(x.shape, a), g * step, state.speed)
+        theta = x * ENCODER_COUNT_RAD - c.offset_rad + 0.5 * c.backlash_play_rad * direction
+        signs = sum(c.friction_sign_nm[:, s] * np.clip(speed / v, -1.0, 1.0)
+                    for s, v in enumerate(c.friction_speeds_rad_s))
+        torque = (self.design.k * c.rate_ratio * theta
+                  + np.einsum("njr,jr->nj", hysteresis, c.hysteresis_nm)
+                  + signs + c.viscous_nm_s_per_rad * speed + c.presliding_nm * direction)
+        after = ModelState(direction2=y2[-1].copy(), plays=yr[-1].copy(),
+                           speed=speed[-1].copy(), last=x[-1].copy())
+        return JointTerms(theta, torque, direction, hysteresis, speed), after
+
+    def wrench_from_terms(self, theta: np.ndarray, torque: np.ndarray) -> np.ndarray:
+        """Steps 4-5: the wrench at {E} (n, 6) from corrected angles and joint torques."""
+        c = self.cal
+        p = self.params
+        if np.any(c.elbow_rad_per_nm):
+            p = p.with_(offset=p.offset + c.elbow_rad_per_nm * torque[:, :3])
+        f_b = model.base_force(p, theta[:, :3], torque[:, :3])
+        moment = torque[:, 3:]
+        turn = c.gimbal_misalignment_rad + c.tilt_rad_per_nm * (
+            moment + np.cross([0.0, 0.0, p.c], f_b))
+        f_e0 = f_b - np.cross(turn, f_b)
+        return model.wrench_in_e(theta[:, 3:], f_e0, moment)
+
+    # -- whole runs ---------------------------------------------------------------------------
+
+    def run(self, counts: np.ndarray, dt: float, state: ModelState | None = None
+            ) -> tuple[np.ndarray, ModelState]:
+        """The wrench (n, 6) for samples ``counts`` (n, 6, signed counts from the zero) taken
+        every ``dt`` s, continuing from ``state`` (default: settled at the first sample);
+        returns the state after the last sample too, so a stream can be fed in pieces."""
+        terms, after = self.joint_terms(counts, dt, state)
+        return self.wrench_from_terms(terms.theta, terms.torque), after
+
+    def predict(self, log) -> np.ndarray:
+        """The calibrated wrench for a log's encoder angles (estimator protocol)."""
+        wrench, _ = self.run(counts_from_angles(log.theta), sample_period(log.t))
+        return wrench

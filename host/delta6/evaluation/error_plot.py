@@ -1,0 +1,52 @@
+"""The error distributions of several estimators on one log, one panel per axis: the share of
+samples whose |error| exceeds x % FS (a complementary CDF on a log scale, so the tails that
+Table V summarises stay visible). Headless matplotlib (the ``plots`` extra)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from delta6.core.accuracy import error_pct_fs
+from delta6.core.errors import UserError
+from delta6.core.model import AXES
+
+
+def plot_errors(estimates: dict[str, np.ndarray], reference: np.ndarray, full_scale,
+                path: str | Path, title: str = "") -> Path:
+    """``estimates``: {row name: (n, 6) wrench}; writes a PNG to ``path``."""
+    try:
+        import matplotlib
+    except ImportError:
+        raise UserError("--plot needs matplotlib: pip install 'delta6[plots]'") from None
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    fig, axes = plt.subplots(2, 3, figsize=(13, 7.5), sharey=True)
+    n = len(reference)
+    share = 1.0 - np.arange(n) / n          # share of samples at or above each sorted error
+    for name, estimate in estimates.items():
+        err = error_pct_fs(estimate, reference, full_scale)
+        for axis, ax in enumerate(axes.flat):
+            ax.step(np.sort(err[:, axis]), share, where="post", label=name, lw=1.2)
+    for axis, ax in enumerate(axes.flat):
+        ax.set_yscale("log")
+        ax.set_ylim(max(0.5 / n, 1e-5), 1.0)
+        ax.set_xlim(left=0)
+        ax.axhline(0.01, color="grey", lw=0.6, ls=":")       # the p99 line
+        ax.set_title(AXES[axis])
+        ax.set_xlabel("|error|, % FS")
+        ax.grid(alpha=0.3, which="both")
+    axes[0, 0].set_ylabel("share of samples above")
+    axes[1, 0].set_ylabel("share of samples above")
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle(title or "Error distributions (dotted: 1 % of samples, the p99)")
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=110)
+    except OSError as exc:
+        raise UserError(f"cannot write {path}: {exc.strerror}") from None
+    finally:
+        plt.close(fig)
+    return path

@@ -1,0 +1,92 @@
+"""The paper's Table V across estimators: p95, p99 and max of |error| per axis, % FS.
+
+An **estimator** is any object with
+
+* ``name``: a short string, the row's label (``"analytical"``, ``"calibrated"``, ...);
+* ``predict(log) -> np.ndarray``: the wrench it estimates for every sample of ``log`` (a
+  ``delta6.link.logfile.LogData``: ``t``, ``theta`` (n, 6) encoder angles in rad, ...), shape
+  (n, 6), Fx Fy Fz in N and Mx My Mz in N*m, in frame {E}. It sees the encoder angles and
+  times only: the reference wrench ``log.wrench`` is what it is scored against.
+
+:func:`table` scores a list of estimators on one log and returns the JSON of
+``delta6 evaluate``; :func:`format_table` prints it. To add a row (a learned model, another
+calibration), write a class with those two members and pass an instance along::
+
+    class MyModel:
+        name = "my-model"
+        def predict(self, log):
+            return ...            # (len(log), 6)
+
+    result = tablev.table([Analytical(design), MyModel()], log, design)
+"""
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from delta6.core import accuracy, model
+from delta6.core.design import Design
+from delta6.core.errors import UserError
+from delta6.core.model import AXES
+from delta6.core.spec import full_scale
+
+#: Percentiles of Table V, and their JSON keys.
+COLUMNS = ((95, "p95_pct"), (99, "p99_pct"), (100, "max_pct"))
+
+
+class Estimator(Protocol):
+    name: str
+
+    def predict(self, log) -> np.ndarray: ...
+
+
+class Analytical:
+    """The paper's analytical model on the logged angles."""
+
+    name = "analytical"
+
+    def __init__(self, design: Design):
+        self.design = design
+
+    def predict(self, log) -> np.ndarray:
+        return model.wrench(self.design, log.theta)
+
+
+def row(estimator: Estimator, log, fs: np.ndarray) -> dict:
+    """One estimator's Table V row on ``log``."""
+    estimate = np.asarray(estimator.predict(log), dtype=float)
+    if estimate.shape != (len(log), 6):
+        raise UserError(f"estimator {estimator.name!r} returned shape {estimate.shape}, "
+                        f"expected ({len(log)}, 6)")
+    if not np.all(np.isfinite(estimate)):
+        bad = int((~np.isfinite(estimate)).any(axis=1).sum())
+        raise UserError(f"estimator {estimator.name!r} gave no finite wrench for {bad} samples")
+    t = accuracy.percentiles(estimate, log.wrench, fs, [q for q, _ in COLUMNS])
+    return {"estimator": estimator.name,
+            **{key: t[f"p{q:g}"] for q, key in COLUMNS}}
+
+
+def table(estimators, log, design: Design) -> dict:
+    """``{"rows": [{"estimator", "p95_pct", "p99_pct", "max_pct"}, ...], "samples": n,
+    "full_scale": [6], "axes": [...]}`` for the estimators on one log."""
+    names = [e.name for e in estimators]
+    if len(set(names)) != len(names):
+        raise UserError("two estimators share a name: " + ", ".join(names))
+    fs = full_scale(design)
+    return {"rows": [row(e, log, fs) for e in estimators], "samples": len(log),
+            "full_scale": fs.tolist(), "axes": list(AXES),
+            "design": {"name": design.name, "hash": f"0x{design.hash32():08x}"}}
+
+
+def format_table(result: dict) -> str:
+    """Table V as text: one line per estimator and percentile."""
+    width = max([10] + [len(r["estimator"]) for r in result["rows"]])
+    lines = [f"Table V: |error| in % of full scale, {result['samples']} samples",
+             f"{'estimator':<{width}}  {'':<4}" + "".join(f"{a:>8}" for a in AXES)]
+    for r in result["rows"]:
+        for q, key in COLUMNS:
+            label = "max" if q == 100 else f"p{q}"
+            lines.append(f"{r['estimator']:<{width}}  {label:<4}"
+                         + "".join(f"{v:8.2f}" for v in r[key]))
+    return "\n".join(lines)

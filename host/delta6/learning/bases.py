@@ -1,0 +1,79 @@
+"""What a residual model is trained over: nothing (end-to-end), the analytical model, or the
+unit's calibrated model (``delta6 calibrate``; the "hybrid").
+
+A base gives the wrench for a whole log (``batch``) and, for the streaming estimator, sample by
+sample (``update``); both must agree exactly. The learned network adds what the base misses.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from delta6.core import model
+from delta6.core.calibrated import CalibratedModel, counts_from_angles
+from delta6.core.calibration import Calibration
+from delta6.core.design import Design
+
+
+class NoBase:
+    """End-to-end: the network predicts the whole wrench."""
+
+    name = "none"
+
+    def batch(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        return np.zeros(np.shape(theta), dtype=float)
+
+    def update(self, t: float, theta: np.ndarray) -> np.ndarray:
+        return np.zeros(6)
+
+    def reset(self) -> None:
+        pass
+
+
+class AnalyticalBase:
+    """The paper's analytical model on the newest reading of the window (stateless)."""
+
+    name = "analytical"
+
+    def __init__(self, design: Design):
+        self.params = model.Params.from_design(design)
+
+    def batch(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        return model.wrench(self.params, theta)
+
+    def update(self, t: float, theta: np.ndarray) -> np.ndarray:
+        return model.wrench(self.params, np.asarray(theta, float)[None])[0]
+
+    def reset(self) -> None:
+        pass
+
+
+class CalibrationBase:
+    """The calibrated model (causal, with a few numbers of state per joint) run sample by
+    sample at the model's rate. A sample with a missing angle gives NaN and leaves the state
+    as it was, in the batch and in the stream alike."""
+
+    name = "calibration"
+
+    def __init__(self, design: Design, calibration: Calibration, rate_hz: float):
+        self.calibrated = CalibratedModel(design, calibration)
+        self.calibration = calibration
+        self.dt = 1.0 / rate_hz
+        self.state = None
+
+    def batch(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        theta = np.asarray(theta, dtype=float)
+        out = np.full(theta.shape, np.nan)
+        ok = np.isfinite(theta).all(axis=1)
+        if ok.any():
+            out[ok], _ = self.calibrated.run(counts_from_angles(theta[ok]), self.dt)
+        return out
+
+    def update(self, t: float, theta: np.ndarray) -> np.ndarray:
+        theta = np.asarray(theta, dtype=float).reshape(1, 6)
+        if not np.isfinite(theta).all():
+            return np.full(6, np.nan)
+        wrench, self.state = self.calibrated.run(counts_from_angles(theta), self.dt, self.state)
+        return wrench[0]
+
+    def reset(self) -> None:
+        self.state = None

@@ -1,0 +1,114 @@
+"""What a learned-model file says about itself: the ONNX ``metadata_props`` that inference
+needs (design, base model, window, rate, normalisation) and what it was trained from.
+
+Every key starts with ``delta6.``; values are text (JSON where structured). Reading checks
+every field and names the first bad one in one line.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+from delta6.core.errors import UserError
+from delta6.learning.windows import Normalisation
+
+SCHEMA = "delta6-learned/1"
+PREFIX = "delta6."
+BASES = ("none", "analytical", "calibration")
+
+
+class ModelFileError(UserError):
+    """A model file is unreadable, not a Delta6 model, or not for this design or calibration."""
+
+
+@dataclass(frozen=True)
+class ModelCard:
+    kind: str                   # mlp, lstm, gru, transformer
+    design_name: str
+    design_hash: int
+    base: str                   # none (end-to-end), analytical, calibration
+    window: int
+    rate_hz: float
+    norm: Normalisation
+    calibration_name: str = ""
+    calibration_hash: str = ""
+    hyperparameters: dict = field(default_factory=dict)
+    training: dict = field(default_factory=dict)
+
+    def to_props(self) -> dict[str, str]:
+        props = {
+            "schema": SCHEMA, "kind": self.kind, "design": self.design_name,
+            "design_hash": f"0x{self.design_hash:08x}", "base": self.base,
+            "window": str(self.window), "rate_hz": repr(float(self.rate_hz)),
+            "normalisation": self.norm.to_json(),
+            "hyperparameters": json.dumps(self.hyperparameters),
+            "training": json.dumps(self.training),
+        }
+        if self.base == "calibration":
+            props["calibration"] = self.calibration_name
+            props["calibration_hash"] = self.calibration_hash
+        return {PREFIX + k: v for k, v in props.items()}
+
+    @classmethod
+    def from_props(cls, props: dict[str, str], source: str) -> "ModelCard":
+        """Parse ``metadata_props``; ``source`` names the file in messages."""
+        own = {k[len(PREFIX):]: v for k, v in props.items() if k.startswith(PREFIX)}
+        if own.get("schema") != SCHEMA:
+            if "schema" in own:
+                raise ModelFileError(f"{source}: model schema {own['schema']!r} is not "
+                                     f"supported (this version reads {SCHEMA})")
+            raise ModelFileError(f"{source}: an ONNX model, but not a Delta6 learned estimator "
+                                 "(no delta6 metadata)")
+
+        def need(key):
+            if key not in own:
+                raise ModelFileError(f"{source}: metadata {PREFIX}{key} is missing")
+            return own[key]
+
+        def bad(key, why):
+            return ModelFileError(f"{source}: metadata {PREFIX}{key} {why}")
+
+        kind = need("kind")
+        if kind not in ("mlp", "lstm", "gru", "transformer"):
+            raise bad("kind", f"names no known model ({kind!r})")
+        base = need("base")
+        if base not in BASES:
+            raise bad("base", f"must be one of {', '.join(BASES)}, got {base!r}")
+        try:
+            design_hash = int(need("design_hash"), 16)
+        except ValueError:
+            raise bad("design_hash", "is not a hexadecimal hash") from None
+        try:
+            window = int(need("window"))
+            if not 1 <= window <= 10_000:
+                raise ValueError
+        except ValueError:
+            raise bad("window", "must be a whole number of samples in 1..10000") from None
+        try:
+            rate = float(need("rate_hz"))
+            if not 0 < rate < 1e6:
+                raise ValueError
+        except ValueError:
+            raise bad("rate_hz", "must be a positive rate") from None
+        try:
+            norm = Normalisation.from_json(need("normalisation"))
+        except (ValueError, KeyError, TypeError) as exc:
+            raise bad("normalisation", f"is unusable ({exc})") from None
+        extra = {}
+        for key in ("hyperparameters", "training"):
+            try:
+                extra[key] = json.loads(own.get(key, "{}"))
+            except ValueError:
+                raise bad(key, "is not JSON") from None
+        return cls(kind=kind, design_name=need("design"), design_hash=design_hash, base=base,
+                   window=window, rate_hz=rate, norm=norm,
+                   calibration_name=own.get("calibration", ""),
+                   calibration_hash=own.get("calibration_hash", ""), **extra)
+
+    def describe(self) -> str:
+        over = {"none": "end-to-end", "analytical": "residual over the analytical model",
+                "calibration": f"residual over calibration {self.calibration_name} "
+                               f"({self.calibration_hash})"}[self.base]
+        return (f"{self.kind}, {over}, design {self.design_name} (0x{self.design_hash:08x}), "
+                f"window {self.window} at {self.rate_hz:g} Hz")
+

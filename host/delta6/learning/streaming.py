@@ -1,0 +1,87 @@
+"""The learned estimator sample by sample: keeps the last window of readings and turns each new
+sample into a wrench, the same numbers as :meth:`LearnedEstimator.predict` on the whole log.
+
+With a device (``delta6.link.device``), stream raw counts (``set_mode("raw")``) and either wrap
+its sample iterator or register a callback:
+
+    live = LearnedEstimator("gru.onnx", design=design).streaming()
+    live.check_device(dev.info())
+    for sample, wrench in live.wrap(dev.samples()):
+        ...
+    remove = dev.on_sample(live.callback(lambda sample, wrench: ...))
+"""
+from __future__ import annotations
+
+from typing import Callable, Iterable, Iterator
+
+import numpy as np
+
+from delta6.core.errors import UserError
+from delta6.learning.windows import GAP_PERIODS
+
+NO_ANGLES = ("the stream carries no encoder angles: a learned estimator needs the raw counts "
+             "(Device.set_mode(\"raw\"), delta6 stream --raw)")
+
+
+class StreamingEstimator:
+    def __init__(self, estimator):
+        self.estimator = estimator
+        self.window = estimator.window
+        self._gap = GAP_PERIODS / estimator.rate_hz
+        self._buffer = np.zeros((self.window, 6))
+        self._last_t: float | None = None
+
+    def reset(self) -> None:
+        """Forget the history: the next sample starts a new window (as after a gap)."""
+        self._last_t = None
+        self.estimator.base.reset()
+
+    def update(self, t: float, theta) -> np.ndarray:
+        """The wrench (6,) for a new sample at time ``t`` (s) with encoder angles ``theta``
+        (rad); NaN while the window holds a missing angle."""
+        theta = np.asarray(theta, dtype=float).reshape(6)
+        if self._last_t is None or t - self._last_t > self._gap:
+            self._buffer[:] = theta             # a new segment: the history is this reading
+        else:
+            self._buffer[:-1] = self._buffer[1:]
+            self._buffer[-1] = theta
+        self._last_t = float(t)
+        base = self.estimator.base.update(t, theta)
+        if not np.isfinite(self._buffer).all():
+            return np.full(6, np.nan)
+        norm = self.estimator.card.norm
+        z = self.estimator.network(norm.inputs(self._buffer[None]))
+        return norm.wrench(z)[0] + base
+
+    def update_block(self, t, theta) -> np.ndarray:
+        """:meth:`update` for each row of a block of samples ((n,) times, (n, 6) angles or None
+        when the stream carried no counts); (n, 6)."""
+        if theta is None:
+            raise UserError(NO_ANGLES)
+        return np.array([self.update(ti, row) for ti, row in zip(t, theta)]).reshape(-1, 6)
+
+    # -- with a Device ------------------------------------------------------------------------
+
+    def check_device(self, info) -> None:
+        """Refuse a device that runs another design (``info``: ``Device.info()``)."""
+        card = self.estimator.card
+        if info.design_hash != card.design_hash:
+            raise UserError(f"{self.estimator.path} was trained for design {card.design_name} "
+                            f"(0x{card.design_hash:08x}); the device runs {info.design_name} "
+                            f"(0x{info.design_hash:08x})")
+
+    def wrench_of(self, sample) -> np.ndarray:
+        if sample.theta is None:
+            raise UserError(NO_ANGLES)
+        return self.update(sample.t, sample.theta)
+
+    def wrap(self, samples: Iterable) -> Iterator[tuple[object, np.ndarray]]:
+        """``(sample, learned wrench)`` for each device sample."""
+        for sample in samples:
+            yield sample, self.wrench_of(sample)
+
+    def callback(self, handler: Callable[[object, np.ndarray], None]) -> Callable[[object], None]:
+        """A ``Device.on_sample`` callback that calls ``handler(sample, learned wrench)``."""
+        def on_sample(sample) -> None:
+            handler(sample, self.wrench_of(sample))
+        return on_sample

@@ -1,0 +1,126 @@
+"""Windows of encoder readings and their standardisation (numpy only: training and inference
+share it).
+
+A model sees the newest reading and the ``window - 1`` before it. Rows whose history is shorter
+(the start of a log, or after a gap in time: lost samples) repeat the oldest reading they have,
+as if the device had been standing still before it; the streaming estimator does the same, so
+that a log evaluated at once and sample by sample give the same wrenches.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+#: The paper's window length T_w (Section V.B).
+WINDOW = 25
+#: A step between two samples longer than this many nominal periods starts a new segment.
+GAP_PERIODS = 1.5
+
+
+def nominal_rate(t: np.ndarray) -> float:
+    """Sample rate of a log, Hz: the reciprocal of its median time step."""
+    t = np.asarray(t, dtype=float)
+    if len(t) < 2:
+        raise ValueError("a rate needs at least two samples")
+    return float(1.0 / np.median(np.diff(t)))
+
+
+def segment_starts(t: np.ndarray, rate_hz: float) -> np.ndarray:
+    """Index of the first row of each row's contiguous segment, (n,) int: a step longer than
+    ``GAP_PERIODS`` periods (lost samples, a restart) begins a new segment."""
+    t = np.asarray(t, dtype=float)
+    brk = np.ones(len(t), dtype=bool)
+    brk[1:] = np.diff(t) > GAP_PERIODS / rate_hz
+    return np.maximum.accumulate(np.where(brk, np.arange(len(t)), 0))
+
+
+def window_index(starts: np.ndarray, window: int = WINDOW) -> np.ndarray:
+    """(n, window) row indices of each row's window, oldest first, newest (the row) last;
+    indices before the segment start are clamped to it."""
+    rows = np.arange(len(starts))
+    idx = rows[:, None] + np.arange(1 - window, 1)[None, :]
+    return np.maximum(idx, np.asarray(starts)[:, None])
+
+
+def windows(theta: np.ndarray, t: np.ndarray, rate_hz: float, window: int = WINDOW) -> np.ndarray:
+    """(n, window, 6) windows of ``theta`` ((n, 6)), one per row."""
+    return np.asarray(theta, dtype=float)[window_index(segment_starts(t, rate_hz), window)]
+
+
+@dataclass(frozen=True)
+class Normalisation:
+    """How windows and wrenches are standardised (the paper's "all inputs and outputs are first
+    standardized").
+
+    The newest reading of a window is standardised against the training mean and spread of
+    the angles; each older reading enters as its difference from the newest, standardised
+    against the spread of those differences. It is the same information as the raw window (a
+    fixed invertible linear map of it), but the motion within the window, a few encoder counts
+    between samples, reaches the network at order one instead of a thousandth of the angle
+    spread. The target (the wrench, or what the base model leaves of it) is standardised per
+    axis.
+    """
+
+    theta_mean: tuple[float, ...]
+    theta_scale: tuple[float, ...]
+    delta_scale: tuple[float, ...]
+    target_mean: tuple[float, ...]
+    target_scale: tuple[float, ...]
+
+    @classmethod
+    def fit(cls, win: np.ndarray, target: np.ndarray) -> "Normalisation":
+        """From training windows (n, w, 6) and targets (n, 6)."""
+        newest = win[:, -1, :]
+        delta = (win[:, :-1, :] - newest[:, None, :]).reshape(-1, win.shape[-1])
+        return cls(theta_mean=_tup(newest.mean(0)), theta_scale=_tup(_spread(newest)),
+                   delta_scale=_tup(_spread(delta)), target_mean=_tup(target.mean(0)),
+                   target_scale=_tup(_spread(target)))
+
+    def inputs(self, win: np.ndarray) -> np.ndarray:
+        """Windows (n, w, 6) in rad -> network inputs (n, w, 6) float32."""
+        win = np.asarray(win, dtype=float)
+        newest = win[:, -1:, :]
+        out = (win - newest) / np.asarray(self.delta_scale)
+        out[:, -1:, :] = (newest - np.asarray(self.theta_mean)) / np.asarray(self.theta_scale)
+        return out.astype(np.float32)
+
+    def targets(self, y: np.ndarray) -> np.ndarray:
+        return ((np.asarray(y, float) - self.target_mean) / np.asarray(self.target_scale)
+                ).astype(np.float32)
+
+    def wrench(self, z: np.ndarray) -> np.ndarray:
+        """Network outputs (n, 6) back to physical units."""
+        return np.asarray(z, dtype=float) * np.asarray(self.target_scale) + self.target_mean
+
+    def to_json(self) -> str:
+        return json.dumps(asdict(self))
+
+    @classmethod
+    def from_json(cls, text: str) -> "Normalisation":
+        raw = json.loads(text)
+        values = {k: tuple(float(v) for v in raw[k]) for k in cls.__dataclass_fields__}
+        for k, v in values.items():
+            if len(v) != 6 or not all(np.isfinite(v)):
+                raise ValueError(f"{k} must be six finite numbers")
+            if k.endswith("scale") and min(v) <= 0:
+                raise ValueError(f"{k} must be positive")
+        return cls(**values)
+
+
+def _spread(x: np.ndarray) -> np.ndarray:
+    """Standard deviation per column, never zero (a joint that never moved keeps scale 1)."""
+    sd = np.asarray(x, dtype=float).std(axis=0)
+    return np.where(sd > 0, sd, 1.0)
+
+
+def _tup(a) -> tuple[float, ...]:
+    return tuple(float(v) for v in a)
+
+
+def time_split(n: int, holdout: float) -> int:
+    """First row of the held-out tail of ``n`` time-ordered rows (at least one row each side)."""
+    if not 0 < holdout < 1:
+        raise ValueError("the held-out fraction must be between 0 and 1")
+    return int(min(max(round(n * (1 - holdout)), 1), n - 1))

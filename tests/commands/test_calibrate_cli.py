@@ -1,0 +1,114 @@
+"""``delta6 calibrate``, ``delta6 evaluate`` and ``delta6 simulate --unit`` as a user runs them."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from delta6.cli import main
+from delta6.core import calibration as C
+from delta6.link.logfile import read_log
+
+from conftest import DESIGNS
+
+DESIGN = str(DESIGNS / "delta6.toml")
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("unit")
+    cal_log, check_log = d / "cal.csv", d / "check.csv"
+    assert main(["simulate", "--effect", "stiffness_mismatch", "--effect", "encoder_offset",
+                 "--seed", "3", "--duration", "100", "-o", str(cal_log)]) == 0
+    assert main(["simulate", "--unit", str(d / "cal.truth.json"), "--seed", "4",
+                 "--duration", "60", "-o", str(check_log)]) == 0
+    return d, cal_log, check_log
+
+
+def test_unit_is_the_same_unit_on_a_new_run(runs):
+    d, cal_log, check_log = runs
+    a = json.loads((d / "cal.truth.json").read_text())
+    b = json.loads((d / "check.truth.json").read_text())
+    assert a["effects"] == b["effects"] and a["design"] == b["design"]
+    assert b["seed"] == 4 and b["duration_s"] == 60
+    assert not np.allclose(read_log(cal_log).theta[:100], read_log(check_log).theta[:100])
+
+
+def test_calibrate_then_evaluate(runs, tmp_path, capsys):
+    _, cal_log, check_log = runs
+    out = tmp_path / "unit-3.toml"
+    assert main(["calibrate", str(cal_log), "--design", DESIGN, "-o", str(out), "--effect",
+                 "stiffness_mismatch", "--effect", "encoder_offset", "--report",
+                 str(tmp_path / "rep"), "--quiet"]) == 0
+    cal = C.load(out)
+    assert cal.name == "unit-3" and cal.effects == ("stiffness_mismatch", "encoder_offset")
+    assert set(cal.fit["heldout_after"]) == {"p95_pct", "p99_pct", "max_pct"}
+    assert (tmp_path / "rep" / "calibration.md").exists()
+    assert (tmp_path / "rep" / "heldout_p99.png").read_bytes()[:4] == b"\x89PNG"
+    assert "held-out p99" in capsys.readouterr().out
+
+    js = tmp_path / "t.json"
+    assert main(["evaluate", str(check_log), "--design", DESIGN, "--calibration", str(out),
+                 "--json", str(js)]) == 0
+    result = json.loads(js.read_text())
+    assert [r["estimator"] for r in result["rows"]] == ["analytical", "calibrated"]
+    for r in result["rows"]:
+        assert set(r) == {"estimator", "p95_pct", "p99_pct", "max_pct"}
+        assert all(len(r[k]) == 6 for k in ("p95_pct", "p99_pct", "max_pct"))
+    assert result["samples"] == 3000 and len(result["full_scale"]) == 6
+    analytical, calibrated = result["rows"]
+    assert max(calibrated["p99_pct"]) < 0.5 * min(analytical["p99_pct"])
+    assert "calibrated" in capsys.readouterr().out
+
+
+def test_evaluate_without_calibration_has_the_analytical_row(runs, capsys):
+    _, _, check_log = runs
+    assert main(["evaluate", str(check_log), "--design", DESIGN]) == 0
+    assert "analytical  p99" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv,message", [
+    (["calibrate", "{log}", "-o", "{tmp}/c.toml", "--effect", "thermal_drift"], "thermal"),
+    (["calibrate", "{log}", "-o", "{tmp}/c.toml", "--effect", "warp"], "unknown effect"),
+    (["calibrate", "{tmp}/missing.csv", "-o", "{tmp}/c.toml"], "missing.csv"),
+    (["calibrate", "{log}", "-o", "{tmp}/nodir/c.toml"], "does not exist"),
+    (["calibrate", "{log}", "-o", "{tmp}/c.toml", "--design", str(DESIGNS / "stiff.toml")],
+     "recorded with design"),
+    (["evaluate", "{log}", "--calibration", "{tmp}/missing.toml"], "no such file"),
+    (["simulate", "--unit", "{tmp}/missing.truth.json", "-o", "{tmp}/x.csv"], "no such file"),
+    (["simulate", "--unit", "{truth}", "--effect", "backlash", "-o", "{tmp}/x.csv"],
+     "drop --effect"),
+])
+def test_bad_input_is_one_line_and_status_2(runs, tmp_path, capsys, argv, message):
+    d, cal_log, _ = runs
+    argv = [a.format(log=cal_log, tmp=tmp_path, truth=d / "cal.truth.json") for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1, err
+
+
+def test_a_calibration_for_another_design_is_refused(runs, tmp_path, capsys, baseline):
+    _, _, check_log = runs
+    other = C.neutral(baseline.replace(lb_mm=121.0), "other")
+    path = C.save(other, tmp_path / "other.toml")
+    assert main(["evaluate", str(check_log), "--design", DESIGN, "--calibration",
+                 str(path)]) == 2
+    assert "fitted for design" in capsys.readouterr().err
+
+
+def test_codegen_writes_and_removes_the_calibration_header(tmp_path, baseline, capsys):
+    cal = C.save(C.neutral(baseline, "unit-x").with_(offset_rad=np.full(6, 1e-3)),
+                 tmp_path / "unit.toml")
+    out = tmp_path / "generated" / "delta6_design.h"
+    header = out.with_name("delta6_calibration.h")
+    assert main(["codegen", DESIGN, "-o", str(out), "--calibration", str(cal)]) == 0
+    text = header.read_text()
+    assert "GENERATED FILE" in text and '"unit-x"' in text
+    assert f"0x{C.load(cal).hash32():08X}UL" in text
+    assert main(["codegen", DESIGN, "-o", str(out), "--calibration", str(cal), "--check"]) == 0
+    assert main(["codegen", DESIGN, "-o", str(out), "--check"]) == 1    # it is still there
+    assert main(["codegen", DESIGN, "-o", str(out)]) == 0
+    assert not header.exists() and "removed" in capsys.readouterr().out
+    other = C.save(C.neutral(baseline.replace(lb_mm=121.0), "other"), tmp_path / "o.toml")
+    assert main(["codegen", DESIGN, "-o", str(out), "--calibration", str(other)]) == 2

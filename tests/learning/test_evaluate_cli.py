@@ -1,0 +1,47 @@
+"""``delta6 evaluate --model``: one Table V row per model file, the error plot, refusals."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from delta6.cli import main
+from delta6.core import accuracy
+from delta6.core.model import wrench
+from delta6.core.spec import full_scale
+from delta6.learning import LearnedEstimator
+from delta6.link.logfile import read_log
+
+
+def test_rows_are_named_after_the_model_files(tmp_path, tiny_models, unit_logs, baseline, capsys):
+    models = [str(tiny_models[k][0]) for k in ("mlp", "gru")]
+    out, plot = tmp_path / "t.json", tmp_path / "e.png"
+    assert main(["evaluate", str(unit_logs[1]), "--model", *models, "--json", str(out),
+                 "--plot", str(plot)]) == 0
+    result = json.loads(out.read_text())
+    assert [r["estimator"] for r in result["rows"]] == ["analytical", "mlp", "gru"]
+    log = read_log(unit_logs[1])
+    fs = full_scale(baseline)
+    gru = LearnedEstimator(models[1], design=baseline).predict(log)
+    expected = accuracy.percentiles(gru, log.wrench, fs, (95, 99, 100))
+    assert np.allclose(result["rows"][2]["p99_pct"], expected["p99"])
+    assert np.allclose(result["rows"][2]["max_pct"], expected["p100"])
+    analytical = accuracy.percentiles(wrench(baseline, log.theta), log.wrench, fs, (99,))
+    assert np.allclose(result["rows"][0]["p99_pct"], analytical["p99"])
+    assert plot.stat().st_size > 10_000 and plot.read_bytes()[:4] == b"\x89PNG"
+    text = capsys.readouterr().out
+    assert any(line.split()[:2] == ["gru", "p99"] for line in text.splitlines())
+
+
+def test_bad_models_get_one_line_and_exit_2(tmp_path, tiny_models, unit_logs, capsys):
+    junk = tmp_path / "junk.onnx"
+    junk.write_bytes(b"\x08\x01garbage")
+    for argv, words in (
+            (["--model", str(junk)], "not a readable ONNX model"),
+            (["--model", str(tiny_models["mlp"][0]), "--design", "designs/stiff.toml"],
+             "recorded with design delta6"),
+            (["--model", str(tiny_models["mlp"][0]), str(tiny_models["mlp"][0])],
+             "share a name")):
+        assert main(["evaluate", str(unit_logs[1]), *argv]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and words in err, err

@@ -1,0 +1,227 @@
+"""Calibration benchmark: the figures of docs/calibration.md.
+
+    .venv/bin/python tools/bench_calibration.py                   # everything, ~30 min
+    .venv/bin/python tools/bench_calibration.py --quick           # shorter runs, ~5 min
+    .venv/bin/python tools/bench_calibration.py --sections paper,board,sizes
+
+Sections (each prints a Markdown table):
+
+- ``paper``: the twin's ``paper`` scenario, a 2000 s calibration run (seed 1) and a 600 s
+  evaluation run of the same unit (seed 2, ``twin.same_unit``): ``delta6 calibrate`` (timed:
+  10^5 samples) and Table V of the analytical and the calibrated model (Python) on the
+  evaluation run.
+- ``board``: the same unit's evaluation run at the board's rate, replayed through the
+  calibrated firmware on the virtual board (emulated ATmega328P, 16 MHz): Table V of the
+  streamed wrench, the Python calibrated model on the counts the board latched, the largest
+  difference between the two, and the cycles per sample; then a short rate sweep for overruns.
+- ``sizes``: flash and RAM of the ATmega328P image and the avrxmega3 size check, with and
+  without the calibration.
+- ``effects``: each correctable effect's single-effect scenario: calibrated p99 on an unseen
+  run of the same unit against what the diagnosis predicted would be left (its final held-out
+  p99), and the twin's floor (the same run without the effect).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from delta6 import twin
+from delta6.build import appbuild
+from delta6.calibration import calibrate
+from delta6.commands.codegen import design_firmware
+from delta6.core import accuracy
+from delta6.core import calibration as C
+from delta6.core.calibrated import CalibratedModel
+from delta6.core.calibration import CORRECTED
+from delta6.core.model import AXES
+from delta6.core.paths import DEFAULT_DESIGN
+from delta6.core.spec import full_scale
+from delta6.core.workspace import load_checked
+from delta6.evaluation.boardstream import stream_log
+
+HEADER = "| | " + " | ".join(AXES) + " |\n|---|" + "---|" * 6
+
+
+def row(label, values) -> str:
+    return f"| {label} | " + " | ".join(f"{v:.2f}" for v in values) + " |"
+
+
+def tv(estimate, reference, fs) -> dict:
+    return accuracy.percentiles(estimate, reference, fs, (95, 99, 100))
+
+
+def table_lines(label, t) -> list[str]:
+    return [row(f"{label} p95", t["p95"]), row(f"{label} p99", t["p99"]),
+            row(f"{label} max", t["p100"])]
+
+
+def cpu_seconds() -> float:
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def section_paper(design, args, out, tmp) -> dict:
+    effects = twin.scenario_effects("paper", seed=1)
+    cal_run = twin.simulate(design, effects, duration_s=args.cal_duration, rate_hz=50, seed=1,
+                            scenario="paper")
+    wall, cpu = time.perf_counter(), cpu_seconds()
+    fit = calibrate(cal_run, design, name="paper-unit", source="paper seed 1")
+    wall, cpu = time.perf_counter() - wall, cpu_seconds() - cpu
+    path = C.save(fit.calibration, tmp / "paper-unit.toml")
+    check = twin.simulate(duration_s=args.eval_duration, rate_hz=50,
+                          **twin.same_unit(cal_run.truth, 2))
+    fs = full_scale(design)
+    analytical = tv(check.model_wrench(), check.wrench, fs)
+    calibrated = tv(CalibratedModel(design, fit.calibration).predict(check), check.wrench, fs)
+    lines = [f"### paper: calibrated on {len(cal_run)} samples ({args.cal_duration:g} s), "
+             f"evaluated on {len(check)} ({args.eval_duration:g} s, same unit, seed 2)", "",
+             f"`delta6 calibrate`: {wall:.1f} s wall, {cpu:.1f} s CPU; corrects "
+             f"{', '.join(fit.calibration.effects)}", "", HEADER,
+             *table_lines("analytical", analytical), *table_lines("calibrated", calibrated)]
+    print("\n".join(lines) + "\n", flush=True)
+    out["paper"] = {"calibrate_wall_s": wall, "calibrate_cpu_s": cpu,
+                    "effects": list(fit.calibration.effects), "analytical": analytical,
+                    "calibrated": calibrated, "samples": len(cal_run)}
+    return {"truth": cal_run.truth, "calibration": fit.calibration, "path": path}
+
+
+def section_board(design, args, out, unit) -> None:
+    check = twin.simulate(duration_s=args.eval_duration, rate_hz=args.board_rate,
+                          **twin.same_unit(unit["truth"], 2))
+    image = design_firmware(Path(DEFAULT_DESIGN), unit["path"])
+    started = time.perf_counter()
+    run = stream_log(image, check, rate_hz=args.board_rate, seconds=args.board_seconds,
+                     progress=lambda m: print(f"  {m}", file=sys.stderr, flush=True))
+    fs = full_scale(design)
+    python, _ = CalibratedModel(design, unit["calibration"]).run(run.delta,
+                                                                 1.0 / args.board_rate)
+    moving = run.rows >= 0
+    ref = check.wrench[run.rows[moving]]
+    board = tv(run.wrench[moving], ref, fs)
+    host = tv(python[moving], ref, fs)
+    analytical = tv(check.model_wrench()[run.rows[moving]], ref, fs)
+    diff = float((np.abs(run.wrench - python) / fs * 100).max())
+    t = run.stats["timing"]
+    lines = [f"### board: {moving.sum()} records at {args.board_rate} Hz "
+             f"({time.perf_counter() - started:.0f} s wall), the unit's seed-2 run", "",
+             HEADER, *table_lines("analytical", analytical),
+             *table_lines("calibrated, streamed by the board", board),
+             *table_lines("calibrated, Python on the board's counts", host), "",
+             f"largest |board - Python| {diff:.4f} % FS; records paired with their log row: "
+             f"{100 * run.matched:.1f} %", "",
+             f"solve {t['solve_cycles']['mean']:.0f} cycles mean, {t['solve_cycles']['max']:.0f}"
+             f" max; whole sample {t['process_cycles']['mean']:.0f} mean; missed periods "
+             f"{t['missed_ticks']} of {t['samples'] + t['missed_ticks']}; CPU "
+             f"{100 * t['cpu_busy']:.0f} % busy"]
+    sweep = []
+    for rate in args.sweep:
+        short = twin.simulate(duration_s=4, rate_hz=rate, **twin.same_unit(unit["truth"], 3))
+        r = stream_log(image, short, rate_hz=rate, hold_s=2.0)
+        tt = r.stats["timing"]
+        sweep.append({"rate": rate, "missed": tt["missed_ticks"], "samples": tt["samples"],
+                      "busy": tt["cpu_busy"], "solve": tt["solve_cycles"]["mean"]})
+        lines.append(f"- {rate} Hz: {tt['missed_ticks']} missed periods of "
+                     f"{tt['samples'] + tt['missed_ticks']}, CPU {100 * tt['cpu_busy']:.0f} % busy")
+    print("\n".join(lines) + "\n", flush=True)
+    out["board"] = {"rate_hz": args.board_rate, "records": int(moving.sum()),
+                    "analytical": analytical, "board": board, "python": host,
+                    "max_board_python_pct": diff, "timing": t, "sweep": sweep}
+
+
+def section_sizes(design, args, out, unit) -> None:
+    plain = design_firmware(Path(DEFAULT_DESIGN))
+    calibrated = design_firmware(Path(DEFAULT_DESIGN), unit["path"])
+    include_plain = plain.elf.parent.parent / "include"
+    include_cal = calibrated.elf.parent.parent / "include"
+    probe_plain = appbuild.size_check_app("avrxmega3", include_plain, name="probe-plain")
+    probe_cal = appbuild.size_check_app("avrxmega3", include_cal, name="probe-calibrated")
+    lines = ["### sizes (bytes)", "", "| image | flash | static RAM |", "|---|---|---|"]
+    sizes = {}
+    for label, image in (("ATmega328P, analytical", plain), ("ATmega328P, calibrated", calibrated),
+                         ("avrxmega3 check, analytical", probe_plain),
+                         ("avrxmega3 check, calibrated", probe_cal)):
+        lines.append(f"| {label} | {image.sizes.flash} | {image.sizes.ram} |")
+        sizes[label] = {"flash": image.sizes.flash, "ram": image.sizes.ram}
+    print("\n".join(lines) + "\n", flush=True)
+    out["sizes"] = sizes
+
+
+def section_effects(design, args, out, tmp) -> None:
+    fs = full_scale(design)
+    lines = ["### single effects: calibrated p99 on an unseen run vs the diagnosis's prediction",
+             "", "| effect | chosen | floor p99 (max axis) | predicted p99 | calibrated p99 "
+             "| worst ratio | within 25 % |", "|---|---|---|---|---|---|---|"]
+    rows = []
+    for name in CORRECTED:
+        effects = twin.scenario_effects(name, seed=1)
+        cal_run = twin.simulate(design, effects, duration_s=args.cal_duration, rate_hz=50,
+                                seed=1, scenario=name)
+        fit = calibrate(cal_run, design, name=f"{name[:14]}-unit")
+        predicted = np.asarray(fit.diagnosis["ladder"][-1]["heldout_p99_pct"]
+                               if fit.diagnosis["ladder"]
+                               else fit.diagnosis["baseline_heldout_p99_pct"])
+        check = twin.simulate(duration_s=args.eval_duration, rate_hz=50,
+                              **twin.same_unit(cal_run.truth, 2))
+        floor_run = twin.simulate(**twin.without(check.truth, [name]))
+        floor = np.asarray(floor_run.gap((99,))["p99"])
+        got = np.asarray(tv(CalibratedModel(design, fit.calibration).predict(check),
+                            check.wrench, fs)["p99"])
+        ratio = got / predicted
+        ok = bool(np.all(ratio <= 1.25))
+        rows.append({"effect": name, "chosen": list(fit.calibration.effects),
+                     "floor": floor.tolist(), "predicted": predicted.tolist(),
+                     "calibrated": got.tolist(), "ok": ok})
+        lines.append(f"| {name} | {', '.join(fit.calibration.effects) or '-'} | "
+                     f"{floor.max():.2f} | {' '.join(f'{v:.2f}' for v in predicted)} | "
+                     f"{' '.join(f'{v:.2f}' for v in got)} | {ratio.max():.2f} | "
+                     f"{'yes' if ok else 'NO'} |")
+        print(lines[-1], file=sys.stderr, flush=True)
+    print("\n".join(lines) + "\n", flush=True)
+    out["effects"] = rows
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true",
+                        help="600 s calibration runs, 120 s evaluation, 60 s on the board")
+    parser.add_argument("--sections", default="paper,board,sizes,effects")
+    parser.add_argument("--board-rate", type=int, default=250)
+    parser.add_argument("--board-seconds", type=float, default=None,
+                        help="seconds of the evaluation run streamed by the board (default all)")
+    parser.add_argument("--sweep", default="200,225,250",
+                        help="rates (Hz) of the short overrun check")
+    parser.add_argument("--json", metavar="OUT.json")
+    args = parser.parse_args(argv)
+    args.cal_duration = 600.0 if args.quick else 2000.0
+    args.eval_duration = 120.0 if args.quick else 600.0
+    if args.quick and args.board_seconds is None:
+        args.board_seconds = 60.0
+    args.sweep = [int(v) for v in args.sweep.split(",") if v]
+    sections = set(args.sections.split(","))
+    design = load_checked(DEFAULT_DESIGN)
+    out: dict = {}
+    with tempfile.TemporaryDirectory(prefix="delta6-bench-calibration-") as tmp:
+        tmp = Path(tmp)
+        unit = None
+        if sections & {"paper", "board", "sizes"}:
+            unit = section_paper(design, args, out, tmp)
+        if "sizes" in sections:
+            section_sizes(design, args, out, unit)
+        if "board" in sections:
+            section_board(design, args, out, unit)
+        if "effects" in sections:
+            section_effects(design, args, out, tmp)
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=1, default=float) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
