@@ -25,25 +25,34 @@ def p99(err_pct: np.ndarray) -> np.ndarray:
     return np.percentile(np.abs(err_pct), 99, axis=0)
 
 
-def monotone(y: np.ndarray, preds: list[np.ndarray]) -> tuple[list[float], list[np.ndarray],
-                                                              np.ndarray]:
+def p99_of_difference(y: np.ndarray, pred: np.ndarray) -> np.ndarray:
+    """p99 of |100 (y - pred)| per column, with one temporary array (long logs)."""
+    tmp = np.subtract(y, pred)
+    tmp *= 100.0
+    np.abs(tmp, out=tmp)
+    return np.percentile(tmp, 99, axis=0, overwrite_input=True)
+
+
+def monotone(y: np.ndarray, preds) -> tuple[list[float], list[np.ndarray], np.ndarray]:
     """``y`` (n, 6) FS-normalised residual, ``preds`` the held-out predictions of the refit
-    after each step. Returns the blend weight of each step, the held-out p99 (% FS) after each
-    step, and the final blended prediction (only one (n, 6) array is kept: long logs)."""
+    after each step (any iterable: a generator lets each be freed once used). Returns the blend
+    weight of each step, the held-out p99 (% FS) after each step, and the final blended
+    prediction (only one (n, 6) array is kept: long logs)."""
     weights, p99s = [], []
     before = np.zeros_like(y)
     before_p99 = p99(100.0 * y)
     for pred in preds:
-        pred = np.asarray(pred, dtype=float)
+        step = np.subtract(pred, before, dtype=float)        # pred - before
         for a in ALPHAS:
-            trial = before + a * (pred - before)
-            trial_p99 = p99(100.0 * (y - trial))
+            trial = before + a * step
+            trial_p99 = p99_of_difference(y, trial)
             if np.all(trial_p99 <= before_p99 * (1 + TOLERANCE_REL) + TOLERANCE_PCT) \
                     or a == 0.0:
                 break
         weights.append(float(a))
         p99s.append(trial_p99)
         before, before_p99 = trial, trial_p99
+        del step
     return weights, p99s, before
 
 

@@ -148,7 +148,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
 
     y = data.residual / data.fs
     weights, step_p99, final_pred = ladder_mod.monotone(
-        y, [held["pred"].pop(("step", s.added)) for s in steps_found])
+        y, (held["pred"].pop(("step", s.added)) for s in steps_found))
     steps = []
     chosen = []
     coef_all = np.zeros(0)
