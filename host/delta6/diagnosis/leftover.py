@@ -44,10 +44,14 @@ SHAPES = ("odd polynomial", "even polynomial", "periodic in the angle", "directi
           "coupled across joints")
 
 
-def noise_sd(values: np.ndarray) -> np.ndarray:
-    """White-noise standard deviation per column, from the median absolute first difference."""
+def noise_sd(values: np.ndarray, scale=1.0) -> np.ndarray:
+    """White-noise standard deviation per column of ``values / scale``, from the median
+    absolute first difference (in place on one difference array: long logs)."""
     d = np.diff(values, axis=0)
-    mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
+    d /= scale
+    d -= np.median(d, axis=0)
+    np.abs(d, out=d)
+    mad = np.median(d, axis=0, overwrite_input=True)
     return 1.4826 * mad / np.sqrt(2.0)
 
 
@@ -91,7 +95,7 @@ def _joint_shapes(tau: np.ndarray, theta: np.ndarray, j: int, direction: np.ndar
 def analyse(data: GapData, leftover_fs: np.ndarray) -> dict:
     """The verdict on the leftover ``leftover_fs`` (n, 6), FS-normalised held-out residual
     after the ladder."""
-    noise = noise_sd(data.residual / data.fs)
+    noise = noise_sd(data.residual, data.fs)
     rms = np.sqrt(np.mean(leftover_fs**2, axis=0))
     excess = rms**2 / np.maximum(noise**2, 1e-300)
     structured_share = np.clip(1.0 - 1.0 / np.maximum(excess, 1e-12), 0.0, 1.0)

@@ -180,7 +180,9 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         rest = [n for n in chosen if n != step["added"]]
         step["share_of_gap"] = float((selection.heldout_block_sse(problem, rest).sum()
                                       - final_sse) / base_sse.sum())
-    final_pct = 100.0 * (y - final_pred)
+    leftover_fs = np.subtract(y, final_pred, out=final_pred)    # the prediction is not needed
+    del y
+    final_pct = 100.0 * leftover_fs
     base_total = float(base_sse.sum())
     left = float(current.sum())
     # Plausibility of every named family's fit, and of each candidate's fit alone.
@@ -188,7 +190,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     for c in candidates:
         c["plausibility"] = verdicts.plausibility(
             problem, [c["name"]], selection.fit(problem, [c["name"]]))[c["name"]]
-    left_verdict = leftover.analyse(data, y - final_pred)
+    left_verdict = leftover.analyse(data, leftover_fs)
     # When a sizeable structured leftover shows the vocabulary misses something, a family that
     # carries only a small share of the gap is as likely absorbing part of the missing effect
     # as being there: it stays in the ladder (the correction works) but is not named.

@@ -94,13 +94,12 @@ def make_folds(n_blocks: int, n_folds: int = N_FOLDS, run: int = RUN_BLOCKS) -> 
     return [np.concatenate(runs[k::n_folds]) for k in range(n_folds)]
 
 
-def noise_variance(residual_fs: np.ndarray) -> float:
-    """White-noise variance of one FS-normalised residual value, from the median absolute
-    first difference (slow, structured parts of the residual hardly change from one sample to
-    the next; white noise doubles its variance in a difference)."""
-    d = np.diff(residual_fs, axis=0)
-    mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
-    return float(np.mean((1.4826 * mad) ** 2 / 2.0))
+def noise_variance(residual: np.ndarray, fs=1.0) -> float:
+    """White-noise variance of one FS-normalised residual value (``residual / fs``), from the
+    median absolute first difference (slow, structured parts of the residual hardly change
+    from one sample to the next; white noise doubles its variance in a difference)."""
+    from delta6.diagnosis.leftover import noise_sd
+    return float(np.mean(noise_sd(residual, fs) ** 2))
 
 
 def build_problem(data: GapData, terms: list[Term], n_blocks: int = N_BLOCKS,
@@ -119,7 +118,7 @@ def build_problem(data: GapData, terms: list[Term], n_blocks: int = N_BLOCKS,
     gram, xty, yty, sub, x = stream.accumulate(data, terms, bounds, signatures,
                                                keep_columns=keep_columns, cache=cache,
                                                progress=progress)
-    noise = noise_variance(data.residual / data.fs)
+    noise = noise_variance(data.residual, data.fs)
     penalty = np.zeros(start)
     for term in terms:
         if term.prior_sd is not None:
