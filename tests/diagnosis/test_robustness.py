@@ -14,11 +14,12 @@ from delta6 import twin
 from delta6.diagnosis import blas, ladder, selection, verdicts
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.run import diagnose
-from delta6.diagnosis.terms import TERM_BY_NAME, TERMS
+from delta6.diagnosis.terms import TERMS
 from delta6.link.logfile import LogData
 from delta6.twin.pushes import AxisPushes
 from delta6.twin.streams import stream
 
+TERM_BY_NAME = {t.name: t for t in TERMS}
 DURATION_S = 240.0
 
 
