@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from delta6.link import mcaplog
-from delta6.link.logdata import (  # noqa: F401 - re-exported: the log API is this module's
+from delta6.link.logdata import (
     CORE_COLUMNS,
     OPTIONAL_COLUMNS,
     PARTIAL_SUFFIX,
@@ -31,6 +31,8 @@ from delta6.link.logdata import (  # noqa: F401 - re-exported: the log API is th
     WRENCH_COLUMNS,
     LogData,
     LogError,
+    PartialOnError,
+    six_columns,  # noqa: F401 - re-exported: the log API is this module's
 )
 
 MAGIC = "delta6-log"
@@ -54,7 +56,7 @@ def header_lines(meta: dict, columns: tuple[str, ...]) -> list[str]:
     return lines
 
 
-class LogWriter:
+class LogWriter(PartialOnError):
     """Write samples to ``path`` through ``path.partial``; rename on :meth:`close`.
 
     ``meta`` goes into the header as ``# key=value`` lines (conventionally ``design``,
@@ -115,7 +117,7 @@ class LogWriter:
         n = len(t)
         if n == 0:
             return
-        cols = [np.asarray(t, float)[:, None], _block(theta, n), _block(wrench, n)]
+        cols = [np.asarray(t, float)[:, None], six_columns(theta, n), six_columns(wrench, n)]
         for name in self.columns[len(CORE_COLUMNS):]:
             value = optional.get(name)
             cols.append(np.full((n, 1), np.nan) if value is None
@@ -203,15 +205,6 @@ class LogWriter:
     def closed(self) -> bool:
         return self._closed
 
-    def __enter__(self) -> "LogWriter":
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        try:
-            self.close(complete=exc_type is None or not self.keep_partial_on_error)
-        except LogError:
-            if exc_type is None:
-                raise
 
 
 def partial_path(path: str | Path) -> Path:
@@ -241,14 +234,6 @@ def _six(values) -> list:
         raise ValueError("theta and wrench take six values")
     return values
 
-
-def _block(values, n: int) -> np.ndarray:
-    if values is None:
-        return np.full((n, 6), np.nan)
-    values = np.asarray(values, dtype=float)
-    if values.shape != (n, 6):
-        raise ValueError(f"expected ({n}, 6) values, got {values.shape}")
-    return values
 
 
 def _cell(value, column: str) -> str:
