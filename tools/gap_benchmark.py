@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Blind benchmark of the gap diagnosis on fresh digital-twin scenarios.
 
-    .venv/bin/python tools/gap_benchmark.py                 # the full benchmark (~10 min)
-    .venv/bin/python tools/gap_benchmark.py --quick         # one magnitude, fewer pairs
+    .venv/bin/python tools/gap_benchmark.py                 # the extended benchmark
+    .venv/bin/python tools/gap_benchmark.py --quick         # a few cases of each kind
     .venv/bin/python tools/gap_benchmark.py --seed 123 --out results/
 
 Prints progress, the figures (top-1 on single effects, false positives, pairs, parameter
@@ -25,30 +25,40 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--design", default=str(ROOT / "designs" / "delta6.toml"))
     parser.add_argument("--seed", type=int, default=None, help="base seed (default: fresh)")
-    parser.add_argument("--duration", type=float, default=600.0, help="seconds per run")
-    parser.add_argument("--pairs", type=int, default=24)
-    parser.add_argument("--none", type=int, default=10, dest="n_none")
+    parser.add_argument("--duration", type=float, default=400.0, help="seconds per run")
+    parser.add_argument("--pairs", type=int, default=4)
+    parser.add_argument("--none", type=int, default=4, dest="n_none")
+    parser.add_argument("--mixes", type=int, default=12, help="mixes of 4..8 effects")
+    parser.add_argument("--axis-mixes", type=int, default=3,
+                        help="mixes under one-axis-at-a-time excitation")
+    parser.add_argument("--unknown", type=int, default=3,
+                        help="runs per effect withheld from the diagnosis's families")
+    parser.add_argument("--paper", action="store_true", help="add the paper scenario (2000 s)")
     parser.add_argument("--quick", action="store_true",
-                        help="one magnitude per effect, 8 pairs, 4 no-effect runs, no paper")
+                        help="a few cases of each kind (development, not the figures)")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--out", default=str(ROOT / "build" / "gap-benchmark"))
     args = parser.parse_args()
 
     from delta6.core.design import load
-    from delta6.diagnosis import benchmark as bench
+    from delta6.evaluation import gap_benchmark as bench
 
     seed = bench.DEFAULT_BASE_SEED if args.seed is None else args.seed
     if args.quick:
-        cases = bench.plan(seed, magnitudes=(0.8,), n_pairs=8, n_none=4, paper=False)
+        cases = bench.plan(seed, magnitudes=(0.8,), n_pairs=2, n_none=2, paper=False,
+                           n_mixes=3, n_axis_mixes=1, unknown_per_effect=1)
     else:
-        cases = bench.plan(seed, n_pairs=args.pairs, n_none=args.n_none)
+        cases = bench.plan(seed, magnitudes=(0.75,), n_pairs=args.pairs, n_none=args.n_none,
+                           paper=args.paper, n_mixes=args.mixes, n_axis_mixes=args.axis_mixes,
+                           axis_singles=True, unknown_per_effect=args.unknown)
     design = load(args.design)
     print(f"gap benchmark: {len(cases)} blind cases, {args.duration:g} s each, "
           f"{args.jobs} jobs, base seed {seed}", flush=True)
 
     def progress(done, total, r):
         truth = ", ".join(f"{t['name']}/{t['formulation']}" for t in r["truth"]) or r["kind"]
-        mark = "ok " if ({t["name"] for t in r["truth"]} <= set(r["present"])
+        named = set(r["present"]) | {m for g in r["groups"] for m in g["members"]}
+        mark = "ok " if ({t["name"] for t in r["truth"]} <= named
                          and (r["truth"] or not r["present"])) else "MISS"
         print(f"  [{done:3d}/{total}] {mark} {truth:<55} -> {r['present'] or ['nothing']} "
               f"({r['seconds']:.1f} s)", flush=True)

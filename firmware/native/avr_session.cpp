@@ -42,13 +42,13 @@ class CaptureHardware : public delta6::Hardware {
 };
 
 CaptureHardware hardware;
-const delta6::Identity identity = {"delta6", 0x535534AF,
+const delta6::Identity identity DELTA6_FLASH = {"delta6", 0x535534AF,
                                    {15.03f, 15.03f, 25.1f, 0.3805f, 0.3347f, 0.4266f},
                                    0.5236f, 1365,
                                    {delta6::kFirmwareVersionMajor, delta6::kFirmwareVersionMinor,
                                     delta6::kFirmwareVersionPatch},
-                                   500000, 2000, 0, 0, nullptr, 0, 0};
-const delta6::Config defaults = {500, 1, false, {0, 0, 0, 0, 0, 0},
+                                   500000, 2000, 0, 0, nullptr, 0, nullptr, 0, 0};
+const delta6::Config defaults DELTA6_FLASH = {500, 1, false, {0, 0, 0, 0, 0, 0},
                                  {1200, 5400, 9800, 14100, 300, 16000},
                                  0.0f, {0, 0, 0}, {0, 0, 0}, {0, 0, 0, 0, 0, 0}};
 delta6::Device device(hardware, identity, defaults);

@@ -44,6 +44,8 @@ struct Setup {
     identity.eeprom_address = 0;
     identity.calibration_name = nullptr;
     identity.calibration_hash = 0;
+    identity.model_name = nullptr;
+    identity.model_hash = 0;
     identity.max_rate_pipeline_hz = 0;
     memset(&defaults, 0, sizeof(defaults));
     defaults.rate_hz = default_rate;

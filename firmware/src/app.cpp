@@ -16,6 +16,14 @@
 #include "generated/delta6_calibration.h"
 #define DELTA6_CALIBRATED 1
 #endif
+// An on-chip residual model over the base wrench (analytical or calibrated), when
+// `delta6 codegen --model` put one next to the design header (docs/ondevice-model.md); without
+// it the firmware is exactly the one without a model.
+#if __has_include("generated/delta6_model.h")
+#include "delta6_residual.h"
+#include "generated/delta6_model.h"
+#define DELTA6_RESIDUAL 1
+#endif
 #endif
 
 // The fastest rate the board sustains without overruns in both stream modes, for the info
@@ -65,6 +73,33 @@ delta6::CalibrationState calibration_state;
 uint16_t calibration_zero[6];
 #endif
 
+#if DELTA6_RESIDUAL
+namespace m = delta6::model;
+// The residual's history (rings sized for the model's deepest look-back at kMaxStride).
+int16_t residual_wrench_ring[m::kWrenchHistory ? 6 * m::kHistoryLength : 1];
+int16_t residual_count_ring[m::kCountHistory ? 6 * m::kHistoryLength : 1];
+int16_t residual_plays[m::kPlayCount ? 6 * m::kPlayCount : 1];
+delta6::residual::State residual_state = {residual_wrench_ring, residual_count_ring,
+                                          residual_plays, 0, 1, false};
+uint16_t residual_zero[6];   // the zero counts its history was built on
+
+// The base wrench plus the model's correction; a sample without a wrench restarts the history.
+void applyResidual(bool solver_ok, const uint16_t* zero, const int16_t* delta, float* wrench) {
+  bool zero_changed = false;
+  for (uint8_t j = 0; j < 6; ++j) {
+    if (zero[j] != residual_zero[j]) zero_changed = true;
+    residual_zero[j] = zero[j];
+  }
+  if (zero_changed || !solver_ok) delta6::residual::reset(residual_state);
+  if (!solver_ok) return;
+  int16_t base[6];
+  int16_t correction[6];
+  delta6::residual::quantizeInput(m::kModel, wrench, base);
+  delta6::residual::step(m::kModel, residual_state, base, delta, correction);
+  delta6::residual::applyOutput(m::kModel, correction, wrench);
+}
+#endif
+
 class BoardHardware : public delta6::Hardware {
  public:
   uint16_t txSpace() override { return board::txSpace(); }
@@ -87,13 +122,17 @@ class BoardHardware : public delta6::Hardware {
     delta6::calibration_set_period(delta6::calibration::kCalibrationConstants,
                                    1.0f / static_cast<float>(rate_hz), calibration_state);
 #endif
+#if DELTA6_RESIDUAL
+    delta6::residual::configure(m::kModel, residual_state, rate_hz);
+#endif
     board::startSampling(rate_hz);
     board::watchdogStart(rate_hz);
   }
 };
 
 BoardHardware hardware;
-delta6::Identity identity = {
+// In flash, like the defaults (the serial number, known at run time, goes to the device).
+const delta6::Identity identity DELTA6_FLASH = {
     d::kName,
     d::kHash,
     {d::kFullScale[0], d::kFullScale[1], d::kFullScale[2], d::kFullScale[3], d::kFullScale[4],
@@ -103,7 +142,7 @@ delta6::Identity identity = {
     {delta6::kFirmwareVersionMajor, delta6::kFirmwareVersionMinor, delta6::kFirmwareVersionPatch},
     board::kBaud,
     DELTA6_MAX_RATE_HZ,
-    0,   // serial number: set in setup()
+    0,   // serial number: given to the device in setup()
     kEepromAddress,
 #if DELTA6_CALIBRATED
     delta6::calibration::kName,
@@ -112,16 +151,36 @@ delta6::Identity identity = {
     nullptr,   // no calibration: the analytical model
     0,
 #endif
+#if DELTA6_RESIDUAL
+    m::kName,
+    m::kHash,
+#else
+    nullptr,   // no on-chip residual model
+    0,
+#endif
     DELTA6_MAX_RATE_PIPELINE_HZ,
 };
 // Zero counts 0 until the assembly is calibrated (ZERO_HERE, then SAVE_CONFIG).
 // No filter, the identity tool frame, no overload limits.
-const delta6::Config defaults = {
+const delta6::Config defaults DELTA6_FLASH = {
     DELTA6_DEFAULT_RATE_HZ, delta6::proto::kModeWrench, false, {0, 0, 0, 0, 0, 0},
     {0, 0, 0, 0, 0, 0}, 0.0f, {0, 0, 0}, {0, 0, 0}, {0, 0, 0, 0, 0, 0}};
 delta6::Device device(hardware, identity, defaults);
 
 bool workPending() { return queue_tail != queue_head || board::rxAvailable(); }
+
+#if DELTA6_CALIBRATED
+// The calibrated solver reads the fine table only (each joint has its calibrated table): the
+// design's constants without the analytical solver's joint and branch tables, so that the
+// linker drops those (1 KB of flash the calibrated image with a residual model needs).
+constexpr delta6::SolverConstants calibratedSolver() {
+  delta6::SolverConstants c = d::kSolverConstants;
+  c.branch_table = nullptr;
+  c.joint_table = nullptr;
+  return c;
+}
+constexpr delta6::SolverConstants kCalibratedSolver = calibratedSolver();
+#endif
 
 // Check the frames, solve, and hand the sample to the device.
 void process(const Latched& latched) {
@@ -148,15 +207,21 @@ void process(const Latched& latched) {
       }
     }
     if (zero_changed) delta6::calibration_reset(calibration_state);
-    s.solver_ok = delta6::solve_calibrated(d::kSolverConstants,
+    s.solver_ok = delta6::solve_calibrated(kCalibratedSolver,
                                            delta6::calibration::kCalibrationConstants,
                                            calibration_state, delta, s.wrench) == delta6::kSolveOk;
 #else
     s.solver_ok = delta6::solve_counts(d::kSolverConstants, delta, s.wrench) == delta6::kSolveOk;
 #endif
+#if DELTA6_RESIDUAL
+    applyResidual(s.solver_ok, zero, delta, s.wrench);
+#endif
   } else {
     s.solver_ok = false;   // no wrench without all six angles
     for (uint8_t i = 0; i < 6; ++i) s.wrench[i] = 0.0f;
+#if DELTA6_RESIDUAL
+    delta6::residual::reset(residual_state);
+#endif
   }
   board::mark(D6_MARK_SOLVE_END);
   s.overrun = latched.missed != 0;
@@ -194,7 +259,7 @@ void onSampleTick() {
 void setup() {
   board::mark(D6_MARK_BOOT);
   board::init();
-  identity.serial_number = board::serialNumber();
+  device.setSerialNumber(board::serialNumber());
   // Loads the configuration, starts the sample timer.
   device.begin(board::resetCause(), board::bootId());
   board::mark(D6_MARK_READY);

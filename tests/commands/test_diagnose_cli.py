@@ -202,7 +202,9 @@ def test_json_never_holds_nan():
     from delta6.commands.diagnose import json_safe, summary
     result = {"samples": 5, "seconds": 1.0, "baseline_heldout_p99_pct": [float("nan")] * 6,
               "ladder": [], "present": [], "warnings": ["x"],
-              "candidates": [{"name": "a", "score": float("inf")}]}
+              "candidates": [{"name": "a", "score": float("inf")}],
+              "groups": [], "partial": [], "implausible": {}, "signature_tests": {},
+              "unexplained": {"verdict": {"structured": False}}, "excitation": {"unsupported": []}}
     safe = json_safe(result)
     text = json.dumps(safe, allow_nan=False)
     assert "NaN" not in text and safe["baseline_heldout_p99_pct"] == [None] * 6

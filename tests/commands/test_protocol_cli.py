@@ -17,7 +17,7 @@ from support.streams import make_frames
 
 
 def capture_from_sim(seconds=0.5, raw=True, **kwargs) -> tuple[bytes, SimulatedDevice]:
-    # Room for the boot records (222 bytes with INFO) and the first data record at once: the
+    # Room for the boot records (250 bytes with INFO) and the first data record at once: the
     # stream starts at the device's first sample, before the boot records drained.
     kwargs.setdefault("tx_capacity", 512)
     sim = SimulatedDevice(**kwargs)

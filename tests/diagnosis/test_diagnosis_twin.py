@@ -39,6 +39,7 @@ def run(design, effects, seed):
     ("link_compliance", "hertzian"),
     ("sensor_latency", "first_order"),
     ("thermal_drift", "lagged"),
+    ("encoder_periodic_error", "harmonics"),
 ])
 def test_names_the_effect_whatever_its_formulation(baseline, name, formulation):
     effect = twin.make_effect(name, seed=31, formulation=formulation, magnitude=0.9)
@@ -50,6 +51,18 @@ def test_names_the_effect_whatever_its_formulation(baseline, name, formulation):
     assert verdict["candidates"][0]["score"] > 0.6
     first = np.array(verdict["ladder"][0]["heldout_p99_pct"])
     assert first.mean() < np.mean(verdict["baseline_heldout_p99_pct"])
+
+
+@pytest.mark.parametrize("name, formulation", [("nonlinear_spring", "progressive"),
+                                               ("harness", "linear")])
+def test_effects_beyond_the_first_vocabulary_are_named(baseline, name, formulation):
+    """A stiffening spring is a rate error (its straight-line part, named stiffness_mismatch)
+    plus a curvature (nonlinear_spring), so it need not be the first name."""
+    effect = twin.make_effect(name, seed=35, formulation=formulation, magnitude=0.9)
+    _, verdict = run(baseline, [effect], seed=35)
+    assert name in verdict["present"], verdict["present"]
+    final = np.array(verdict["ladder"][-1]["heldout_p99_pct"])
+    assert final.mean() < 0.6 * np.mean(verdict["baseline_heldout_p99_pct"])
 
 
 def test_no_effect_on_ideal_data(baseline):

@@ -148,7 +148,7 @@ def test_tare_averages_on_the_device(bench):
 
 def test_a_retried_request_is_answered_but_not_run_again(bench):
     bench.sim.motion = Motion.static(np.full(6, 0.05))
-    bench.send(C.START, 1000)
+    bench.answer(bench.send(C.START, 1000))     # behind the boot records still draining
     first = bench.send(C.TARE, 50, request=77, run=0.01)
     assert [r for r in first if isinstance(r, P.Ack)] == []          # still averaging
     again = bench.send(C.TARE, 50, request=77, run=0.1)              # retry while averaging
@@ -294,7 +294,7 @@ def test_garbage_to_the_device_is_counted_and_streaming_goes_on(bench):
 
 
 def test_encoder_faults_flag_exactly_their_samples():
-    # A transmit queue with room for the boot records (222 bytes with INFO) and the first
+    # A transmit queue with room for the boot records (250 bytes with INFO) and the first
     # data records at once: this test is about faults, not about the link.
     b = Bench(rate_hz=500, encoder_faults={3: 0.3, 6: 0.1}, seed=4, tx_capacity=512)
     b.send(C.SET_MODE, P.Mode.WRENCH_RAW)
@@ -479,7 +479,7 @@ def test_abort_ends_an_averaging_that_would_keep_the_device_busy(bench):
 def test_info_and_telemetry_carry_the_boot_id():
     bench = Bench(rate_hz=500, boot_id=0xBEEF)
     info = next(r for r in bench.boot if isinstance(r, P.Info))
-    assert info.boot_id == 0xBEEF and info.protocol == (1, 1)
+    assert info.boot_id == 0xBEEF and info.protocol == P.VERSION
     assert bench.answer(bench.send(C.GET_TELEMETRY)).boot_id == 0xBEEF
     bench.sim.close()
 
@@ -488,8 +488,8 @@ def test_a_1_0_device_is_read_without_the_appended_fields():
     """A 1.0 device's INFO (128 bytes) and TELEMETRY (48) records parse with the boot id left
     unknown (None) and no calibration; a 1.0 host reads the 1.1 records by their known prefix.
     The offsets are docs/protocol.md's, written here by hand: INFO's boot id at 156, after the
-    calibration hash (128) and name (132), then the pipeline's fields (158..199); TELEMETRY's
-    at 48."""
+    calibration hash (128) and name (132), then (1.2) the model's hash (158) and name (162),
+    then (1.3) the pipeline's fields (186..227); TELEMETRY's at 48."""
     bench = Bench(rate_hz=500, boot_id=0x1234)
     bench.sim.write(P.encode_command(C.GET_INFO, 9) + P.encode_command(C.GET_TELEMETRY, 10))
     bench.sim.advance(0.02)                      # the answers leave at the baud rate
@@ -497,7 +497,8 @@ def test_a_1_0_device_is_read_without_the_appended_fields():
     bench.sim.close()
     payloads = [P.unframe(f) for f in raw.split(b"\x00")[:-1]]
     info, telemetry = (P.parse_payload(p) for p in payloads)
-    assert [len(p) for p in payloads] == [200, 50]
+    assert [len(p) for p in payloads] == [228, 50]
+    assert payloads[0][158:186] == bytes(28) and info.model_hash == 0       # no model built in
     assert payloads[0][156:158] == (0x1234).to_bytes(2, "little")   # u16, little-endian
     assert payloads[1][48:50] == (0x1234).to_bytes(2, "little")
     assert payloads[0][128:132] == bytes(4) and info.calibration_hash == 0   # none built in

@@ -61,7 +61,7 @@ def test_raw_mode_gives_angles_and_the_reference_wrench():
 
 def test_commands_are_answered_while_streaming_without_losing_samples():
     """At a pace the link's spare 10 % carries (a burst of info records faster than that
-    makes data records give way, counted as gaps: the next test). 500 Hz: at 1 kHz a 202-byte
+    makes data records give way, counted as gaps: the next test). 500 Hz: at 1 kHz a 232-byte
     INFO frame and the next answer no longer fit the 256-byte transmit queue together with
     the data records (docs/protocol.md section 4)."""
     with Device("delta6sim://") as dev:

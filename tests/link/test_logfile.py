@@ -220,3 +220,24 @@ def test_refusing_to_overwrite(tmp_path):
     with pytest.raises(LogError, match="keep.csv.partial exists"):
         LogWriter(path, overwrite=False)
     assert (tmp_path / "keep.csv.partial").read_text() == "left by a crash"
+
+
+def test_reading_in_chunks_gives_the_same_log_and_line_numbers(tmp_path, monkeypatch):
+    from delta6.link import logfile
+    rng = np.random.default_rng(5)
+    n = 257
+    path = tmp_path / "chunks.csv"
+    with logfile.LogWriter(path, {"design": "delta6"}, optional=("temp_c",)) as w:
+        w.write_block(np.arange(n) * 0.02, rng.normal(size=(n, 6)), rng.normal(size=(n, 6)),
+                      temp_c=rng.normal(size=n))
+    whole = logfile.read_log(path)
+    monkeypatch.setattr(logfile, "READ_CHUNK_ROWS", 10)
+    cut = logfile.read_log(path)
+    for name in ("t", "theta", "wrench", "temp_c"):
+        assert np.array_equal(getattr(whole, name), getattr(cut, name))
+    lines = path.read_text().splitlines()
+    bad = next(i for i, ln in enumerate(lines) if ln and ln[0].isdigit()) + 131
+    lines[bad] = lines[bad].replace(",", ",x", 1)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(logfile.LogError, match=f"line {bad + 1}:"):
+        logfile.read_log(path)

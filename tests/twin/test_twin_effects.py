@@ -21,7 +21,8 @@ HISTORY = ("spring_hysteresis", "joint_friction", "backlash")
 def test_the_effect_vocabulary_is_the_documented_one():
     assert twin.EFFECT_NAMES == ("encoder_offset", "stiffness_mismatch", "geometry_error",
                                  "spring_hysteresis", "joint_friction", "backlash",
-                                 "link_compliance", "sensor_latency", "thermal_drift")
+                                 "link_compliance", "sensor_latency", "thermal_drift",
+                                 "nonlinear_spring", "encoder_periodic_error", "harness")
 
 
 @pytest.mark.parametrize("name", twin.EFFECT_NAMES)

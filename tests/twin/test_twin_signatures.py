@@ -141,7 +141,8 @@ def test_backlash_encoder_stands_still_after_reversal(baseline, formulation):
 
 # --- encoder_offset and geometry_error: functions of the pose, not of the history ---------
 
-@pytest.mark.parametrize("name", ["encoder_offset", "geometry_error"])
+@pytest.mark.parametrize("name", ["encoder_offset", "geometry_error", "nonlinear_spring",
+                                  "encoder_periodic_error", "harness"])
 def test_pose_effects_do_not_depend_on_history(baseline, name):
     effect = one(name, magnitude=0.8)
     duration = 60.0
@@ -151,7 +152,10 @@ def test_pose_effects_do_not_depend_on_history(baseline, name):
     r_f, r_b = residual(forward), residual(backward)
     n = len(r_f)
     assert np.allclose(backward.true_angles[1:], forward.true_angles[::-1][:-1], atol=1e-12)
-    assert np.abs(r_b[1:] - r_f[::-1][:-1]).max() < 1e-9        # same pose, same residual
+    # Same pose, same residual (the harness's clamp Jacobian is a finite difference over a
+    # 1e-6 rad step, which turns the path's last-bit differences into ~1e-9 N).
+    same = 1e-9 if name != "harness" else 1e-8 * np.abs(r_f).max()
+    assert np.abs(r_b[1:] - r_f[::-1][:-1]).max() < same
     assert np.all(r_f[:, :3].std(axis=0) > 0.005)               # and it varies with the pose
     assert n == len(r_b)
 

@@ -115,6 +115,9 @@ def log_meta(info: Info, port: str, command: str) -> dict:
         **({"calibration": info.calibration_name,
             "calibration_hash": f"0x{info.calibration_hash:08x}"}
            if info.calibration_hash else {}),
+        # The on-chip residual model the board runs over that (docs/ondevice-model.md).
+        **({"model": info.model_name, "model_hash": f"0x{info.model_hash:08x}"}
+           if info.model_hash else {}),
     }
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from delta6.build import avrbuild
 from delta6.core import calibration as calibration_mod
 from delta6.core import design as design_mod
-from delta6.core import paths
+from delta6.core import paths, residualmodel
 from delta6.core.errors import UserError
 from delta6.core.workspace import load_checked
 from delta6.link.protocol import VERSION as PROTOCOL_VERSION
@@ -17,13 +17,15 @@ from delta6_codegen.wire_header import HEADER_RELPATH as WIRE_HEADER_RELPATH
 
 NAME = "codegen"
 HELP = ("write the firmware header generated/delta6_design.h for a design, and with "
-        "--calibration a unit's generated/delta6_calibration.h next to it "
+        "--calibration a unit's generated/delta6_calibration.h and with --model an on-chip "
+        "residual's generated/delta6_model.h next to it "
         "(--build: into build/designs/NAME/ and build the ATmega328P firmware image there), "
         "or with --wire the protocol's generated/delta6_wire.h")
 HEADER_RELPATH = Path("generated") / "delta6_design.h"
 CALIBRATION_HEADER = "delta6_calibration.h"
 COMMITTED_HEADER = avrbuild.COMMITTED_DESIGN_INCLUDE / HEADER_RELPATH
 WIRE_RELPATH = Path(WIRE_HEADER_RELPATH)
+MODEL_HEADER = "delta6_model.h"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -44,6 +46,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="compile a unit's calibration (delta6 calibrate) into the firmware: "
                              f"writes {CALIBRATION_HEADER} next to the design header; without "
                              "it, a calibration header there is removed")
+    parser.add_argument("--model", metavar="MODEL.json", type=Path,
+                        help="compile an on-chip residual model (delta6 train --target mcu) into "
+                             f"the firmware: writes {MODEL_HEADER} next to the design header; "
+                             "without it, a model header there is removed")
     parser.add_argument("--check", action="store_true",
                         help="write nothing; exit 1 if the header differs from what the design "
                              "(or with --wire, the protocol) generates")
@@ -78,16 +84,31 @@ def calibration_text(design: design_mod.Design, design_path: Path, cal_path: Pat
     return cal, render_calibration(design, cal, source_label(design_path), source_label(cal_path))
 
 
-def build_name(design: design_mod.Design, cal=None) -> str:
-    """The build directory's name: one per design, and one per calibrated unit."""
-    return design.name if cal is None else f"{design.name}-cal-{cal.hash32():08x}"
+def model_text(design: design_mod.Design, design_path: Path, model_path: Path | None, cal=None):
+    """The model header for ``model_path`` (None: no model, no header); refuses a model
+    trained for another design or over another base than the one this firmware computes."""
+    if model_path is None:
+        return None, None
+    from delta6_codegen import render_model
+    model = residualmodel.load(model_path)
+    residualmodel.check_base(model, design, cal)
+    return model, render_model(model, source_label(design_path), source_label(model_path))
 
 
-def output_path(args: argparse.Namespace, design: design_mod.Design, cal=None) -> Path:
+def build_name(design: design_mod.Design, cal=None, model=None) -> str:
+    """The build directory's name: one per design, per calibrated unit and per model."""
+    name = design.name if cal is None else f"{design.name}-cal-{cal.hash32():08x}"
+    if model is not None:
+        name += f"+{model.name}-{model.hash32():08x}"
+    return name
+
+
+def output_path(args: argparse.Namespace, design: design_mod.Design, cal=None,
+                model=None) -> Path:
     if args.output is not None:
         return args.output
     if args.build:
-        return avrbuild.design_include_dir(build_name(design, cal)) / HEADER_RELPATH
+        return avrbuild.design_include_dir(build_name(design, cal, model)) / HEADER_RELPATH
     return COMMITTED_HEADER
 
 
@@ -110,20 +131,27 @@ def run(args: argparse.Namespace) -> int:
         paths.checkout()    # the firmware tree the header belongs to, or one line saying so
     design, text = header_text(args.design)
     cal, cal_text = calibration_text(design, args.design, args.calibration)
-    out = output_path(args, design, cal)
+    model, model_text_ = model_text(design, args.design, args.model, cal)
+    out = output_path(args, design, cal, model)
     cal_out = out.with_name(CALIBRATION_HEADER)
+    model_out = out.with_name(MODEL_HEADER)
     if args.check:
-        return _check(args, out, text, cal_out, cal_text)
+        return _check(args, out, text, {cal_out: cal_text, model_out: model_text_})
     verb = "wrote" if _write_if_changed(out, text) else "unchanged:"
     print(f"{verb} {_rel(out)} for design '{design.name}' (hash 0x{design.hash32():08x})")
     if cal is not None:
         verb = "wrote" if _write_if_changed(cal_out, cal_text) else "unchanged:"
         print(f"{verb} {_rel(cal_out)} for calibration '{cal.name}' (hash 0x{cal.hash32():08x})")
-    elif cal_out.exists():
-        _remove(cal_out)
+    elif _remove(cal_out):
         print(f"removed {_rel(cal_out)}: the firmware is the uncalibrated one")
+    if model is not None:
+        verb = "wrote" if _write_if_changed(model_out, model_text_) else "unchanged:"
+        print(f"{verb} {_rel(model_out)} for model '{model.name}' (hash 0x{model.hash32():08x}, "
+              f"{model.net.macs} multiply-accumulates per sample)")
+    elif _remove(model_out):
+        print(f"removed {_rel(model_out)}: no model")
     if args.build:
-        image = build_image(design, include_dir_of(out), cal)
+        image = build_image(design, include_dir_of(out), cal, model)
         sizes = image.sizes
         print(f"built {_rel(image.elf)} and .hex ({image.mcu}): flash {sizes.flash} B of "
               f"{avrbuild.NANO.flash_bytes}, static RAM {sizes.ram} B of {avrbuild.NANO.ram_bytes}")
@@ -133,9 +161,10 @@ def run(args: argparse.Namespace) -> int:
 def run_wire(args: argparse.Namespace) -> int:
     """``--wire``: the core's generated/delta6_wire.h from delta6.link.protocol."""
     from delta6_codegen.wire_header import COMMAND, render_wire
-    if args.design is not None or args.build or args.calibration is not None:
-        raise UserError("--wire takes no design file, --calibration or --build: the wire "
-                        "layout is the same for every design")
+    if (args.design is not None or args.build or args.calibration is not None
+            or args.model is not None):
+        raise UserError("--wire takes no design file, --calibration, --model or --build: the "
+                        "wire layout is the same for every design")
     out = args.output if args.output is not None else paths.checkout() / WIRE_RELPATH
     text = render_wire()
     if args.check:
@@ -158,15 +187,20 @@ def check(out: Path, text: str, source: str, command: str) -> int:
     return 0
 
 
-def _check(args, out: Path, text: str, cal_out: Path, cal_text: str | None) -> int:
-    """``--check`` of the design header and of the calibration header (or its absence)."""
+def _check(args, out: Path, text: str, extra: dict) -> int:
+    """``--check`` of the design header and of the calibration and model headers (or their
+    absence)."""
     label = source_label(args.design)
-    command = f"delta6 codegen {label}" + (f" --calibration {source_label(args.calibration)}"
-                                           if args.calibration else "")
+    command = f"delta6 codegen {label}"
+    if args.calibration:
+        command += f" --calibration {source_label(args.calibration)}"
+    if args.model:
+        command += f" --model {source_label(args.model)}"
     status = check(out, text, label, command)
-    if _read(cal_out) != cal_text:
-        print(f"{_rel(cal_out)} is out of date with {label}; run: {command}", file=sys.stderr)
-        status = 1
+    for path, wanted in extra.items():
+        if _read(path) != wanted:
+            print(f"{_rel(path)} is out of date with {label}; run: {command}", file=sys.stderr)
+            status = 1
     return status
 
 
@@ -177,36 +211,44 @@ def _read(path: Path) -> str | None:
         return None
 
 
-def _remove(path: Path) -> None:
+def _remove(path: Path) -> bool:
+    """Remove ``path`` if it exists; returns whether it did."""
     try:
         path.unlink()
+    except FileNotFoundError:
+        return False
     except OSError as exc:
         raise UserError(f"cannot remove {path}: {exc.strerror}") from None
+    return True
 
 
-def build_image(design: design_mod.Design, include_dir: Path, cal=None) -> avrbuild.Image:
+def build_image(design: design_mod.Design, include_dir: Path, cal=None,
+                model=None) -> avrbuild.Image:
     """The firmware application for ``design`` (headers under ``include_dir``), in
-    build/designs/NAME/atmega328p/ (NAME-cal-HASH for a calibrated unit)."""
+    build/designs/NAME/atmega328p/ (NAME-cal-HASH for a calibrated unit, +MODEL-HASH with a
+    model)."""
     from delta6.build.appbuild import build_app
-    name = build_name(design, cal)
+    name = build_name(design, cal, model)
     return build_app(include_dir, name=f"delta6-{name}",
                      out_dir=avrbuild.design_build_dir(name) / "atmega328p")
 
 
-def design_firmware(path: Path, calibration: Path | None = None) -> avrbuild.Image:
-    """Generate ``path``'s header (and ``calibration``'s) into build/designs/NAME/include/
-    (the committed headers are left alone) and build the application for it: what
-    ``delta6 virtual --design [--calibration]`` runs."""
+def design_firmware(path: Path, calibration: Path | None = None,
+                    model_path: Path | None = None) -> avrbuild.Image:
+    """Generate ``path``'s header (and ``calibration``'s and ``model_path``'s) into
+    build/designs/NAME/include/ (the committed headers are left alone) and build the
+    application for it: what ``delta6 virtual --design [--calibration] [--model]`` runs."""
     design, text = header_text(path)
     cal, cal_text = calibration_text(design, path, calibration)
-    header = avrbuild.design_include_dir(build_name(design, cal)) / HEADER_RELPATH
+    model, model_text_ = model_text(design, path, model_path, cal)
+    header = avrbuild.design_include_dir(build_name(design, cal, model)) / HEADER_RELPATH
     _write_if_changed(header, text)
-    cal_header = header.with_name(CALIBRATION_HEADER)
-    if cal is not None:
-        _write_if_changed(cal_header, cal_text)
-    elif cal_header.exists():
-        _remove(cal_header)
-    return build_image(design, include_dir_of(header), cal)
+    for name, wanted in ((CALIBRATION_HEADER, cal_text), (MODEL_HEADER, model_text_)):
+        if wanted is not None:
+            _write_if_changed(header.with_name(name), wanted)
+        else:
+            _remove(header.with_name(name))
+    return build_image(design, include_dir_of(header), cal, model)
 
 
 def _write_if_changed(path: Path, text: str) -> bool:

@@ -15,7 +15,7 @@ from delta6.core.outputs import check_output_file, check_output_folder
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
 from delta6.diagnosis.data import GapData
-from delta6.diagnosis.report import write_report
+from delta6.diagnosis.report import verdict_lines, write_report
 from delta6.diagnosis.run import diagnose_data
 from delta6.link.logdata import wrench_from_device
 from delta6.link.logfile import LogData, read_log
@@ -53,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {message}", file=sys.stderr, flush=True)
 
     data = GapData.from_log(log, design)
+    del log                                               # the log's table is freed here
     result = json_safe(diagnose_data(data, seed=args.seed, progress=progress))
     if args.json:
         try:
@@ -127,8 +128,9 @@ def summary(result: dict) -> str:
         lines.append(row(f"+ {step['added']}", step["heldout_p99_pct"]))
     if result["present"]:
         lines.append("Present (strongest first): " + ", ".join(result["present"]))
-    else:
+    elif not result["groups"]:
         lines.append("No significant unmodelled effect.")
+    lines += [line[2:].replace("**", "") for line in verdict_lines(result)]
     top = ", ".join(f"{c['name']} {c['score']:.3f}" if c["score"] is not None
                     else f"{c['name']} -" for c in result["candidates"][:4])
     lines.append(f"Best candidates alone (share of held-out error removed): {top}")

@@ -17,6 +17,7 @@ from delta6.core.workspace import load_checked
 from delta6.evaluation import tablev
 from delta6.evaluation.error_plot import plot_errors
 from delta6.learning import LearnedEstimator
+from delta6.learning.mcu import McuEstimator
 from delta6.link.logfile import read_log
 
 NAME = "evaluate"
@@ -34,7 +35,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also evaluate the calibrated model (delta6 calibrate)")
     parser.add_argument("--model", nargs="+", action="extend", default=[], metavar="M.onnx",
                         help="learned estimators (delta6 train), one row each, named after the "
-                             "file; a residual over a calibration needs that --calibration")
+                             "file; a residual over a calibration needs that --calibration; an "
+                             "on-chip model (M.json, delta6 train --target mcu) runs through "
+                             "the integer reference as the board runs it")
     parser.add_argument("--json", metavar="OUT.json", help="write the table as JSON")
     parser.add_argument("--plot", metavar="OUT.png",
                         help="plot the error distributions of every row (needs matplotlib)")
@@ -51,7 +54,8 @@ def estimators(args, design, log) -> list:
         rows.append(CalibratedModel(design, cal))
     else:
         calibration_mod.check_log_meta(log.meta, design, source=str(args.log))
-    rows += [LearnedEstimator(path, design=design, calibration=cal) for path in args.model]
+    rows += [McuEstimator(path, design, cal) if Path(path).suffix.lower() == ".json"
+             else LearnedEstimator(path, design=design, calibration=cal) for path in args.model]
     names = [r.name for r in rows]
     if len(set(names)) != len(names):
         raise UserError("two rows would share a name (rows are named after the model files): "

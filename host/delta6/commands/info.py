@@ -42,6 +42,8 @@ def run(args: argparse.Namespace) -> int:
         f"serial 0x{info.serial_number:08x}",
         (f"  calibration '{info.calibration_name}' (hash 0x{info.calibration_hash:08x})"
          if info.calibration_hash else "  no calibration: the analytical model"),
+        (f"  on-chip residual model '{info.model_name}' (hash 0x{info.model_hash:08x})"
+         if info.model_hash else "  no on-chip residual model"),
         f"  rate {info.rate_hz} Hz (board max {info.max_rate_hz} Hz"
         + (f", {info.max_rate_pipeline_hz} Hz with the filter or tool frame on"
            if info.max_rate_pipeline_hz and info.max_rate_pipeline_hz < info.max_rate_hz else "")

@@ -1,4 +1,5 @@
-"""``delta6 train``: a learned estimator from a calibration log, exported to ONNX."""
+"""``delta6 train``: a learned estimator from a calibration log, exported to ONNX; with
+``--target mcu`` a small integer residual model the microcontroller runs (docs/ondevice-model.md)."""
 from __future__ import annotations
 
 import argparse
@@ -15,7 +16,9 @@ from delta6.learning.presets import KINDS, PRESETS, preset
 from delta6.link.logfile import read_log
 
 NAME = "train"
-HELP = "train a learned wrench estimator on a calibration log and export it to ONNX"
+HELP = ("train a learned wrench estimator on a calibration log and export it to ONNX; "
+        "--target mcu: a quantized residual model the microcontroller runs (JSON, for "
+        "delta6 codegen --model), with its float network as ONNX next to it")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -23,8 +26,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "the reference wrench Fx..Mz (docs/log-format.md)")
     parser.add_argument("--design", default=str(DEFAULT_DESIGN), metavar="DESIGN.toml",
                         help="the design the log was recorded with (default: the paper's)")
-    parser.add_argument("--model", required=True, choices=KINDS,
-                        help="network: mlp, lstm, gru or transformer")
+    parser.add_argument("--target", choices=("host", "mcu"), default="host",
+                        help="host (default): an ONNX estimator for the host; mcu: an int8 "
+                             "residual model compiled into the firmware (docs/ondevice-model.md)")
+    parser.add_argument("--model", choices=KINDS,
+                        help="network: mlp, lstm, gru or transformer (--target host)")
     parser.add_argument("--residual-over", default="none", metavar="BASE",
                         help="learn only what BASE misses: 'analytical' (the paper's model) "
                              "or a calibration file CAL.toml (delta6 calibrate: the hybrid); "
@@ -35,19 +41,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=number("--seed", int, 0), default=0,
                         help="seed of the initial weights and the batch order (default 0)")
     parser.add_argument("--epochs", type=number("--epochs", int, 1), metavar="N",
-                        help="at most N epochs (default: the preset's)")
+                        help="at most N epochs (default: the preset's; --target mcu: 30, with "
+                             "early stopping on a held-back part)")
     parser.add_argument("--max-minutes", type=number("--max-minutes", low=0, low_open=True),
                         metavar="M", help="stop after about M minutes, keeping the best "
                                           "checkpoint so far")
     parser.add_argument("--threads", type=number("--threads", int, 1), default=1, metavar="N",
                         help="CPU threads for training (default 1: these networks are small, "
                              "and on a busy machine more threads wait more than they work)")
+    parser.add_argument("--hidden", default="16", metavar="N[xM]",
+                        help="--target mcu: hidden layer widths, e.g. 16 or 16x8 (default 16)")
+    parser.add_argument("--name", help="--target mcu: model name, at most 23 characters "
+                                       "(default: the output file's stem)")
     parser.add_argument("-o", "--output", required=True, metavar="MODEL.onnx",
-                        help="where to write the model")
+                        help="where to write the model (--target mcu: MODEL.json, and the "
+                             "float network to MODEL.onnx)")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.target == "mcu":
+        return run_mcu(args)
+    if args.model is None:
+        raise UserError("give the network with --model (mlp, lstm, gru or transformer), or "
+                        "--target mcu")
     base, calibration = args.residual_over, None
     if base not in ("none", "analytical"):
         if not base.lower().endswith(".toml"):
@@ -100,3 +117,70 @@ def run(args: argparse.Namespace) -> int:
 
 def _rows(table: dict) -> dict:
     return {{"p100": "max"}.get(k, k): v for k, v in table.items()}
+
+
+def _hidden(text: str) -> tuple[int, ...]:
+    try:
+        sizes = tuple(int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise UserError(f"--hidden takes widths like 16 or 16x8, got {text!r}") from None
+    if not sizes or any(not 1 <= s <= 48 for s in sizes) or len(sizes) > 4:
+        raise UserError("--hidden: one to four layers of 1..48 neurons")
+    return sizes
+
+
+def _mcu_base(args, design):
+    """The base the on-chip residual corrects: the analytical model, or a unit's calibrated
+    model (the board then runs the calibrated firmware, codegen --calibration)."""
+    from delta6.learning import mcu
+    over = args.residual_over
+    if over in ("none", "analytical"):
+        return mcu.AnalyticalBase(design)
+    if not over.lower().endswith(".toml"):
+        raise UserError(f"--residual-over {over}: 'analytical' or a calibration file (CAL.toml)")
+    cal = calibration_mod.load(over)
+    cal.check_design(design)
+    return mcu.CalibratedBase(design, cal)
+
+
+def run_mcu(args: argparse.Namespace) -> int:
+    """``--target mcu``: fit, quantize and score the integer residual model; write it as JSON
+    and its float network as ONNX."""
+    if args.model is not None:
+        raise UserError("--model picks a host network; --target mcu trains its own small MLP "
+                        "(see --hidden)")
+    hidden = _hidden(args.hidden)
+    output = Path(args.output)
+    name = args.name or output.stem
+    if not name or len(name) > 23 or not name.isascii() or not name.isprintable():
+        raise UserError("--name: 1..23 printable ASCII characters")
+    if output.suffix.lower() != ".json":
+        raise UserError("-o: the model file is JSON (MODEL.json); the ONNX goes next to it")
+    design = load_checked(args.design)
+    base = _mcu_base(args, design)
+    log = read_log(args.log)
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        raise UserError("training needs torch: pip install -e '.[train]' (torch==2.13.0)") from None
+    from delta6.core import residualmodel
+    from delta6.learning import mcu
+    say = None if args.quiet else (lambda text: print(f"  {text}", file=sys.stderr, flush=True))
+    settings = mcu.McuSettings(hidden=hidden, epochs=args.epochs or 30, seed=args.seed)
+    result = mcu.train_mcu(log, design, base, name=name, settings=settings, progress=say,
+                           source=Path(args.log).name)
+    path = residualmodel.save(result.model, output)
+    onnx_path = mcu.export_onnx(result.float_net, output.with_suffix(".onnx"),
+                                {"delta6_model": name,
+                                 "delta6_model_hash": f"0x{result.model.hash32():08x}",
+                                 "delta6_design_hash": f"0x{design.hash32():08x}",
+                                 "inputs": "int8 engine feature values, see the JSON model"})
+    r = result.report
+    print(f"wrote {path} (model '{name}' over {base.name}, hash 0x{result.model.hash32():08x}, "
+          f"{r['macs']} multiply-accumulates per sample) and {onnx_path}")
+    print(f"held-out p99 % FS ({r['heldout']}): Fx Fy Fz Mx My Mz")
+    for key in ("base", "float", "int8"):
+        print(f"  {key:<6} " + " ".join(f"{v:5.2f}" for v in r["heldout_p99_pct"][key]))
+    print("  quantization loss (int8 - float) " +
+          " ".join(f"{v:+.3f}" for v in r["quantization_loss_p99_pct"]))
+    return 0

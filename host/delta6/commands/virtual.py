@@ -35,6 +35,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--calibration", metavar="CAL.toml", type=Path,
                         help="run the firmware with this unit's calibration compiled in "
                              "(delta6 calibrate; with --design, or the default design)")
+    parser.add_argument("--model", metavar="MODEL.json", type=Path,
+                        help="compile this on-chip residual model (delta6 train --target mcu) "
+                             "into the firmware, over the calibration when one is given (with --design, "
+                             "or the default design)")
     motion = parser.add_mutually_exclusive_group()
     motion.add_argument("--replay", metavar="LOG.csv", type=Path,
                         help="encoder angles over time: a log with t and theta_e1..6 columns "
@@ -99,9 +103,10 @@ def run(args: argparse.Namespace) -> int:
     if args.loop and args.replay is None:
         raise UserError("--loop goes with --replay")
     run_of_twin = _simulate_twin(args) if args.twin else None
-    if args.design is not None or args.calibration is not None:
+    if args.design is not None or args.calibration is not None or args.model is not None:
         from delta6.commands.codegen import design_firmware
-        image = design_firmware(args.design or Path(DEFAULT_DESIGN), args.calibration)
+        image = design_firmware(args.design or Path(DEFAULT_DESIGN), args.calibration,
+                                args.model)
     else:
         image = vb.firmware()
     with tempfile.TemporaryDirectory(prefix="delta6-virtual-") as tmp:

@@ -3,7 +3,7 @@ per-sample sensitivity maps, computed once and shared by every candidate effect.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -12,6 +12,7 @@ from delta6.core.errors import UserError
 from delta6.core.model import AXES, Params, forward_kinematics, wrench
 from delta6.core.spec import full_scale
 from delta6.diagnosis import sensitivity
+from delta6.diagnosis.signals import dwell_ramps, lagged, play_output, smooth_velocity
 from delta6.link.logfile import LogData
 
 #: Temperature at which the design's spring rates and the encoder zeros are taken to hold.
@@ -21,6 +22,9 @@ DEFAULT_REF_TEMP_C = 23.0
 MAX_FULL_SCALES = 3.0
 #: Below this many samples the held-out scoring has too few independent blocks to mean much.
 MIN_SAMPLES = 2000
+#: Samples per piece when a per-sample map of the whole log is computed (bounds the memory
+#: the model's intermediate arrays take on long logs).
+PIECE = 50_000
 
 
 class DiagnosisInputError(UserError):
@@ -37,6 +41,18 @@ class GapData:
     temp_c: np.ndarray | None
     fs: np.ndarray           # (6,) full scale, N and N*m
     ref_temp_c: float = DEFAULT_REF_TEMP_C  # temperature at which k and zeros were set
+    #: The whole log's median sample step, s (a piece of a log keeps its log's step).
+    step: float = 0.0
+    #: History state entering this piece of a log (play and lag outputs of the sample before
+    #: it, keyed by operator); empty for a whole log or its first piece.
+    carry: dict = field(default_factory=dict, repr=False)
+    #: Index whose history state the next piece needs (its ``carry``), and that state.
+    handoff: int | None = None
+    carry_out: dict = field(default_factory=dict, repr=False)
+
+    def __post_init__(self):
+        if not self.step:
+            self.step = float(np.median(np.diff(self.t))) if len(self.t) > 1 else 1.0
 
     @classmethod
     def from_log(cls, log: LogData, design: Design,
@@ -71,9 +87,13 @@ class GapData:
                 f"{outside.any(axis=1).mean():.0%} of the samples have encoder angles far "
                 f"outside the joint box (|theta_e| > {1.5 * limit:.2f} rad): wrong units "
                 "(degrees?) or wrong design")
-        data = cls(design=design, params=Params.from_design(design), t=np.asarray(log.t, float),
-                   theta=np.asarray(log.theta, float), reference=np.asarray(log.wrench, float),
-                   temp_c=None if temp is None else np.asarray(temp, float),
+        # Contiguous copies: a log's columns may be views into its whole table, which then
+        # need not stay in memory.
+        data = cls(design=design, params=Params.from_design(design),
+                   t=np.ascontiguousarray(log.t, float),
+                   theta=np.ascontiguousarray(log.theta, float),
+                   reference=np.ascontiguousarray(log.wrench, float),
+                   temp_c=None if temp is None else np.ascontiguousarray(temp, float),
                    fs=fs, ref_temp_c=ref_temp_c)
         if not np.all(np.isfinite(data.model)):
             raise DiagnosisInputError("the analytical model has no solution for some logged "
@@ -83,9 +103,71 @@ class GapData:
     def __len__(self) -> int:
         return len(self.t)
 
+    def piece(self, start: int, stop: int, carry: dict | None = None,
+              handoff: int | None = None) -> "GapData":
+        """Samples [start, stop) as a log of their own that continues this one's history:
+        ``carry`` is the state a previous piece handed off (see ``handoff``, an index into
+        this log, whose state the new piece records in its ``carry_out``)."""
+        sl = slice(start, stop)
+        return GapData(design=self.design, params=self.params, t=self.t[sl],
+                       theta=self.theta[sl], reference=self.reference[sl],
+                       temp_c=None if self.temp_c is None else self.temp_c[sl], fs=self.fs,
+                       ref_temp_c=self.ref_temp_c, step=self.step, carry=dict(carry or {}),
+                       handoff=None if handoff is None else handoff - start)
+
+    def _by_piece(self, fn) -> np.ndarray:
+        if len(self) <= PIECE:
+            return fn(slice(None))
+        parts = [fn(slice(a, a + PIECE)) for a in range(0, len(self), PIECE)]
+        return np.concatenate(parts, axis=0)
+
+    # -- history features, continued across pieces ---------------------------------------
+
+    def _continued(self, key, compute):
+        """``compute(y0)`` -> outputs (n, ...) of a history operator started from ``y0`` (None:
+        from rest at the first sample); records the state at ``handoff``."""
+        out = compute(self.carry.get(key))
+        if self.handoff is not None and 0 <= self.handoff < len(self):
+            self.carry_out[key] = np.array(out[self.handoff], copy=True)
+        return out
+
+    def play_state(self, radii) -> np.ndarray:
+        """Normalised play states of the encoder angles (``signals.play_state``), (n, 6, r)."""
+        radii = tuple(float(r) for r in radii)
+        cache = self.__dict__.setdefault("_play_cache", {})
+        if radii not in cache:
+            out = self._continued(("play", radii),
+                                  lambda y0: play_output(self.theta, radii, y0))
+            cache[radii] = (self.theta[:, :, None] - out) / np.asarray(radii)
+        return cache[radii]
+
+    def lagged_temp(self, tau_s: float) -> np.ndarray:
+        """The temperature through a first-order lag of ``tau_s`` (``signals.lagged``)."""
+        cache = self.__dict__.setdefault("_lag_cache", {})
+        if tau_s not in cache:
+            cache[tau_s] = self._continued(("lag", float(tau_s)), lambda y0: lagged(
+                self.temp_c, self.t, tau_s, step=self.step, y0=y0))
+        return cache[tau_s]
+
+    def dwell_ramp(self, switch_rad: float, max_dwell_s: float, still: float,
+                   power: float) -> np.ndarray:
+        """The direction of motion with each reversal spread over its dwell
+        (``signals.dwell_ramps``), (n, 6)."""
+        key = (switch_rad, max_dwell_s, still, power)
+        cache = self.__dict__.setdefault("_ramp_cache", {})
+        if key not in cache:
+            state = self.play_state((switch_rad,))[:, :, 0]
+            cache[key] = dwell_ramps(self.theta, state, self.t, max_dwell_s, still, power)
+        return cache[key]
+
+    @functools.cached_property
+    def smooth_velocity(self) -> np.ndarray:
+        """Encoder angular velocity by a local linear fit (``signals.smooth_velocity``)."""
+        return smooth_velocity(self.theta, self.t, step=self.step)
+
     @functools.cached_property
     def model(self) -> np.ndarray:
-        return wrench(self.params, self.theta)
+        return self._by_piece(lambda sl: wrench(self.params, self.theta[sl]))
 
     @functools.cached_property
     def residual(self) -> np.ndarray:
@@ -103,7 +185,8 @@ class GapData:
 
     @functools.cached_property
     def position_mm(self) -> np.ndarray:
-        return forward_kinematics(self.params, self.theta[:, :3]) * 1e3
+        return self._by_piece(lambda sl: forward_kinematics(self.params,
+                                                            self.theta[sl, :3]) * 1e3)
 
     @functools.cached_property
     def torque_map(self) -> np.ndarray:
@@ -111,14 +194,25 @@ class GapData:
 
     @functools.cached_property
     def angle_jacobian(self) -> np.ndarray:
-        return sensitivity.angle_jacobian(self.params, self.theta)
+        return sensitivity.angle_jacobian(self.params, self.theta, base=self.model)
 
     @functools.cached_property
     def geometry_jacobian(self) -> np.ndarray:
-        return sensitivity.geometry_jacobian(self.params, self.theta)
+        return sensitivity.geometry_jacobian(self.params, self.theta, base=self.model)
+
+    def joint_torque_of(self, wrench_error: np.ndarray, index=slice(None)) -> np.ndarray:
+        """A wrench error (N, N*m) at the samples ``index`` expressed as the extra joint
+        torques that would explain it, G^-1 r (N*m), computed piece by piece."""
+        theta = self.theta[index]
+        out = np.empty_like(wrench_error)
+        for a in range(0, len(theta), PIECE):
+            sl = slice(a, a + PIECE)
+            g = sensitivity.torque_map(self.params, theta[sl])
+            out[sl] = np.linalg.solve(g, wrench_error[sl][..., None])[..., 0]
+        return out
 
     @functools.cached_property
     def residual_joint_torque(self) -> np.ndarray:
         """The residual expressed as the extra joint torques that would explain it,
         G^-1 r (N*m): makes torque-side effects (hysteresis, friction) visible per joint."""
-        return np.linalg.solve(self.torque_map, self.residual[..., None])[..., 0]
+        return self.joint_torque_of(self.residual)

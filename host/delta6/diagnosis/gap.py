@@ -12,6 +12,8 @@ from delta6.core import accuracy
 from delta6.core.model import AXES
 from delta6.diagnosis.data import GapData
 
+_PIECE = 100_000
+
 
 def percent_table(err_pct: np.ndarray) -> dict:
     """Per-axis percentiles of |error| (already in % FS): {"p50": [6], ..., "max": [6]}."""
@@ -30,11 +32,15 @@ def cross_axis_sensitivity(residual: np.ndarray, reference: np.ndarray, fs: np.n
     reference. ``matrix[i][j]`` is the residual of axis j per unit reference on axis i (rows:
     excited axis, columns: responding axis), fitted jointly over all six axes with an
     intercept because a random trajectory excites every axis at once. Diagonal: on-axis gain
-    error; off-diagonal: cross-axis sensitivity; both ideally zero."""
-    x = reference / fs
-    y = residual / fs
-    design = np.hstack([x, np.ones((len(x), 1))])
-    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    error; off-diagonal: cross-axis sensitivity; both ideally zero. (Normal equations summed
+    piece by piece: seven columns, so long logs need no copy of the whole design.)"""
+    gram = np.zeros((7, 7))
+    rhs = np.zeros((7, 6))
+    for a in range(0, len(reference), _PIECE):
+        x = np.hstack([reference[a:a + _PIECE] / fs, np.ones((len(reference[a:a + _PIECE]), 1))])
+        gram += x.T @ x
+        rhs += x.T @ (residual[a:a + _PIECE] / fs)
+    coef = np.linalg.lstsq(gram, rhs, rcond=None)[0]
     matrix = coef[:6]
     off = ~np.eye(6, dtype=bool)
     return {"axes": list(AXES), "matrix": matrix.tolist(),

@@ -54,9 +54,10 @@ def write_report(result: dict, data: GapData, out_dir: str | Path, source: str =
     if result["present"]:
         lines.append("Present, strongest first: " + ", ".join(f"**{p}**" for p in
                                                               result["present"]) + ".")
-    else:
+    elif not result["groups"]:
         lines.append("**No significant unmodelled effect**: no candidate lowers the held-out "
                      "error beyond what fitting noise gives.")
+    lines += verdict_lines(result)
     lines += ["", "## Where the gap lies (Table V form, % FS)", ""]
     rows = [_row(f"analytical p{q}", tv[f"p{q}"]) for q in (50, 95, 99)]
     rows.append(_row("analytical max", tv["max"]))
@@ -117,11 +118,48 @@ def write_report(result: dict, data: GapData, out_dir: str | Path, source: str =
     for step in result["ladder"]:
         lines.append(f"- **{step['added']}**: " + _format_params(step["params"]))
     lines += ["", f"Left unexplained: {result['unexplained']['share_of_squared_error']:.1%} of "
-              "the analytical model's held-out squared error.", "",
+              "the analytical model's held-out squared error.", ""]
+    lines += _leftover_section(result)
+    lines += _excitation_section(result)
+    lines += ["",
               f"Settings: {result['settings']}. Run time {result['seconds']:.1f} s.", ""]
     path = out / "report.md"
     path.write_text("\n".join(lines))
     return path
+
+
+def verdict_lines(result: dict) -> list[str]:
+    """The verdicts beyond "present", as Markdown lines (also used by the command's summary)."""
+    lines = []
+    for g in result["groups"]:
+        lines.append(f"- Group verdict: **{g['text']}** (the log cannot tell them apart).")
+    for p in result["partial"]:
+        lines.append(f"- Not named: {p['name']} carries only {100 * p['share_of_gap']:.0f} % "
+                     "of the gap while a structured leftover remains: it may be absorbing part "
+                     "of an effect the vocabulary lacks.")
+    for name, check in result["implausible"].items():
+        worst = max(check["checks"], key=lambda c: c["ratio"])
+        lines.append(f"- Not named: {name} fits only by going out of bounds ({worst['quantity']}"
+                     f" {worst['largest']:.3g}, plausible up to {worst['limit']:.3g}).")
+    for name, test in result["signature_tests"].items():
+        if test["confirmed"]:
+            lines.append(f"- {name} confirmed by its own signature: on the {test['samples']} "
+                         "samples where an encoder stands still across a reversal it removes "
+                         f"{100 * test['gain']:.0f} % of the held-out error.")
+    left = result["unexplained"]["verdict"]
+    if left["structured"]:
+        where = (f"joint(s) {', '.join(str(j) for j in left['joints'])}" if left["joints"]
+                 else "no single joint")
+        lines.append(f"- What is left is **structured** (up to {max(left['excess_over_noise']):.1f}"
+                     f" times the noise floor's variance), on {where}, shape: "
+                     f"**{left['shape'] or 'unresolved'}**.")
+    else:
+        lines.append("- What is left is at the noise floor (white).")
+    unsupported = result["excitation"]["unsupported"]
+    if unsupported:
+        lines.append("- The log does not excite " + ", ".join(unsupported) +
+                     " enough to judge them.")
+    return lines
 
 
 def _format_params(params: dict) -> str:
@@ -132,6 +170,50 @@ def _format_params(params: dict) -> str:
         else:
             parts.append(f"{key} = {value:.4g}")
     return "; ".join(parts)
+
+
+def _leftover_section(result: dict) -> list[str]:
+    left = result["unexplained"]["verdict"]
+    lines = ["## What is left", "",
+             "Held-out residual after the ladder against the noise floor (white noise, from the "
+             "residual's sample-to-sample differences), % FS rms:", ""]
+    lines += _table(["", *AXES], [_row("left", left["rms_pct"], "{:.3f}"),
+                                  _row("noise floor", left["noise_rms_pct"], "{:.3f}"),
+                                  _row("variance / noise", left["excess_over_noise"])])
+    lines += ["", "Per joint, the leftover as a joint torque (mN*m rms) and the share of its "
+              "structured part each shape explains:", ""]
+    shapes = list(result["unexplained"]["verdict"]["per_joint"][0]["shares"])
+    lines += _table(["joint", "left", "noise", *shapes, "shape"], [
+        f"| {r['joint']} | {1e3 * r['leftover_rms_nm']:.2f} | {1e3 * r['noise_rms_nm']:.2f} | "
+        + " | ".join(f"{r['shares'][k]:.2f}" for k in shapes) + f" | {r['best'] or '-'} |"
+        for r in left["per_joint"]])
+    cart = left["cartesian"]
+    lines += ["", f"Leftover force explained by the plate's position (affine + quadratic): "
+              f"{cart['share']:.2f} (by each joint's own angle: "
+              f"{cart.get('separable_share', 0.0):.2f}).", ""]
+    return lines
+
+
+def _excitation_section(result: dict) -> list[str]:
+    ex = result["excitation"]
+    lines = ["## Does the log excite each effect?", "",
+             "z: how many noise standard errors a plausible-size parameter stands out by "
+             f"(excited from {ex['thresholds']['excited_z']:g}, weak from "
+             f"{ex['thresholds']['weak_z']:g}); fold support: the smallest share of it in any "
+             "fold's training blocks.", ""]
+    rows = []
+    for name, joints in ex["families"].items():
+        rows.append(f"| {name} | " + "; ".join(
+            f"{j}: {v['level']} (z {v['z']:.0f}, {v['fold_support']:.2f})"
+            for j, v in joints.items()) + " |")
+    lines += _table(["family", "per joint"], rows)
+    axes = ex["axes"]
+    lines += ["", "Load per axis (p95 of |reference| / FS) and the smallest share of it in any "
+              "fold's training blocks: " + ", ".join(
+                  f"{a} {v:.2f}/{w:.2f}" for a, v, w in zip(AXES, axes["p95_load_fs"],
+                                                           axes["training_share_min"])) + ".",
+              ""]
+    return lines
 
 
 def _plot_ladder(plt, result):
@@ -174,8 +256,8 @@ def _plot_cross_axis(plt, result):
 def _plot_loops(plt, data: GapData):
     rng = np.random.default_rng(0)
     idx = np.sort(rng.choice(len(data), size=min(len(data), 6000), replace=False))
-    tau = data.residual_joint_torque[idx]
-    vel = data.velocity[idx]
+    tau = data.joint_torque_of(data.residual[idx], idx)
+    vel = data.smooth_velocity[idx]
     fig, axes = plt.subplots(2, 3, figsize=(11, 6), sharex=True)
     for j, ax in enumerate(axes.flat):
         up = vel[:, j] > 0

@@ -1,21 +1,34 @@
 """The whole diagnosis of one log: where the gap lies, which effects cause it, how far it
-shrinks. Returns one JSON-ready dict (keys documented in ``docs/diagnosis.md``)."""
+shrinks, and what is left. Returns one JSON-ready dict (keys documented in
+``docs/diagnosis.md``).
+
+Memory stays bounded on long logs: the candidate terms' columns are built piece by piece
+twice (``stream``), once for the per-block Gram summaries every decision is made from, once
+for the held-out predictions of the chosen models; only per-sample arrays of six values are
+kept whole.
+"""
 from __future__ import annotations
 
+import tempfile
 import time
 
 import numpy as np
 
 from delta6.core.design import Design
 from delta6.core.model import AXES
-from delta6.diagnosis import gap, physics, selection
+from delta6.diagnosis import blas, excitation, gap, leftover, physics, selection, stream, verdicts
+from delta6.diagnosis import ladder as ladder_mod
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.terms import TERMS
 from delta6.link.logfile import LogData
 
-
-def _p99(values_pct: np.ndarray) -> list[float]:
-    return np.percentile(np.abs(values_pct), 99, axis=0).tolist()
+#: A structured leftover holding at least this share of the analytical model's held-out
+#: squared error means the vocabulary misses something sizeable; families carrying less than
+#: ``PARTIAL_SHARE`` of the gap are then reported as partial, not named.
+MISSING_SHARE = 0.25
+PARTIAL_SHARE = 0.30
+#: Logs up to this many samples keep their columns in memory (no second pass).
+KEEP_COLUMNS_SAMPLES = 30_000
 
 
 def diagnose(log: LogData, design: Design, **kwargs) -> dict:
@@ -23,74 +36,190 @@ def diagnose(log: LogData, design: Design, **kwargs) -> dict:
     return diagnose_data(GapData.from_log(log, design), **kwargs)
 
 
-def diagnose_data(data: GapData, *, seed: int = 0, progress=None,
-                  min_gain: float = selection.MIN_GAIN,
-                  confidence: float = selection.CONFIDENCE,
-                  min_share: float = selection.MIN_SHARE) -> dict:
-    """The diagnosis of prepared data (the caller may reuse ``data``, e.g. for the report)."""
+def diagnose_data(data: GapData, **kwargs) -> dict:
+    """The diagnosis of prepared data (the caller may reuse ``data``, e.g. for the report);
+    see :func:`_diagnose` for the keywords."""
+    with blas.one_thread():
+        return _diagnose(data, **kwargs)
+
+
+def _diagnose(data: GapData, *, seed: int = 0, progress=None,
+              min_gain: float = selection.MIN_GAIN, confidence: float = selection.CONFIDENCE,
+              min_share: float = selection.MIN_SHARE, terms=None) -> dict:
+    """``terms``: the candidate families (default: all of ``TERMS``)."""
     started = time.perf_counter()
-    design = data.design
     if progress:
         progress("model and breakdowns")
     where = gap.where(data)
+    baseline_p99 = ladder_mod.p99(data.residual_pct).tolist()
+    for name in ("velocity", "residual_pct", "position_mm"):   # long logs: 50..100 MB each
+        data.__dict__.pop(name, None)
 
-    terms = [t for t in TERMS if t.available(data)]
-    skipped = [t.name for t in TERMS if not t.available(data)]
-    problem = selection.build_problem(data, terms, progress=progress)
+    vocabulary = TERMS if terms is None else tuple(terms)
+    terms = [t for t in vocabulary if t.available(data)]
+    skipped = [t.name for t in vocabulary if not t.available(data)]
+    signatures = {t.name: t.signature for t in terms if t.signature is not None}
+    keep = len(data) <= KEEP_COLUMNS_SAMPLES
+    with tempfile.TemporaryDirectory(prefix="delta6-diagnose-") as scratch:
+        cache = None if keep else stream.ColumnCache(scratch, sum(len(t.param_names)
+                                                                  for t in terms))
+        problem = selection.build_problem(data, terms, progress=progress,
+                                          signatures=signatures, keep_columns=keep,
+                                          cache=cache)
+        return _decide(data, problem, terms, skipped, where, baseline_p99, cache, started,
+                       seed=seed, progress=progress, min_gain=min_gain,
+                       confidence=confidence, min_share=min_share)
+
+
+def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, *, seed,
+            progress, min_gain, confidence, min_share) -> dict:
+    design = data.design
     rng = np.random.default_rng(seed)
-    ladder, info = selection.greedy(problem, [t.name for t in terms], rng, min_gain=min_gain,
-                                    confidence=confidence, min_share=min_share,
-                                    progress=progress)
+    names = [t.name for t in terms]
+    implausible = {}
+    alone = None
+    # A family that explains the data only with physically implausible parameters is not
+    # named: selection runs again without it, and its fit is reported (what it absorbed stays
+    # in the leftover, where the leftover verdict can place it).
+    forced: list[str] = []
+    while True:
+        steps_found, info = selection.greedy(problem, names, rng, min_gain=min_gain,
+                                             confidence=confidence, min_share=min_share,
+                                             progress=progress)
+        alone = alone or info["alone"]
+        kept = [s.added for s in steps_found]
+        kept += [n for n in forced if n not in kept and n in names]
+        checks = verdicts.plausibility(problem, kept, selection.fit(problem, kept)) \
+            if kept else {}
+        bad = [n for n in kept if not checks[n]["plausible"]]
+        if not bad:
+            break
+        # An implausible fit may be absorbing a neighbour the forward pass did not reach
+        # (assembly errors soaking up elastic links): with that neighbour modelled too, the
+        # fit can be plausible and the held-out error lower; then keep both.
+        helper = verdicts.rescue(problem, kept, bad, [n for n in names if n not in kept])
+        if helper is not None:
+            forced.append(helper)
+            if progress:
+                progress(f"added {helper}: with it, {', '.join(bad)} fit plausibly")
+            if set(forced) - set(kept):
+                steps_found = selection._rebuild(problem, kept + [helper], info["base"],
+                                                 rng, confidence)
+                kept = kept + [helper]
+                break
+        for n in bad:
+            implausible[n] = checks[n]
+            names.remove(n)
+            if progress:
+                progress(f"not named: {n} fits only with implausible parameters")
     base_sse = info["base"]
+    group_verdicts = verdicts.groups(problem, kept, info)
+    # Members of a group verdict join the ladder (in forward order): the shrink is predicted
+    # with every effect the verdict names, whichever of them the log cannot tell apart.
+    extra = [n for n in info["forward"] if n not in kept
+             and any(n in g["members"] for g in group_verdicts)]
+    if extra:
+        steps_found = selection._rebuild(problem, kept + extra, base_sse, rng, confidence)
 
-    def heldout_pct(names):
-        return 100.0 * (problem.y - selection.heldout_prediction(problem, names))
+    # Held-out predictions: every candidate alone, and the refit after every ladder step.
+    models = {("alone", t.name): (problem.cols([t.name]),
+                                  selection.fold_coefficients(problem, [t.name]))
+              for t in terms}
+    chosen: list[str] = []
+    for step in steps_found:
+        chosen.append(step.added)
+        models[("step", step.added)] = (problem.cols(chosen),
+                                        selection.fold_coefficients(problem, chosen))
+    held = stream.predict(data, terms, problem.bounds, problem.fold_of_block, models,
+                          store={k for k in models if k[0] == "step"}, x_all=problem.x,
+                          cache=cache, progress=progress)
 
     candidates = []
     for term in terms:
-        sse = info["alone"][term.name]
+        sse = alone[term.name]
         boot = selection.bootstrap_gain(base_sse, sse, rng)
         candidates.append({
             "name": term.name,
-            "heldout_p99_pct": _p99(heldout_pct([term.name])),
+            "heldout_p99_pct": held["p99"][("alone", term.name)].tolist(),
             "score": selection.gain(base_sse, sse),
             "score_ci": [float(np.quantile(boot, 0.005)), float(np.quantile(boot, 0.995))],
         })
     candidates.sort(key=lambda c: c["score"], reverse=True)
 
+    y = data.residual / data.fs
+    weights, step_p99, final_pred = ladder_mod.monotone(
+        y, (held["pred"].pop(("step", s.added)) for s in steps_found))
     steps = []
     notes: list[str] = []
-    chosen: list[str] = []
-    final_pct = data.residual_pct
-    for step in ladder:
+    chosen = []
+    coef_all = np.zeros(0)
+    fold_all = np.zeros((len(problem.folds), 0))
+    current = base_sse
+    for step, weight, p99_after in zip(steps_found, weights, step_p99):
         chosen.append(step.added)
-        final_pct = heldout_pct(chosen)
-        coef = selection.fit(problem, chosen)
+        coef_all = ladder_mod.blend_coefficients(coef_all, selection.fit(problem, chosen), weight)
+        fold_all = ladder_mod.blend_coefficients(
+            fold_all, selection.fold_coefficients(problem, chosen), weight)
+        sse = selection.heldout_block_sse(problem, chosen, coefs=fold_all)
         params = {}
         cols = 0
         for name in chosen:
             term = problem.terms[name]
             width = len(term.param_names)
-            params[name] = term.summarize(coef[cols:cols + width])
+            params[name] = term.summarize(coef_all[cols:cols + width])
             cols += width
         notes += physics.warnings(step.added, params[step.added])
-        steps.append({"added": step.added, "heldout_p99_pct": _p99(final_pct),
-                      "gain": step.gain, "gain_lower": step.gain_low,
+        steps.append({"added": step.added,
+                      "heldout_p99_pct": p99_after.tolist(),
+                      "gain": selection.gain(current, sse), "gain_lower": step.gain_low,
+                      "damping": 1.0 - weight,
                       "params": params[step.added], "all_params": params})
+        current = sse
 
-    baseline_pct = data.residual_pct
+    # Each named family's own share of the gap: what taking it out of the final model costs.
+    final_sse = selection.heldout_block_sse(problem, chosen).sum() if chosen else 0.0
+    for step in steps:
+        rest = [n for n in chosen if n != step["added"]]
+        step["share_of_gap"] = float((selection.heldout_block_sse(problem, rest).sum()
+                                      - final_sse) / base_sse.sum())
+    leftover_fs = np.subtract(y, final_pred, out=final_pred)    # the prediction is not needed
+    del y
+    final_pct = 100.0 * leftover_fs
     base_total = float(base_sse.sum())
-    left = float(((final_pct / 100.0) ** 2).sum())
+    left = float(current.sum())
+    # Plausibility of every named family's fit, and of each candidate's fit alone.
+    named_plausibility = verdicts.plausibility(problem, chosen, coef_all) if chosen else {}
+    for c in candidates:
+        c["plausibility"] = verdicts.plausibility(
+            problem, [c["name"]], selection.fit(problem, [c["name"]]))[c["name"]]
+    left_verdict = leftover.analyse(data, leftover_fs)
+    # When a sizeable structured leftover shows the vocabulary misses something, a family that
+    # carries only a small share of the gap is as likely absorbing part of the missing effect
+    # as being there: it stays in the ladder (the correction works) but is not named.
+    partial = []
+    if left_verdict["structured"] and base_total > 0 and left / base_total >= MISSING_SHARE:
+        partial = [{"name": s["added"], "share_of_gap": s["share_of_gap"]} for s in steps
+                   if s["share_of_gap"] < PARTIAL_SHARE]
+    for step in steps:
+        step["named"] = not any(p["name"] == step["added"] for p in partial)
     result = {
-        "baseline_heldout_p99_pct": _p99(baseline_pct),
-        "present": chosen,
+        "baseline_heldout_p99_pct": baseline_p99,
+        "present": [n for n in chosen if n in kept
+                    and not any(p["name"] == n for p in partial)],
+        "partial": partial,
+        "groups": group_verdicts,
         "ladder": steps,
         "candidates": candidates,
+        "plausibility": named_plausibility,
+        "implausible": implausible,
+        "signature_tests": info["signature"],
+        "excitation": {**excitation.report(problem), "axes": excitation.axes(data, problem)},
         "unexplained": {
             "table_v": gap.percent_table(final_pct),
             "share_of_squared_error": left / base_total if base_total > 0 else 0.0,
             "cross_axis": gap.cross_axis_sensitivity(final_pct / 100.0 * data.fs,
                                                      data.reference, data.fs),
+            "verdict": left_verdict,
         },
         "where": where,
         "skipped": skipped,
@@ -99,6 +228,7 @@ def diagnose_data(data: GapData, *, seed: int = 0, progress=None,
         "full_scale": data.fs.tolist(),
         "samples": len(data),
         "settings": {"blocks": problem.n_blocks, "folds": len(problem.folds),
+                     "run_blocks": selection.RUN_BLOCKS,
                      "buffer_blocks": selection.BUFFER_BLOCKS, "min_gain": min_gain,
                      "confidence": confidence, "min_share": min_share,
                      "bootstrap": selection.N_BOOT, "seed": seed},

@@ -1,11 +1,19 @@
 """Which effects are present: time-blocked held-out scoring, a block bootstrap, and greedy
 forward selection.
 
-The log is cut into contiguous time blocks; folds are contiguous runs of blocks. A term set is
-fitted on the blocks outside a fold (minus one buffer block on each side, so history features
-cannot leak across the boundary) and scored on the fold. Every term is linear in its
-parameters, so each block is summarised once by its Gram matrix X^T X, X^T y and y^T y over the
-columns of *all* candidate terms: any fit and any held-out error is then a small dense solve.
+The log is cut into contiguous time blocks; the blocks are grouped into short runs, and the
+runs are dealt to the folds in turn, so that every fold holds pieces from all over the log (a
+log that excites one axis at a time, as in the paper's Fig. 9, still leaves every axis in the
+training blocks of every fold). A term set is fitted on the blocks outside a fold (minus one
+buffer block on each side of each of its runs, so history features cannot leak across the
+boundary) and scored on the fold. Every term is linear in its parameters, so each block is
+summarised once by its Gram matrix X^T X, X^T y and y^T y over the columns of *all* candidate
+terms (built piece by piece, ``stream``): any fit and any held-out error is a small dense solve.
+
+Fits are regularised by physics: each parameter has a prior scale (``Term.prior_sd``, the size
+the effect plausibly has), and the normal equations get the matching Gaussian prior, noise
+variance / scale^2 on the diagonal. A well-excited parameter does not notice it; a parameter
+the training blocks hardly excite stays near zero instead of extrapolating.
 
 An effect is called present when two things hold:
 
@@ -29,8 +37,10 @@ import numpy as np
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.terms import Term
 
-N_BLOCKS = 40
+N_BLOCKS = 60
 N_FOLDS = 5
+#: Contiguous blocks per run; runs are dealt to the folds in turn.
+RUN_BLOCKS = 3
 BUFFER_BLOCKS = 1
 MIN_GAIN = 0.02
 MIN_SHARE = 0.01
@@ -43,8 +53,8 @@ RIDGE = 1e-9
 class Problem:
     """Everything the selection needs, FS-normalised (each axis divided by its full scale)."""
 
-    y: np.ndarray                 # (n, 6) residual / FS
-    x: np.ndarray                 # (n, 6, P) term columns / FS
+    y: np.ndarray | None          # (n, 6) residual / FS (None: not kept, a long log)
+    x: np.ndarray | None          # (n, 6, P) term columns / FS (None: not kept)
     slices: dict                  # term name -> slice of P
     terms: dict                   # term name -> Term
     bounds: np.ndarray            # (B + 1,) sample index of block edges
@@ -52,50 +62,80 @@ class Problem:
     xty: np.ndarray               # (B, P)
     yty: np.ndarray               # (B,)
     folds: list = field(default_factory=list)   # list of arrays of block indices
+    #: Prior precision per column (noise variance / prior scale^2; 0: no prior).
+    penalty: np.ndarray | None = None
+    #: Signature subsets: name -> (gram, xty, yty, samples) per block over those samples only.
+    sub: dict = field(default_factory=dict)
+    #: Estimated white-noise variance of one FS-normalised residual value.
+    noise_var: float = 0.0
 
     @property
     def n_blocks(self) -> int:
         return len(self.yty)
 
+    @property
+    def fold_of_block(self) -> np.ndarray:
+        out = np.empty(self.n_blocks, dtype=int)
+        for k, fold in enumerate(self.folds):
+            out[fold] = k
+        return out
+
     def cols(self, names) -> np.ndarray:
-        return np.concatenate([np.arange(self.x.shape[2])[self.slices[n]] for n in names]) \
-            if names else np.zeros(0, dtype=int)
+        return np.concatenate([np.arange(self.slices[n].start, self.slices[n].stop)
+                               for n in names]) if names else np.zeros(0, dtype=int)
+
+
+def make_folds(n_blocks: int, n_folds: int = N_FOLDS, run: int = RUN_BLOCKS) -> list:
+    """Block indices of each fold: runs of ``run`` contiguous blocks dealt to the folds in
+    turn (with too few blocks for that, contiguous folds)."""
+    if n_blocks < n_folds * run * 2:
+        return np.array_split(np.arange(n_blocks), n_folds)
+    runs = np.array_split(np.arange(n_blocks), n_blocks // run)
+    return [np.concatenate(runs[k::n_folds]) for k in range(n_folds)]
+
+
+def noise_variance(residual: np.ndarray, fs=1.0) -> float:
+    """White-noise variance of one FS-normalised residual value (``residual / fs``), from the
+    median absolute first difference (slow, structured parts of the residual hardly change
+    from one sample to the next; white noise doubles its variance in a difference)."""
+    from delta6.diagnosis.leftover import noise_sd
+    return float(np.mean(noise_sd(residual, fs) ** 2))
 
 
 def build_problem(data: GapData, terms: list[Term], n_blocks: int = N_BLOCKS,
-                  n_folds: int = N_FOLDS, progress=None) -> Problem:
-    y = data.residual / data.fs
-    parts, slices, start = [], {}, 0
+                  n_folds: int = N_FOLDS, progress=None, keep_columns: bool = True,
+                  signatures: dict | None = None, cache=None) -> Problem:
+    """The per-block Gram summaries of all ``terms`` (one streamed pass over the log). With
+    ``keep_columns`` the columns and the residual are kept too (short logs: per-sample
+    predictions with :func:`heldout_prediction`); without, memory stays bounded (``cache``, a
+    ``stream.ColumnCache``, keeps them on disk for a later pass)."""
+    from delta6.diagnosis import stream
+    slices, start = {}, 0
     for term in terms:
-        if progress:
-            progress(f"building {term.name} columns")
-        cols = term.columns(data) / data.fs[None, :, None]
-        parts.append(cols)
-        slices[term.name] = slice(start, start + cols.shape[2])
-        start += cols.shape[2]
-    x = np.concatenate(parts, axis=2) if parts else np.zeros((len(y), 6, 0))
-    bounds = np.linspace(0, len(y), n_blocks + 1).astype(int)
-    p = x.shape[2]
-    gram = np.empty((n_blocks, p, p))
-    xty = np.empty((n_blocks, p))
-    yty = np.empty(n_blocks)
-    for b in range(n_blocks):
-        sl = slice(bounds[b], bounds[b + 1])
-        xb = x[sl].reshape(-1, p)
-        yb = y[sl].reshape(-1)
-        gram[b] = xb.T @ xb
-        xty[b] = xb.T @ yb
-        yty[b] = yb @ yb
-    folds = np.array_split(np.arange(n_blocks), n_folds)
-    return Problem(y=y, x=x, slices=slices, terms={t.name: t for t in terms}, bounds=bounds,
-                   gram=gram, xty=xty, yty=yty, folds=folds)
+        slices[term.name] = slice(start, start + len(term.param_names))
+        start += len(term.param_names)
+    bounds = np.linspace(0, len(data), n_blocks + 1).astype(int)
+    gram, xty, yty, sub, x = stream.accumulate(data, terms, bounds, signatures,
+                                               keep_columns=keep_columns, cache=cache,
+                                               progress=progress)
+    noise = noise_variance(data.residual, data.fs)
+    penalty = np.zeros(start)
+    for term in terms:
+        if term.prior_sd is not None:
+            penalty[slices[term.name]] = noise / np.asarray(term.prior_sd, float) ** 2
+    return Problem(y=data.residual / data.fs if keep_columns else None, x=x, slices=slices,
+                   terms={t.name: t for t in terms}, bounds=bounds, gram=gram, xty=xty,
+                   yty=yty, folds=make_folds(n_blocks, n_folds), penalty=penalty, sub=sub,
+                   noise_var=noise)
 
 
-def solve(gram: np.ndarray, xty: np.ndarray) -> np.ndarray:
-    """Least squares from normal equations, scaled for conditioning, with a tiny ridge that only
-    matters for exactly collinear columns (geometry parameters some poses cannot separate)."""
+def solve(gram: np.ndarray, xty: np.ndarray, penalty: np.ndarray | None = None) -> np.ndarray:
+    """Least squares from normal equations, scaled for conditioning, with the prior precision
+    ``penalty`` on the diagonal and a tiny ridge that only matters for exactly collinear
+    columns (geometry parameters some poses cannot separate)."""
     if len(xty) == 0:
         return np.zeros(0)
+    gram = gram if penalty is None else gram + np.diag(penalty)
     scale = np.sqrt(np.maximum(np.diag(gram), 1e-300))
     g = gram / np.outer(scale, scale)
     g[np.diag_indices_from(g)] += RIDGE * max(1.0, np.trace(g) / len(g))
@@ -103,9 +143,10 @@ def solve(gram: np.ndarray, xty: np.ndarray) -> np.ndarray:
 
 
 def train_blocks(problem: Problem, fold: np.ndarray) -> np.ndarray:
-    lo, hi = fold.min() - BUFFER_BLOCKS, fold.max() + BUFFER_BLOCKS
+    """The blocks a fold is predicted from: all but the fold's and their neighbours."""
     blocks = np.arange(problem.n_blocks)
-    return blocks[(blocks < lo) | (blocks > hi)]
+    near = np.abs(blocks[:, None] - np.asarray(fold)[None, :]).min(axis=1) <= BUFFER_BLOCKS
+    return blocks[~near]
 
 
 def fit(problem: Problem, names, blocks=None) -> np.ndarray:
@@ -113,34 +154,48 @@ def fit(problem: Problem, names, blocks=None) -> np.ndarray:
     blocks = np.arange(problem.n_blocks) if blocks is None else blocks
     g = problem.gram[np.ix_(blocks, cols, cols)].sum(axis=0) if len(cols) else np.zeros((0, 0))
     v = problem.xty[np.ix_(blocks, cols)].sum(axis=0) if len(cols) else np.zeros(0)
-    return solve(g, v)
+    pen = None if problem.penalty is None else problem.penalty[cols]
+    return solve(g, v, pen)
 
 
-def heldout_block_sse(problem: Problem, names) -> np.ndarray:
+def fold_coefficients(problem: Problem, names) -> np.ndarray:
+    """The coefficients each fold is predicted with, (K, c)."""
+    return np.array([fit(problem, names, train_blocks(problem, fold))
+                     for fold in problem.folds]).reshape(len(problem.folds), -1)
+
+
+def heldout_block_sse(problem: Problem, names, coefs: np.ndarray | None = None,
+                      subset: str | None = None) -> np.ndarray:
     """Held-out squared error of every block, (B,), each block predicted by the fit on the
-    blocks outside its fold."""
+    blocks outside its fold (or by the given per-fold ``coefs``); over a signature's samples
+    only with ``subset``."""
     cols = problem.cols(names)
-    sse = problem.yty.copy()
+    gram, xty, yty = ((problem.gram, problem.xty, problem.yty) if subset is None
+                      else problem.sub[subset][:3])
+    sse = yty.copy()
     if len(cols) == 0:
         return sse
-    for fold in problem.folds:
-        coef = fit(problem, names, train_blocks(problem, fold))
+    coefs = fold_coefficients(problem, names) if coefs is None else coefs
+    for fold, coef in zip(problem.folds, coefs):
         for b in fold:
-            g = problem.gram[b][np.ix_(cols, cols)]
-            sse[b] = problem.yty[b] - 2 * coef @ problem.xty[b, cols] + coef @ g @ coef
+            g = gram[b][np.ix_(cols, cols)]
+            sse[b] = yty[b] - 2 * coef @ xty[b, cols] + coef @ g @ coef
     return sse
 
 
 def heldout_prediction(problem: Problem, names) -> np.ndarray:
-    """Held-out prediction of the residual for every sample, FS-normalised, (n, 6)."""
+    """Held-out prediction of the residual for every sample, FS-normalised, (n, 6) (a
+    problem built with ``keep_columns``)."""
+    if problem.x is None:
+        raise ValueError("the columns were not kept: use stream.predict")
     cols = problem.cols(names)
     pred = np.zeros_like(problem.y)
     if len(cols) == 0:
         return pred
-    for fold in problem.folds:
-        coef = fit(problem, names, train_blocks(problem, fold))
-        sl = slice(problem.bounds[fold.min()], problem.bounds[fold.max() + 1])
-        pred[sl] = problem.x[sl][:, :, cols] @ coef
+    for fold, coef in zip(problem.folds, fold_coefficients(problem, names)):
+        for b in fold:
+            sl = slice(problem.bounds[b], problem.bounds[b + 1])
+            pred[sl] = problem.x[sl][:, :, cols] @ coef
     return pred
 
 
@@ -195,22 +250,63 @@ def greedy(problem: Problem, candidates, rng: np.random.Generator,
         current = trials[best]
         if progress:
             progress(f"added {best}: held-out error -{100 * g:.1f} %")
-    kept = prune(problem, [s.added for s in ladder], base, min_share, progress)
-    if kept != [s.added for s in ladder]:
+    forward = [s.added for s in ladder]
+    forward_steps = list(ladder)
+    signature = {}
+    for name in problem.sub:
+        if name in candidates and (chosen or name in forward):
+            signature[name] = signature_test(problem, chosen, name, rng, confidence)
+    confirmed = {n for n, v in signature.items() if v["confirmed"]}
+    kept = prune(problem, forward, base, min_share, progress, protected=confirmed)
+    # A term its own signature confirms joins the model even when a neighbouring family had
+    # absorbed it in the forward pass (lost motion fitted as friction and hysteresis).
+    kept += [n for n in sorted(confirmed) if n not in kept]
+    if kept != forward:
         ladder = _rebuild(problem, kept, base, rng, confidence)
-    return ladder, {"base": base, "alone": alone}
+    gains = {s.added: s.gain for s in forward_steps}
+    return ladder, {"base": base, "alone": alone, "forward": forward, "forward_gain": gains,
+                    "dropped": [n for n in forward if n not in kept], "signature": signature}
+
+
+#: A signature confirms its effect when adding the effect to the model removes more than this
+#: share of the held-out error on the signature's samples, at the bootstrap's lower quantile,
+#: and does not raise the held-out error overall.
+SIGNATURE_MIN_GAIN = 0.05
+
+
+def signature_test(problem: Problem, chosen: list[str], name: str, rng: np.random.Generator,
+                   confidence: float = CONFIDENCE) -> dict:
+    """What ``name`` adds to the model ``chosen`` (without it) on its signature's samples (and
+    over the whole log): gains and the bootstrap lower quantile."""
+    without = [c for c in chosen if c != name]
+    with_it = without + [name]
+    sub_before = heldout_block_sse(problem, without, subset=name)
+    sub_after = heldout_block_sse(problem, with_it, subset=name)
+    before = heldout_block_sse(problem, without)
+    after = heldout_block_sse(problem, with_it)
+    samples = int(problem.sub[name][3].sum())
+    if sub_before.sum() <= 0:
+        return {"samples": samples, "gain": 0.0, "gain_lower": 0.0, "overall_gain": 0.0,
+                "confirmed": False}
+    low = float(np.quantile(bootstrap_gain(sub_before, sub_after, rng), 1 - confidence))
+    overall = gain(before, after)
+    return {"samples": samples, "gain": gain(sub_before, sub_after), "gain_lower": low,
+            "overall_gain": overall,
+            "confirmed": bool(low > SIGNATURE_MIN_GAIN and overall > 0.0)}
 
 
 def prune(problem: Problem, chosen: list[str], base: np.ndarray, min_share: float,
-          progress=None) -> list[str]:
+          progress=None, protected=frozenset()) -> list[str]:
     """Drop, weakest first, every chosen term whose removal costs less than ``min_share`` of
-    the baseline held-out squared error."""
+    the baseline held-out squared error (never one of ``protected``)."""
     chosen = list(chosen)
     total = base.sum()
     while len(chosen) > 1:
         full = heldout_block_sse(problem, chosen).sum()
         costs = {name: (heldout_block_sse(problem, [c for c in chosen if c != name]).sum()
-                        - full) / total for name in chosen}
+                        - full) / total for name in chosen if name not in protected}
+        if not costs:
+            break
         weakest = min(costs, key=costs.get)
         if costs[weakest] >= min_share:
             break

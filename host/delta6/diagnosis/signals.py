@@ -6,31 +6,43 @@ import numpy as np
 from delta6.core.operators import first_order, play
 
 
-def play_state(x: np.ndarray, radii) -> np.ndarray:
+def play_state(x: np.ndarray, radii, y0=None) -> np.ndarray:
     """Normalised play state (x - play_r(x)) / r in [-1, 1] for every column of ``x`` (n, j)
     and every radius: shape (n, j, len(radii)). +1 after rising by at least 2r, -1 after
-    falling by at least 2r, in between along the way. Each play starts centred on x[0]."""
+    falling by at least 2r, in between along the way. Each play starts centred on x[0], or
+    continues from the play outputs ``y0`` (j, len(radii)) of the sample before x[0]."""
+    return (np.asarray(x, dtype=float)[:, :, None] - play_output(x, radii, y0)) \
+        / np.asarray(radii, dtype=float)
+
+
+def play_output(x: np.ndarray, radii, y0=None) -> np.ndarray:
+    """The play operators' outputs themselves, (n, j, len(radii)) (the state to carry on)."""
     x = np.asarray(x, dtype=float)[:, :, None]
     radii = np.asarray(radii, dtype=float)
-    return (x - play(x, radii)) / radii
+    return play(x, radii, x[0] if y0 is None else y0)
 
 
-def lagged(x: np.ndarray, t: np.ndarray, tau: float) -> np.ndarray:
-    """First-order lag of ``x`` with time constant ``tau``, started settled. Logs are sampled
-    uniformly (up to jitter): one pole, from the median step."""
-    return first_order(x, np.exp(-np.median(np.diff(t)) / tau))
+def lagged(x: np.ndarray, t: np.ndarray, tau: float, *, step: float | None = None,
+           y0=None) -> np.ndarray:
+    """First-order lag of ``x`` with time constant ``tau``, started settled (or continuing
+    from the output ``y0`` of the sample before x[0]). Logs are sampled uniformly (up to
+    jitter): one pole, from the median ``step`` (default: of ``t``)."""
+    step = np.median(np.diff(t)) if step is None else step
+    return first_order(x, np.exp(-step / tau), y0)
 
 
-def smooth_velocity(x: np.ndarray, t: np.ndarray, half_width: int = 2) -> np.ndarray:
+def smooth_velocity(x: np.ndarray, t: np.ndarray, half_width: int = 2,
+                    step: float | None = None) -> np.ndarray:
     """d x / dt by a local linear fit over 2*half_width+1 samples (suppresses the
-    quantization noise of central differences of 14-bit angles)."""
+    quantization noise of central differences of 14-bit angles); ``step``: the log's median
+    sample step (default: of ``t``)."""
     x = np.asarray(x, dtype=float)
     n = len(x)
     if n < 2 * half_width + 1:
         return np.gradient(x, t, axis=0)
     k = np.arange(-half_width, half_width + 1, dtype=float)
     weights = k / (k @ k)
-    dt = np.median(np.diff(t))
+    dt = np.median(np.diff(t)) if step is None else step
     vel = np.zeros_like(x)
     for w, shift in zip(weights, k.astype(int)):
         vel += w * np.roll(x, -shift, axis=0)

@@ -20,6 +20,13 @@ link_compliance     geometry    link deformation proportional to load: axial str
                                 each distal link, bending of each proximal link
 sensor_latency      time        the reference lags: first and second time derivatives
 thermal_drift       angle, k    offset and spring-rate changes proportional to temperature
+nonlinear_spring    torque      a spring rate that changes with the deflection (odd
+                                powers of the angle: stiffening or softening)
+encoder_periodic_   angle       an encoder error periodic in the shaft angle (harmonics
+error                           1..4 of a turn, any phase)
+harness             torque      a parallel elastic path (a cable to the plate): a force on
+                                the plate affine in the plate's position, through the
+                                mechanism to the joints
 ==================  ==========  =======================================================
 
 Every term returns *columns*: the wrench change (N, N*m) per unit of each parameter, per
@@ -35,7 +42,6 @@ import numpy as np
 from delta6.core.model import ENCODER_COUNT_RAD, link_tension
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.sensitivity import GEOMETRY_NAMES
-from delta6.diagnosis.signals import dwell_ramps, lagged, play_state, smooth_velocity
 
 #: Widths (radius, rad) of the hysteresis play operators, doubling from 16 encoder counts
 #: to a fifth of the joint range: enough to follow an exponential (Dahl, Bouc-Wen) approach
@@ -70,11 +76,40 @@ class Term:
     needs_temperature: bool = False
     #: Physical summary of fitted coefficients (comparable with the twin's truth summaries).
     summary: Callable[[np.ndarray], dict] | None = None
+    #: Prior scale of each parameter (the size the effect plausibly has, physical units): the
+    #: fits regularise towards zero with it (``selection``). None: no prior.
+    prior_sd: tuple[float, ...] | None = None
+    #: Plausibility: fitted coefficients -> [(quantity, values, limit)], the physical
+    #: quantities a fit must keep within ``limit`` to be a believable instance of the effect.
+    plausible: Callable[[np.ndarray], list] | None = None
+    #: Samples where only this effect shows (view -> (n,) bool), tested on their own.
+    signature: Callable[[GapData], np.ndarray] | None = None
+    #: Effects told apart only by details share a group (a verdict names the group when the
+    #: log cannot separate them).
+    group: str | None = None
 
     def summarize(self, coef: np.ndarray) -> dict:
         out = {name: float(v) for name, v in zip(self.param_names, coef)}
         if self.summary is not None:
             out.update(self.summary(np.asarray(coef, dtype=float)))
+        return out
+
+    def plausibility(self, coef: np.ndarray, se: np.ndarray | None = None) -> list[dict]:
+        """Every physical quantity of a fit against its plausible limit. With the standard
+        errors ``se`` of the coefficients, a parameter counts only by how far it is
+        out of bounds beyond three standard errors (a combination the log cannot separate,
+        two lengths that cancel, is undetermined, not implausible)."""
+        coef = np.asarray(coef, dtype=float)
+        if se is not None:
+            se = np.asarray(se, dtype=float)
+            coef = np.sign(coef) * np.maximum(np.abs(coef) - 3.0 * se, 0.0)
+        checks = (self.plausible(coef) if self.plausible is not None else [])
+        out = []
+        for quantity, values, limit in checks:
+            values = np.atleast_1d(np.asarray(values, dtype=float))
+            worst = float(np.max(np.abs(values))) if values.size else 0.0
+            out.append({"quantity": quantity, "largest": worst, "limit": float(limit),
+                        "ratio": worst / limit if limit > 0 else float("inf")})
         return out
 
     def available(self, data: GapData) -> bool:
@@ -137,14 +172,14 @@ def _geometry(data: GapData) -> np.ndarray:
 
 def _hysteresis(data: GapData) -> np.ndarray:
     # Torque per N*m of loop half-height, for each play width.
-    return _torque_columns(data, play_state(data.theta, HYSTERESIS_RADII))
+    return _torque_columns(data, data.play_state(HYSTERESIS_RADII))
 
 
 def _friction(data: GapData) -> np.ndarray:
     # Any odd function of the joint speed that saturates (Coulomb, Stribeck) or grows
     # (viscous), plus the pre-sliding memory that holds the last direction's friction at rest.
-    vel = smooth_velocity(data.theta, data.t)
-    memory = play_state(data.theta, [BACKLASH_SWITCH_RAD])[:, :, 0]
+    vel = data.smooth_velocity
+    memory = data.play_state([BACKLASH_SWITCH_RAD])[:, :, 0]
     feats = np.stack([np.tanh(vel / v) for v in FRICTION_VELOCITIES_RAD_S]
                      + [vel, memory], axis=-1)
     return _torque_columns(data, feats)
@@ -156,10 +191,10 @@ def _backlash(data: GapData) -> np.ndarray:
     # two small plays on the encoder angle let the pick-up be gradual (compliant contacts).
     # During the dwell the link leaves its turning point from rest, so the travel through the
     # play grows about with the square of the time (a quadratic ramp).
-    state = play_state(data.theta, (BACKLASH_SWITCH_RAD,) + BACKLASH_PICKUP_RAD)
-    ramp = dwell_ramps(data.theta, state[:, :, 0], data.t, BACKLASH_MAX_DWELL_S,
-                       0.5 * ENCODER_COUNT_RAD, power=2.0)
-    feats = np.concatenate([ramp[:, :, None], state[:, :, 1:]], axis=-1)     # (n, 6, 2)
+    ramp = data.dwell_ramp(BACKLASH_SWITCH_RAD, BACKLASH_MAX_DWELL_S, 0.5 * ENCODER_COUNT_RAD,
+                           power=2.0)
+    pickup = data.play_state(BACKLASH_PICKUP_RAD)
+    feats = np.concatenate([ramp[:, :, None], pickup], axis=-1)              # (n, 6, 2)
     cols = data.angle_jacobian[:, :, :, None] * (0.5 * feats)[:, None, :, :]
     return cols.reshape(len(data), 6, -1)
 
@@ -231,7 +266,7 @@ def _thermal(data: GapData) -> np.ndarray:
     # calibration temperature): a warm log is a soft spring even if its temperature is
     # constant. Lagged copies of the temperature cover parts that warm up slowly.
     temps = [data.temp_c - data.ref_temp_c]
-    temps += [lagged(data.temp_c, data.t, lag) - data.ref_temp_c for lag in THERMAL_LAGS_S]
+    temps += [data.lagged_temp(lag) - data.ref_temp_c for lag in THERMAL_LAGS_S]
     parts = []
     for temp in temps:
         dt = temp[:, None, None]
@@ -239,34 +274,188 @@ def _thermal(data: GapData) -> np.ndarray:
     return np.concatenate(parts, axis=-1)
 
 
+#: Reference deflection of the nonlinear-spring family, rad (about the joint limit): its
+#: parameters are the extra torque there as a fraction of the nominal spring torque.
+NONLINEAR_REF_RAD = 0.5
+#: Harmonics of a shaft turn in the encoder family.
+ENCODER_HARMONICS = (1, 2, 3, 4)
+#: Finite-difference step of the plate position's Jacobian, rad.
+_FK_STEP = 1e-6
+
+
+def _nonlinear_spring(data: GapData) -> np.ndarray:
+    # Odd in the angle (a spring pair is symmetric), beyond the linear rate: |u| and u^2 times
+    # the nominal torque (u = theta / reference), each minus its linear part over the joint
+    # range (u uniform in [-1, 1]: E[u^2 |u|] / E[u^2] = 3/4, E[u^4] / E[u^2] = 3/5), so that a
+    # spring-rate error stays with stiffness_mismatch. The parameters are the curvature:
+    # the extra torque at the reference beyond the straight line, as a fraction of nominal,
+    # is 0.25 * p1 + 0.4 * p2.
+    u = data.theta / NONLINEAR_REF_RAD
+    tau = data.params.k * data.theta
+    feats = np.stack([tau * (np.abs(u) - 0.75), tau * (u**2 - 0.6)], axis=-1)
+    return _torque_columns(data, feats)
+
+
+def _encoder_periodic(data: GapData) -> np.ndarray:
+    # Angle error e(q) = sum_h a_h sin(h q) + b_h (cos(h q) - 1): any phase of each harmonic,
+    # zero at the rest angle where the encoders were zeroed.
+    parts = []
+    for h in ENCODER_HARMONICS:
+        parts += [np.sin(h * data.theta), np.cos(h * data.theta) - 1.0]
+    feats = np.stack(parts, axis=-1)                                   # (n, 6, 2H)
+    cols = -data.angle_jacobian[:, :, :, None] * feats[:, None, :, :]  # (n, 6, 6, 2H)
+    return cols.reshape(len(data), 6, -1)
+
+
+def plate_jacobian(data: GapData) -> np.ndarray:
+    """d(plate centre)/d(theta_1..3), m/rad, (n, 3, 3) (forward differences)."""
+    from delta6.core.model import forward_kinematics
+    here = forward_kinematics(data.params, data.theta[:, :3])
+    out = np.empty((len(data), 3, 3))
+    for j in range(3):
+        step = np.zeros(3)
+        step[j] = _FK_STEP
+        out[:, :, j] = (forward_kinematics(data.params, data.theta[:, :3] + step) - here) \
+            / _FK_STEP
+    return out
+
+
+def _harness(data: GapData) -> np.ndarray:
+    # A force f on the plate, affine in the plate's displacement from rest (f0 + K dp, K any
+    # 3 x 3 in N/mm), reaches the joints as J^T f (virtual work) and the wrench as G J^T f.
+    from delta6.core.model import forward_kinematics
+    jac = plate_jacobian(data)                                         # (n, 3, 3)
+    rest = forward_kinematics(data.params, np.zeros((1, 3)))[0]
+    dp_mm = (data.position_mm - rest * 1e3)                            # (n, 3)
+    g = data.torque_map[:, :, :3]                                      # (n, 6, 3)
+    gj = np.einsum("naj,nkj->nak", g, jac)                             # per N of f_k
+    cols = [gj]                                                        # preload, N
+    for m in range(3):                                                 # K[:, m] per mm of dp_m
+        cols.append(gj * dp_mm[:, None, m:m + 1])
+    return np.concatenate(cols, axis=-1)
+
+
+def _dwell_samples(data: GapData) -> np.ndarray:
+    # Backlash's own signature: some encoder stands still across a reversal while its link
+    # turns through the play (and the reference wrench moves). Hysteresis and friction
+    # features of an encoder that does not move stay put there.
+    ramp = data.dwell_ramp(BACKLASH_SWITCH_RAD, BACKLASH_MAX_DWELL_S, 0.5 * ENCODER_COUNT_RAD,
+                           power=2.0)
+    return (np.abs(ramp) < 1.0).any(axis=1)
+
+
+def _each(limit_by_param) -> Callable[[np.ndarray], list]:
+    """Plausibility of every parameter on its own: [(name, limit)] per parameter slice."""
+    def check(coef):
+        return [(name, coef[sl], limit) for name, sl, limit in limit_by_param]
+    return check
+
+
+def _per_joint(value: float, width: int = 1) -> tuple[float, ...]:
+    return (value,) * (6 * width)
+
+
+#: Plausible sizes (prior scales) and limits, physical units. Assembly of printed parts: a few
+#: tenths of a millimetre and milliradians, at most 2 mm and 0.05 rad; spring rates within
+#: +-40 % of nominal; torques from rubbing parts of a few mN*m, at most 50 mN*m (15 % of a
+#: joint's torque span); play at most 0.05 rad (3 degrees); latency at most 0.2 s.
+_MM, _MM_LIMIT, _RAD, _RAD_LIMIT = 0.5, 2.0, 0.01, 0.05
+_TORQUE, _TORQUE_LIMIT = 0.01, 0.05
+
+
+def _hysteresis_plausible(coef):
+    return [("loop_half_width_nm", coef.reshape(6, -1).sum(axis=1), _TORQUE_LIMIT)]
+
+
+def _friction_plausible(coef):
+    s = _friction_summary(coef)
+    return [("coulomb_equiv_nm", s["coulomb_equiv_nm"], _TORQUE_LIMIT),
+            ("viscous_equiv_nm_s_per_rad", s["viscous_equiv_nm_s_per_rad"], 0.05)]
+
+
+def _backlash_plausible(coef):
+    return [("play_rad", coef.reshape(6, -1).sum(axis=1), _RAD_LIMIT)]
+
+
+def _encoder_plausible(coef):
+    # The error curve over the joint range, not its harmonics one by one: over a sixth of a
+    # turn the harmonics are nearly collinear, and large coefficients of opposite signs can
+    # make a small error.
+    q = np.linspace(-NONLINEAR_REF_RAD, NONLINEAR_REF_RAD, 101)
+    basis = np.stack([f for h in ENCODER_HARMONICS
+                      for f in (np.sin(h * q), np.cos(h * q) - 1.0)], axis=1)   # (101, 2H)
+    curves = basis @ coef.reshape(6, -1).T                                        # (101, 6)
+    return [("angle_error_rad", np.abs(curves).max(axis=0), 0.03)]
+
+
+def _thermal_plausible(coef):
+    s = _thermal_summary(coef)
+    return [("stiffness_coeff_per_c", s["stiffness_coeff_per_c"], 0.01),
+            ("offset_coeff_rad_per_c", s["offset_coeff_rad_per_c"], 3e-3)]
+
+
 TERMS: tuple[Term, ...] = (
     Term("encoder_offset", "angle", tuple(f"offset_{j}_rad" for j in JOINTS), "rad",
-         _encoder_offset),
+         _encoder_offset, prior_sd=_per_joint(_RAD),
+         plausible=_each([("offset_rad", slice(0, 6), _RAD_LIMIT)])),
     Term("stiffness_mismatch", "torque", tuple(f"k_ratio_error_{j}" for j in JOINTS), "1",
-         _stiffness),
+         _stiffness, prior_sd=_per_joint(0.1),
+         plausible=_each([("k_ratio_error", slice(0, 6), 0.4)])),
     Term("geometry_error", "geometry",
          GEOMETRY_NAMES + tuple(f"rest_angle_b{i}_rad" for i in (1, 2, 3))
-         + tuple(f"gimbal_misalignment_{a}_rad" for a in "xyz"), "mm or rad", _geometry),
+         + tuple(f"gimbal_misalignment_{a}_rad" for a in "xyz"), "mm or rad", _geometry,
+         prior_sd=(_MM,) * 12 + (_RAD,) * 9,
+         plausible=_each([("length_error_mm", slice(0, 12), _MM_LIMIT),
+                          ("angle_error_rad", slice(12, 21), _RAD_LIMIT)])),
     Term("spring_hysteresis", "torque",
          tuple(f"play_{j}_r{r:g}_nm" for j in JOINTS for r in HYSTERESIS_RADII), "N*m",
-         _hysteresis, summary=_hysteresis_summary),
+         _hysteresis, summary=_hysteresis_summary,
+         prior_sd=_per_joint(_TORQUE, len(HYSTERESIS_RADII)), plausible=_hysteresis_plausible,
+         group="direction-dependent joint torque"),
     Term("joint_friction", "torque",
          tuple(f"{kind}_{j}" for j in JOINTS for kind in
                tuple(f"coulomb_v{v:g}_nm" for v in FRICTION_VELOCITIES_RAD_S)
                + ("viscous_nms_per_rad", "presliding_nm")),
-         "N*m, N*m*s/rad", _friction, summary=_friction_summary),
+         "N*m, N*m*s/rad", _friction, summary=_friction_summary,
+         prior_sd=_per_joint(_TORQUE, len(FRICTION_VELOCITIES_RAD_S) + 2),
+         plausible=_friction_plausible, group="direction-dependent joint torque"),
     Term("backlash", "angle",
          tuple(f"{kind}_{j}_rad" for j in JOINTS
                for kind in ("play_dwell", *(f"pickup_r{r:g}_play" for r in BACKLASH_PICKUP_RAD))),
-         "rad", _backlash, summary=_backlash_summary),
+         "rad", _backlash, summary=_backlash_summary,
+         prior_sd=_per_joint(_RAD, 1 + len(BACKLASH_PICKUP_RAD)), plausible=_backlash_plausible,
+         signature=_dwell_samples, group="direction-dependent joint torque"),
     Term("link_compliance", "geometry",
          tuple(f"axial_b{i}_um_per_n" for i in (1, 2, 3))
          + tuple(f"bending_j{i}_rad_per_nm" for i in (1, 2, 3)) + ("tilt_rad_per_nm",),
-         "um/N, rad/(N*m)", _compliance),
-    Term("sensor_latency", "time", ("latency_s", "latency_sq_s2"), "s, s^2", _latency),
+         "um/N, rad/(N*m)", _compliance, prior_sd=(20.0,) * 3 + (0.1,) * 4,
+         plausible=_each([("axial_um_per_n", slice(0, 3), 100.0),
+                          ("bending_rad_per_nm", slice(3, 6), 0.5),
+                          ("tilt_rad_per_nm", slice(6, 7), 0.5)])),
+    Term("sensor_latency", "time", ("latency_s", "latency_sq_s2"), "s, s^2", _latency,
+         prior_sd=(0.05, 0.0025),
+         plausible=_each([("latency_s", slice(0, 1), 0.2), ("latency_sq_s2", slice(1, 2),
+                                                            0.04)])),
     Term("thermal_drift", "angle, k",
          tuple(f"{kind}_{lag}_{j}" for lag in ("now", *(f"lag{s:g}s" for s in THERMAL_LAGS_S))
                for kind in ("k_ratio_per_degc", "offset_rad_per_degc") for j in JOINTS),
-         "1/degC, rad/degC", _thermal, needs_temperature=True, summary=_thermal_summary),
+         "1/degC, rad/degC", _thermal, needs_temperature=True, summary=_thermal_summary,
+         prior_sd=(0.002,) * 6 + (3e-4,) * 6 + (0.002,) * 6 + (3e-4,) * 6 + (0.002,) * 6
+         + (3e-4,) * 6, plausible=_thermal_plausible),
+    Term("nonlinear_spring", "torque",
+         tuple(f"{kind}_{j}" for j in JOINTS for kind in ("abs_quadratic", "cubic")), "1",
+         _nonlinear_spring, prior_sd=_per_joint(0.05, 2),
+         plausible=_each([("rate_change_at_ref", slice(0, 12), 0.6)])),
+    Term("encoder_periodic_error", "angle",
+         tuple(f"{kind}{h}_{j}_rad" for j in JOINTS for h in ENCODER_HARMONICS
+               for kind in ("sin", "cos")), "rad", _encoder_periodic,
+         prior_sd=_per_joint(3e-3, 2 * len(ENCODER_HARMONICS)),
+         plausible=_encoder_plausible),
+    Term("harness", "torque",
+         tuple(f"preload_{a}_n" for a in "xyz")
+         + tuple(f"k_{a}{b}_n_per_mm" for b in "xyz" for a in "xyz"), "N, N/mm", _harness,
+         prior_sd=(0.3,) * 3 + (0.05,) * 9,
+         plausible=_each([("preload_n", slice(0, 3), 3.0),
+                          ("stiffness_n_per_mm", slice(3, 12), 0.5)])),
 )
 EFFECT_NAMES = tuple(t.name for t in TERMS)

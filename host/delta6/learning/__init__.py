@@ -7,7 +7,8 @@ and onnxruntime only.
     est.predict(log)                 # (n, 6), one wrench per row
     live = est.streaming()           # live.update(t, theta) -> (6,), the same numbers
 
-Nothing imported here imports torch; training lives in :mod:`delta6.learning.fit`.
+Nothing imported here imports torch; training lives in :mod:`delta6.learning.fit`, and the
+small integer residual model the microcontroller runs in :mod:`delta6.learning.mcu`.
 """
 from delta6.learning.card import ModelCard, ModelFileError
 from delta6.learning.inference import LearnedEstimator

@@ -50,3 +50,34 @@ def wrench_from_device(meta: dict) -> bool:
     reference sensor's. Fitting or diagnosing the model against it compares it with itself."""
     source = meta.get("wrench_source")
     return source == "device" or (source is None and "firmware" in meta)
+
+
+def six_columns(values, n: int) -> np.ndarray:
+    """``values`` as an (n, 6) float array; None is a block of missing values (NaN)."""
+    if values is None:
+        return np.full((n, 6), np.nan)
+    values = np.asarray(values, dtype=float)
+    if values.shape != (n, 6):
+        raise ValueError(f"expected ({n}, 6) values, got {values.shape}")
+    return values
+
+
+class PartialOnError:
+    """The ``with`` behaviour both log writers share: a clean exit completes the log; an
+    exception leaves the ``.partial`` file (unless ``keep_partial_on_error`` is False), and a
+    failure to close is raised only when nothing else went wrong."""
+
+    keep_partial_on_error = True
+
+    def close(self, complete: bool = True):   # pragma: no cover - the writers define it
+        raise NotImplementedError
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        try:
+            self.close(complete=exc_type is None or not self.keep_partial_on_error)
+        except LogError:
+            if exc_type is None:
+                raise

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from delta6.link import mcaplog
-from delta6.link.logdata import (  # noqa: F401 - re-exported: the log API is this module's
+from delta6.link.logdata import (
     CORE_COLUMNS,
     OPTIONAL_COLUMNS,
     PARTIAL_SUFFIX,
@@ -31,6 +31,8 @@ from delta6.link.logdata import (  # noqa: F401 - re-exported: the log API is th
     WRENCH_COLUMNS,
     LogData,
     LogError,
+    PartialOnError,
+    six_columns,  # noqa: F401 - re-exported: the log API is this module's
 )
 
 MAGIC = "delta6-log"
@@ -54,7 +56,7 @@ def header_lines(meta: dict, columns: tuple[str, ...]) -> list[str]:
     return lines
 
 
-class LogWriter:
+class LogWriter(PartialOnError):
     """Write samples to ``path`` through ``path.partial``; rename on :meth:`close`.
 
     ``meta`` goes into the header as ``# key=value`` lines (conventionally ``design``,
@@ -115,7 +117,7 @@ class LogWriter:
         n = len(t)
         if n == 0:
             return
-        cols = [np.asarray(t, float)[:, None], _block(theta, n), _block(wrench, n)]
+        cols = [np.asarray(t, float)[:, None], six_columns(theta, n), six_columns(wrench, n)]
         for name in self.columns[len(CORE_COLUMNS):]:
             value = optional.get(name)
             cols.append(np.full((n, 1), np.nan) if value is None
@@ -203,15 +205,6 @@ class LogWriter:
     def closed(self) -> bool:
         return self._closed
 
-    def __enter__(self) -> "LogWriter":
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        try:
-            self.close(complete=exc_type is None or not self.keep_partial_on_error)
-        except LogError:
-            if exc_type is None:
-                raise
 
 
 def partial_path(path: str | Path) -> Path:
@@ -242,14 +235,6 @@ def _six(values) -> list:
     return values
 
 
-def _block(values, n: int) -> np.ndarray:
-    if values is None:
-        return np.full((n, 6), np.nan)
-    values = np.asarray(values, dtype=float)
-    if values.shape != (n, 6):
-        raise ValueError(f"expected ({n}, 6) values, got {values.shape}")
-    return values
-
 
 def _cell(value, column: str) -> str:
     if value is None:
@@ -265,6 +250,11 @@ def _cell(value, column: str) -> str:
 
 # --- reading ------------------------------------------------------------------------------
 
+#: Rows parsed at a time: reading never holds more than this many lines of text, so a log of
+#: millions of rows costs little more than its arrays.
+READ_CHUNK_ROWS = 100_000
+
+
 def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData:
     """Read a log, CSV or MCAP (told apart by the file's first bytes). Raises :class:`LogError`
     naming the problem: no file, wrong header, missing columns, unparsable or missing values (NaN), non-monotonic time.
@@ -276,71 +266,43 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
     if mcaplog.is_mcap(path):
         return mcaplog.read_mcap(path, require_complete_rows=require_complete_rows)
     try:
-        text = path.read_text(encoding="ascii")
+        cut = path.name.endswith(PARTIAL_SUFFIX) and not _ends_with_newline(path)
+        with open(path, encoding="ascii", newline=None) as f:
+            meta, columns, body_start = _read_header(path, f)
+            table, line_of = _read_body(path, f, len(columns), body_start, drop_last=cut)
+        if cut:
+            # What a killed writer left: its last row may be cut anywhere (a cut number is a
+            # made-up number), so it is not read. A complete file always ends its rows.
+            meta["cut_row_dropped"] = "1"
     except FileNotFoundError:
         raise LogError(f"{path}: no such file") from None
     except UnicodeDecodeError:
         raise LogError(f"{path}: not a text CSV log (non-ASCII bytes)") from None
+    except IsADirectoryError:
+        raise LogError(f"{path}: cannot be read (Is a directory)") from None
     except OSError as exc:
         raise LogError(f"{path}: cannot be read ({exc.strerror})") from None
-
-    lines = text.splitlines()
-    meta: dict[str, str] = {}
-    if path.name.endswith(PARTIAL_SUFFIX) and text and not text.endswith("\n"):
-        # What a killed writer left: its last row may be cut anywhere (a cut number is a
-        # made-up number), so it is not read. A complete file always ends its rows.
-        lines.pop()
-        meta["cut_row_dropped"] = "1"
-    body_start = 0
-    for body_start, line in enumerate(lines):
-        if not line.startswith("#"):
-            break
-        content = line[1:].strip()
-        if content.startswith(MAGIC):
-            for part in content.split()[1:]:
-                if part.startswith("schema="):
-                    meta["schema"] = part[len("schema="):]
-        elif "=" in content and not content.startswith("units:"):
-            key, _, value = content.partition("=")
-            meta[key.strip()] = value.strip()
-    else:
-        raise LogError(f"{path}: no column header line")
-    if "schema" in meta and meta["schema"] != str(SCHEMA_VERSION):
-        raise LogError(f"{path}: log schema {meta['schema']} is not supported "
-                       f"(this version reads schema {SCHEMA_VERSION})")
-
-    columns = [c.strip() for c in lines[body_start].split(",")]
-    missing = [c for c in CORE_COLUMNS if c not in columns]
-    if missing:
-        raise LogError(f"{path}: missing column(s) {', '.join(missing)}")
-    if len(set(columns)) != len(columns):
-        raise LogError(f"{path}: duplicate column names")
-    rows = [ln for ln in lines[body_start + 1:] if ln.strip()]
-    if not rows:
-        raise LogError(f"{path}: no samples")
-    table = _parse_rows(path, rows, len(columns), body_start + 2)
     infinite = np.isinf(table).any(axis=1)
     if infinite.any():      # an empty field is a missing value; inf is never a measurement
-        line = int(np.argmax(infinite))
-        raise LogError(f"{path}: line {_line_number(lines, body_start, line)}: infinite value "
-                       f"in column {columns[int(np.argmax(np.isinf(table[line])))]}")
+        row = int(np.argmax(infinite))
+        raise LogError(f"{path}: line {line_of[row]}: infinite value "
+                       f"in column {columns[int(np.argmax(np.isinf(table[row])))]}")
     col = {name: table[:, i] for i, name in enumerate(columns)}
 
     t = col["t"]
     theta = np.stack([col[c] for c in THETA_COLUMNS], axis=1)
     wrench = np.stack([col[c] for c in WRENCH_COLUMNS], axis=1)
     if np.isnan(t).any():
-        raise LogError(f"{path}: missing time value on line "
-                       f"{_line_number(lines, body_start, int(np.argmax(np.isnan(t))))}")
+        raise LogError(f"{path}: missing time value on line {line_of[int(np.argmax(np.isnan(t)))]}")
     if require_complete_rows:
         for name, values in (("theta_e", theta), ("wrench", wrench)):
             bad = np.isnan(values).any(axis=1)
             if bad.any():
                 raise LogError(f"{path}: missing or NaN {name} value on line "
-                               f"{_line_number(lines, body_start, int(np.argmax(bad)))}")
+                               f"{line_of[int(np.argmax(bad))]}")
     steps = np.diff(t)
     if (steps <= 0).any():
-        line = _line_number(lines, body_start, int(np.argmax(steps <= 0)) + 1)
+        line = line_of[int(np.argmax(steps <= 0)) + 1]
         raise LogError(f"{path}: time is not strictly increasing at line {line}")
 
     def optional(name):
@@ -351,6 +313,81 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
                    temp_c=optional("temp_c"), meta=meta)
 
 
+def _read_header(path: Path, f) -> tuple[dict, list[str], int]:
+    """The comment lines and the column header: (meta, columns, index of the header line)."""
+    meta: dict[str, str] = {}
+    body_start = -1
+    header = None
+    for body_start, raw in enumerate(f):
+        line = raw.rstrip("\r\n")
+        if not line.startswith("#"):
+            header = line
+            break
+        content = line[1:].strip()
+        if content.startswith(MAGIC):
+            for part in content.split()[1:]:
+                if part.startswith("schema="):
+                    meta["schema"] = part[len("schema="):]
+        elif "=" in content and not content.startswith("units:"):
+            key, _, value = content.partition("=")
+            meta[key.strip()] = value.strip()
+    if header is None:
+        raise LogError(f"{path}: no column header line")
+    if "schema" in meta and meta["schema"] != str(SCHEMA_VERSION):
+        raise LogError(f"{path}: log schema {meta['schema']} is not supported "
+                       f"(this version reads schema {SCHEMA_VERSION})")
+    columns = [c.strip() for c in header.split(",")]
+    missing = [c for c in CORE_COLUMNS if c not in columns]
+    if missing:
+        raise LogError(f"{path}: missing column(s) {', '.join(missing)}")
+    if len(set(columns)) != len(columns):
+        raise LogError(f"{path}: duplicate column names")
+    return meta, columns, body_start
+
+
+def _read_body(path: Path, f, ncols: int, body_start: int,
+               drop_last: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The rows after the header, parsed a chunk at a time (blank lines skipped), and the file
+    line (1-based) of each row. ``drop_last`` leaves out the last row (a cut one)."""
+    parts, numbers = [], []
+    number = body_start + 1           # the header's line number
+    pending: tuple[str, int] | None = None
+    while True:
+        rows, lines = [], []
+        for raw in f:
+            number += 1
+            line = raw.rstrip("\r\n")
+            if not line.strip():
+                continue
+            if pending is not None:
+                rows.append(pending[0])
+                lines.append(pending[1])
+            pending = (line, number)
+            if len(rows) == READ_CHUNK_ROWS:
+                break
+        if not rows:
+            break
+        parts.append(_parse_rows(path, rows, ncols, lines))
+        numbers.append(np.asarray(lines, dtype=np.int64))
+    if pending is not None and not drop_last:
+        parts.append(_parse_rows(path, [pending[0]], ncols, [pending[1]]))
+        numbers.append(np.asarray([pending[1]], dtype=np.int64))
+    if not parts:
+        raise LogError(f"{path}: no samples")
+    if len(parts) == 1:
+        return parts[0], numbers[0]
+    return np.concatenate(parts, axis=0), np.concatenate(numbers)
+
+
+def _ends_with_newline(path: Path) -> bool:
+    with open(path, "rb") as f:
+        f.seek(0, 2)
+        if f.tell() == 0:
+            return True
+        f.seek(-1, 2)
+        return f.read(1) == b"\n"
+
+
 def _as_int(values: np.ndarray | None) -> np.ndarray | None:
     """Integer columns as int64 when complete; left as float (with NaN gaps) otherwise."""
     if values is None or np.isnan(values).any():
@@ -358,10 +395,10 @@ def _as_int(values: np.ndarray | None) -> np.ndarray | None:
     return values.astype(np.int64)
 
 
-def _parse_rows(path: Path, rows: list[str], ncols: int, first_line: int) -> np.ndarray:
+def _parse_rows(path: Path, rows: list[str], ncols: int, line_numbers: list[int]) -> np.ndarray:
     for i, row in enumerate(rows):
         if row.count(",") != ncols - 1:
-            raise LogError(f"{path}: line {first_line + i} has {row.count(',') + 1} fields, "
+            raise LogError(f"{path}: line {line_numbers[i]} has {row.count(',') + 1} fields, "
                            f"expected {ncols}")
     text = "\n".join(rows)
     try:  # fast path: every field present
@@ -379,16 +416,8 @@ def _parse_rows(path: Path, rows: list[str], ncols: int, first_line: int) -> np.
                 try:
                     float(cell)
                 except ValueError:
-                    raise LogError(f"{path}: line {first_line + i}: {cell[:20]!r} is not a "
+                    raise LogError(f"{path}: line {line_numbers[i]}: {cell[:20]!r} is not a "
                                    "number") from None
     return table
 
 
-def _line_number(lines: list[str], body_start: int, row: int) -> int:
-    """The file line (1-based) of data row ``row``, counting past blank lines."""
-    seen = -1
-    for number, line in enumerate(lines[body_start + 1:], start=body_start + 2):
-        seen += bool(line.strip())
-        if seen == row:
-            return number
-    return len(lines)

@@ -35,6 +35,8 @@ from delta6.link.logdata import (
     SCHEMA_VERSION,
     LogData,
     LogError,
+    PartialOnError,
+    six_columns,
 )
 
 MAGIC = b"\x89MCAP0\r\n"
@@ -62,7 +64,7 @@ def log_times(t: np.ndarray, host_t, clock_offset: float | None) -> np.ndarray:
     return np.maximum(ns, 0).astype(np.int64)
 
 
-class McapLogWriter:
+class McapLogWriter(PartialOnError):
     """Write log rows to ``path`` (an MCAP file) through ``path.partial``; rename on close.
 
     The interface of :class:`~delta6.link.logfile.LogWriter`. ``meta`` may name the wrench's
@@ -140,7 +142,7 @@ class McapLogWriter:
         sequence = (np.arange(self.rows, self.rows + n) if seq is None
                     else np.nan_to_num(np.asarray(seq, float), nan=0)).astype(np.int64) & 0xFFFFFFFF
         add = self._mcap.add_message
-        for row, topic, data in self._messages.encode(t, _block(theta, n), _block(wrench, n),
+        for row, topic, data in self._messages.encode(t, six_columns(theta, n), six_columns(wrench, n),
                                                       extra):
             lt = int(log_time[row])
             add(self._channels[topic], lt, data, lt, int(sequence[row]))
@@ -195,28 +197,11 @@ class McapLogWriter:
             return self.path
         return self.partial
 
-    def __enter__(self) -> "McapLogWriter":
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        try:
-            self.close(complete=exc_type is None or not self.keep_partial_on_error)
-        except LogError:
-            if exc_type is None:
-                raise
 
 
 def _hardware_id(meta: dict) -> str:
     return " ".join(meta[k] for k in ("design", "serial_number") if k in meta)
 
-
-def _block(values, n: int) -> np.ndarray:
-    if values is None:
-        return np.full((n, 6), np.nan)
-    values = np.asarray(values, dtype=float)
-    if values.shape != (n, 6):
-        raise ValueError(f"expected ({n}, 6) values, got {values.shape}")
-    return values
 
 
 def _column(values, n: int) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""The Delta6 wire protocol, version 1.1: every number and layout of ``docs/protocol.md``.
+"""The Delta6 wire protocol, version 1.3: every number and layout of ``docs/protocol.md``.
 
 The tables here (record types, commands, modes, status bits, NACK reasons, event codes,
 configuration problems, the field layouts of every record, command and the EEPROM blob) are
@@ -22,7 +22,7 @@ from delta6.link import cobs
 from delta6.link.crc import crc16
 from delta6.link.layout import Field, Layout
 
-VERSION = (1, 1)
+VERSION = (1, 3)
 
 #: The recommended UART rate (docs/protocol.md section 1, "Link"): exact on 16 MHz AVRs, carries
 #: 1 kHz of wrench records at half load.
@@ -76,15 +76,15 @@ class Command(enum.IntEnum):
     ZERO_HERE = 0x8A
     GET_TELEMETRY = 0x8B
     ABORT = 0x8C           # 1.1
-    SET_FILTER = 0x8D      # 1.1
-    SET_TOOL = 0x8E        # 1.1
-    SET_LIMITS = 0x8F      # 1.1
+    SET_FILTER = 0x8D      # 1.3
+    SET_TOOL = 0x8E        # 1.3
+    SET_LIMITS = 0x8F      # 1.3
 
 
 #: The protocol minor version that introduced each command newer than 1.0: a host sends it
 #: only to a device of that minor version or later.
-COMMAND_SINCE = {Command.ABORT: (1, 1), Command.SET_FILTER: (1, 1), Command.SET_TOOL: (1, 1),
-                 Command.SET_LIMITS: (1, 1)}
+COMMAND_SINCE = {Command.ABORT: (1, 1), Command.SET_FILTER: (1, 3), Command.SET_TOOL: (1, 3),
+                 Command.SET_LIMITS: (1, 3)}
 
 
 @enum.unique
@@ -101,7 +101,7 @@ class Status(enum.IntFlag):
     ENCODER4 = 1 << 3
     ENCODER5 = 1 << 4
     ENCODER6 = 1 << 5
-    # An axis is outside its overload limit (SET_LIMITS, 1.1) or outside the wire's range
+    # An axis is outside its overload limit (SET_LIMITS, 1.3) or outside the wire's range
     # (clipped): the two share this bit, no other is free.
     OVERRANGE = 1 << 6
     JOINT_LIMIT = 1 << 7
@@ -129,7 +129,7 @@ class NackReason(enum.IntEnum):
     FAULT_DURING_AVERAGING = 7
     EEPROM_FAILED = 8
     ABORTED = 9            # 1.1
-    FILTER_RANGE = 10      # 1.1
+    FILTER_RANGE = 10      # 1.3
 
 
 NACK_TEXT = {
@@ -205,7 +205,9 @@ RECORD_LAYOUTS = {
         # session.
         Field("calibration_hash", "I"), Field("calibration_name", "s", 24),
         Field("boot_id", "H"),
-        # 1.1: the wrench pipeline's configuration (SET_FILTER, SET_TOOL, SET_LIMITS).
+        # 1.2: the on-chip residual model the firmware runs (hash 0 and no name: none).
+        Field("model_hash", "I"), Field("model_name", "s", 24),
+        # 1.3: the wrench pipeline's configuration (SET_FILTER, SET_TOOL, SET_LIMITS).
         Field("filter_hz", "f"), Field("tool_translation", "f", 3),
         Field("tool_rpy", "f", 3), Field("limits", "H", 6),
         Field("max_rate_pipeline_hz", "H")]),
@@ -223,19 +225,41 @@ RECORD_LAYOUTS = {
 }
 RECORD_SIZES = {t: layout.size for t, layout in RECORD_LAYOUTS.items()}
 #: Fields a minor version appended: a host reads the shorter records of an older device, each
-#: missing field as the value here (its version: 1.1 for all of these).
+#: missing field as the value here (1.1: the calibration and the boot id; 1.2: the model;
+#: 1.3: the wrench pipeline).
 APPENDED_FIELDS = {
     RecordType.INFO: {"calibration_hash": 0, "calibration_name": "", "boot_id": None,
+                      "model_hash": 0, "model_name": "",
                       # no filter, the identity tool frame, no overload limits
                       "filter_hz": 0.0, "tool_translation": (0.0,) * 3,
                       "tool_rpy": (0.0,) * 3, "limits": (0,) * 6,
                       "max_rate_pipeline_hz": 0},
     RecordType.TELEMETRY: {"boot_id": None},
 }
+#: The first field each minor version appended to a record (its fields run to the next's).
+APPENDED_SINCE = {
+    RecordType.INFO: {1: "calibration_hash", 2: "model_hash", 3: "filter_hz"},
+    RecordType.TELEMETRY: {1: "boot_id"},
+}
+
+
+def record_size(kind: RecordType, minor: int) -> int:
+    """The payload size of a record of ``kind`` as minor version ``minor`` sent it."""
+    layout = RECORD_LAYOUTS[kind]
+    return min((layout.offsets[name] for since, name in APPENDED_SINCE.get(kind, {}).items()
+                if since > minor), default=layout.size)
+
+
+#: Every payload size a record of each type may have (one per minor version, oldest first).
+RECORD_SIZES_BY_MINOR = {t: sorted({record_size(t, m) for m in range(VERSION[1] + 1)})
+                         for t in RECORD_LAYOUTS}
 #: The shortest payload of each type a host accepts: the record as version 1.0 defined it.
 MIN_RECORD_SIZES = {t: min((layout.offsets[n] for n in APPENDED_FIELDS.get(t, ())),
                            default=layout.size) for t, layout in RECORD_LAYOUTS.items()}
 INFO_SIZE_1_0 = MIN_RECORD_SIZES[RecordType.INFO]
+#: INFO as version 1.1 sent it (without the model), and 1.2 (without the pipeline).
+INFO_SIZE_1_1 = record_size(RecordType.INFO, 1)
+INFO_SIZE_1_2 = record_size(RecordType.INFO, 2)
 _WRENCH = RECORD_LAYOUTS[RecordType.WRENCH].struct
 _WRENCH_RAW = RECORD_LAYOUTS[RecordType.WRENCH_RAW].struct
 
@@ -285,8 +309,8 @@ if any(not CONFIG_LAYOUTS[v + 1].starts_with(CONFIG_LAYOUTS[v]) for v in range(1
     raise AssertionError("each EEPROM layout is the previous one with fields appended")
 #: Encoded length (no delimiter) of each record type: payload + CRC + one COBS code byte.
 ENCODED_SIZES = {t: s + 3 for t, s in RECORD_SIZES.items()}
-#: Every encoded length a record of each type may have (this version's, or protocol 1.0's).
-ENCODED_LENGTHS = {t: frozenset({s + 3, MIN_RECORD_SIZES[t] + 3}) for t, s in RECORD_SIZES.items()}
+#: Every encoded length a record of each type may have (this version's, or an older minor's).
+ENCODED_LENGTHS = {t: frozenset(s + 3 for s in sizes) for t, sizes in RECORD_SIZES_BY_MINOR.items()}
 
 
 def wire_bytes(record_type: RecordType) -> int:
@@ -346,7 +370,9 @@ class Info(NamedTuple):
     calibration_hash: int = 0      # 1.1; 0: the analytical model, no calibration
     calibration_name: str = ""
     boot_id: int | None = None      # 1.1: identifies the device's boot session
-    # 1.1: the wrench pipeline (defaults: what a 1.0 device does)
+    model_hash: int = 0            # 1.2; 0: no on-chip residual model
+    model_name: str = ""
+    # 1.3: the wrench pipeline (defaults: what an older device does)
     filter_hz: float = 0.0          # low-pass cutoff, Hz; 0: off
     tool_translation: tuple = (0.0, 0.0, 0.0)   # tool point in {E}, m
     tool_rpy: tuple = (0.0, 0.0, 0.0)           # tool axes: roll, pitch, yaw about {E}, rad
@@ -474,7 +500,7 @@ def parse_payload(payload: bytes):
         fields = layout.unpack(payload)
     del fields["type"]
     if kind == RecordType.INFO:
-        for key in ("design_name", "calibration_name"):
+        for key in ("design_name", "calibration_name", "model_name"):
             if isinstance(fields[key], bytes):
                 fields[key] = fields[key].split(b"\x00", 1)[0].decode("ascii", "replace")
         fields["streaming"] = bool(fields["streaming"])
@@ -523,12 +549,13 @@ def encode_wrench(seq: int, time_us: int, status: int, wrench, counts=None) -> b
 
 def encode_record(record, minor: int | None = None) -> bytes:
     """The frame of an INFO, ACK, NACK, TELEMETRY or EVENT record (the tuples above), as this
-    version sends it, or as minor version ``minor`` did (0: 1.0, without the appended fields).
+    version sends it, or as minor version ``minor`` did (0: 1.0, without the appended fields;
+    1: 1.1, without the model; 2: 1.2, without the pipeline).
     An appended field the record does not have (None) is left off, with those after it."""
     kind = next(t for t, cls in _RECORD_TUPLES.items() if isinstance(record, cls))
     fields = record._asdict()
     layout = RECORD_LAYOUTS[kind]
-    size = MIN_RECORD_SIZES[kind] if minor == 0 else layout.size
+    size = record_size(kind, VERSION[1] if minor is None else minor)
     for name in APPENDED_FIELDS.get(kind, ()):
         if fields[name] is None:
             size = min(size, layout.offsets[name])
@@ -539,9 +566,9 @@ def encode_record(record, minor: int | None = None) -> bytes:
         name_field = RECORD_LAYOUTS[kind].field("design_name")
         fields.update(design_name=record.design_name.encode("ascii")[:name_field.count - 1],
                       streaming=int(record.streaming))
-        if "calibration_name" in fields:
-            fields["calibration_name"] = record.calibration_name.encode("ascii")[
-                :name_field.count - 1]
+        for key in ("calibration_name", "model_name"):
+            if key in fields:
+                fields[key] = getattr(record, key).encode("ascii")[:name_field.count - 1]
     return frame(layout.pack(type=kind, **fields))
 
 

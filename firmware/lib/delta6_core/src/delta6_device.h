@@ -16,6 +16,7 @@
 #include <stdint.h>
 
 #include "delta6_filter.h"
+#include "delta6_flash.h"
 #include "delta6_protocol.h"
 #include "delta6_toolframe.h"
 
@@ -57,6 +58,8 @@ struct Identity {
   uint16_t eeprom_address;   // where the configuration blob lives
   const char* calibration_name;  // the calibration compiled in (ASCII, <= 23 characters), or
   uint32_t calibration_hash;     // nullptr and 0: the analytical model (INFO, protocol 1.1)
+  const char* model_name;  // the on-chip residual model compiled in (ASCII, <= 23
+  uint32_t model_hash;     // characters), or nullptr and 0: none (INFO, protocol 1.2)
   uint16_t max_rate_pipeline_hz;  // the fastest loop with the filter or the tool frame on
                                   // (they cost cycles per sample); 0: max_rate_hz
 };
@@ -114,9 +117,13 @@ class Device {
  public:
   static const uint16_t kConfigBlobSize = proto::kConfigBlobSize;
   static const uint16_t kMinTxBuffer = proto::kMaxFrameBytes;
+  // The frame buffer holds every record but INFO, which goes out in pieces (sendInfo).
+  static const uint8_t kTxBuffer = proto::kTelemetrySize + proto::kFrameOverhead;
   static const uint32_t kTelemetryPeriodUs = 1000000;
   static const uint8_t kQueueLength = 4;
 
+  // identity and defaults: declared DELTA6_FLASH (program memory on the AVR; delta6_flash.h),
+  // read only through flash::copy. The names identity points to are in RAM.
   Device(Hardware& hardware, const Identity& identity, const Config& defaults);
 
   // Load the configuration from EEPROM (defaults if it is invalid, flagged), announce the boot
@@ -139,7 +146,11 @@ class Device {
   uint16_t persistentStatus() const;
   const Counters& counters() const { return counters_; }
   const Config& config() const { return config_; }
-  proto::Scale scale(uint8_t axis) const { return scale_[axis]; }
+  proto::Scale scale(uint8_t axis) const {
+    return proto::scaleForFullScale(ident(id_.full_scale[axis]));
+  }
+  // The board's serial number when only the running board knows it (Identity's is then 0).
+  void setSerialNumber(uint32_t serial_number) { serial_number_ = serial_number; }
   // Highest rate the link carries in a mode (90 % of the baud rate), or 0xFFFF without a baud.
   uint16_t linkRateLimit(uint8_t mode) const;
 
@@ -165,7 +176,16 @@ class Device {
     answer(proto::kNack, c.request_id, c.type, reason, detail);
   }
   uint16_t buildResponse(const Response& r);
-  uint16_t buildInfo(uint8_t request_id);
+  void sendInfo(uint8_t request_id);
+  void buildInfoPiece(uint8_t request_id, uint8_t piece, uint8_t* p) const;
+  void loadDefaults(Config* out) const { flash::copy(out, &defaults_, sizeof(Config)); }
+  // A field of the identity, from flash.
+  template <typename T>
+  static T ident(const T& field) {
+    T value;
+    flash::copy(&value, &field, sizeof(T));
+    return value;
+  }
   uint16_t buildTelemetry(uint8_t request_id);
   void startAveraging(const proto::Command& c, uint16_t samples);
   void accumulate(const float* wrench, const Sample& sample, uint16_t status);
@@ -188,7 +208,6 @@ class Device {
   const Identity& id_;
   const Config& defaults_;
   Config config_;
-  proto::Scale scale_[6];
   float inverse_lsb_[6];
   LowPass6 filter_;
   bool filter_on_;
@@ -205,6 +224,7 @@ class Device {
   bool tx_overflow_;           // a data record was dropped since the last one sent
   bool stream_changed_;        // a command changed what records mean; none sent since
   uint16_t boot_id_;
+  uint32_t serial_number_;
   uint16_t seq_;
   uint16_t last_status_;
   int16_t temperature_centi_;
@@ -221,7 +241,7 @@ class Device {
     int32_t counts[6];
   } sums_;
 
-  uint8_t tx_[proto::kMaxFrameBytes];
+  uint8_t tx_[kTxBuffer];
 };
 
 }  // namespace delta6

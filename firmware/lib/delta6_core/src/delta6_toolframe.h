@@ -19,6 +19,8 @@ struct ToolFrame {
   bool identity;     // no translation and no rotation: nothing to do per sample
 };
 
+// No translation and no rotation (every value +-0).
+bool toolIsIdentity(const float translation[3], const float rpy[3]);
 // From the translation (m) and roll, pitch, yaw (rad); false for non-finite values.
 bool makeToolFrame(const float translation[3], const float rpy[3], ToolFrame* out);
 // The wrench w (Fx Fy Fz Mx My Mz) moved into the tool frame, in place.

@@ -5,9 +5,12 @@ from __future__ import annotations
 from delta6.twin.effects.backlash import Backlash
 from delta6.twin.effects.base import Effect, EffectError, ParamSpec, Signals, Stage
 from delta6.twin.effects.encoder_offset import EncoderOffset
+from delta6.twin.effects.encoder_periodic_error import EncoderPeriodicError
 from delta6.twin.effects.geometry_error import GeometryError
+from delta6.twin.effects.harness import Harness
 from delta6.twin.effects.joint_friction import JointFriction
 from delta6.twin.effects.link_compliance import LinkCompliance
+from delta6.twin.effects.nonlinear_spring import NonlinearSpring
 from delta6.twin.effects.sensor_latency import SensorLatency
 from delta6.twin.effects.spring_hysteresis import SpringHysteresis
 from delta6.twin.effects.stiffness_mismatch import StiffnessMismatch
@@ -17,7 +20,9 @@ from delta6.twin.effects.thermal_drift import ThermalDrift
 #: names its terms alike (tests/evaluation/test_effect_names.py).
 REGISTRY: dict[str, type[Effect]] = {cls.NAME: cls for cls in (
     EncoderOffset, StiffnessMismatch, GeometryError, SpringHysteresis, JointFriction, Backlash,
-    LinkCompliance, SensorLatency, ThermalDrift)}
+    LinkCompliance, SensorLatency, ThermalDrift,
+    # Beyond the first vocabulary: effects real magnetic-encoder sensors show.
+    NonlinearSpring, EncoderPeriodicError, Harness)}
 EFFECT_NAMES = tuple(REGISTRY)
 
 

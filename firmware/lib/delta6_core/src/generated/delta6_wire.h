@@ -7,11 +7,13 @@
 
 #include <stdint.h>
 
+#include "delta6_flash.h"
+
 namespace delta6 {
 namespace proto {
 
 const uint8_t kVersionMajor = 1;
-const uint8_t kVersionMinor = 1;
+const uint8_t kVersionMinor = 3;
 
 // --- records (device -> host): type, payload size (type byte included, CRC
 // excluded) and the offset of every field (docs/protocol.md section 3) ---
@@ -34,7 +36,7 @@ const uint8_t kWrenchRawOffWrench = 9;  // 6 x i16
 const uint8_t kWrenchRawOffCounts = 21;  // 6 x u16
 
 const uint8_t kInfo = 0x03;
-const uint8_t kInfoSize = 200;
+const uint8_t kInfoSize = 228;
 const uint8_t kInfoOffType = 0;  // u8
 const uint8_t kInfoOffRequestId = 1;  // u8
 const uint8_t kInfoOffProtocol = 2;  // 2 x u8
@@ -60,11 +62,14 @@ const uint8_t kInfoOffCalibrationHash = 128;  // u32
 const uint8_t kInfoOffCalibrationName = 132;  // 24 x char
 const uint8_t kInfoCalibrationNameBytes = 24;  // NUL-padded
 const uint8_t kInfoOffBootId = 156;  // u16
-const uint8_t kInfoOffFilterHz = 158;  // f32
-const uint8_t kInfoOffToolTranslation = 162;  // 3 x f32
-const uint8_t kInfoOffToolRpy = 174;  // 3 x f32
-const uint8_t kInfoOffLimits = 186;  // 6 x u16
-const uint8_t kInfoOffMaxRatePipelineHz = 198;  // u16
+const uint8_t kInfoOffModelHash = 158;  // u32
+const uint8_t kInfoOffModelName = 162;  // 24 x char
+const uint8_t kInfoModelNameBytes = 24;  // NUL-padded
+const uint8_t kInfoOffFilterHz = 186;  // f32
+const uint8_t kInfoOffToolTranslation = 190;  // 3 x f32
+const uint8_t kInfoOffToolRpy = 202;  // 3 x f32
+const uint8_t kInfoOffLimits = 214;  // 6 x u16
+const uint8_t kInfoOffMaxRatePipelineHz = 226;  // u16
 
 const uint8_t kAck = 0x04;
 const uint8_t kAckSize = 7;
@@ -109,10 +114,15 @@ const uint8_t kEventOffType = 0;  // u8
 const uint8_t kEventOffCode = 1;  // u8
 const uint8_t kEventOffArg = 2;  // u32
 
-const uint8_t kMaxRecordSize = 200;
+const uint8_t kMaxRecordSize = 228;
 // Bytes on the wire beyond the payload: CRC, one COBS code byte, the delimiter.
 const uint8_t kFrameOverhead = 4;
-const uint8_t kMaxFrameBytes = 204;
+const uint8_t kMaxFrameBytes = 232;
+
+// Payload size of each record type from kFirstRecordType on (0: none).
+const uint8_t kFirstRecordType = 0x01;
+const uint8_t kRecordTypeCount = 7;
+const uint8_t kRecordSizeByType[kRecordTypeCount] DELTA6_FLASH = {21, 33, 228, 7, 8, 50, 6};
 
 // --- commands (host -> device): type, request id, arguments; each command's
 // exact payload size (docs/protocol.md section 4) ---
@@ -155,6 +165,11 @@ const uint8_t kLastCommand = 0x8F;
 const uint8_t kMaxCommandSize = 26;
 // Receive buffer (encoded bytes): longer command frames are discarded and counted.
 const uint8_t kCommandBuffer = 32;
+
+// Payload size of each command type from kFirstCommandType on (0: none).
+const uint8_t kFirstCommandType = 0x80;
+const uint8_t kCommandTypeCount = 16;
+const uint8_t kCommandSizeByType[kCommandTypeCount] DELTA6_FLASH = {2, 2, 4, 2, 3, 4, 2, 2, 2, 14, 4, 2, 2, 6, 26, 14};
 
 // --- stream modes (SET_MODE argument, INFO) ---
 const uint8_t kModeWrench = 1;
@@ -232,10 +247,11 @@ const int16_t kTemperatureUnknown = 0x7FFF;  // no temperature sensor
 const int8_t kMinExponent = -6;
 const int8_t kMaxExponent = 3;
 const uint8_t kMantissaCount = 3;
-const uint8_t kMantissas[kMantissaCount] = {1, 2, 5};
+// In flash on the AVR (DELTA6_FLASH): read them with flash::byte and flash::f32.
+const uint8_t kMantissas[kMantissaCount] DELTA6_FLASH = {1, 2, 5};
 // Decades as float literals: the host (delta6.link.wirescale) rounds the same decimals
 // to float32, so both ends pick the same step even at exact boundaries.
-const float kDecades[kMaxExponent - kMinExponent + 1] = {
+const float kDecades[kMaxExponent - kMinExponent + 1] DELTA6_FLASH = {
     1e-6f, 1e-5f, 1e-4f, 1e-3f, 1e-2f, 1e-1f, 1e0f, 1e1f, 1e2f, 1e3f};
 const float kHeadroom = 1.25f;
 // A wrench value: counts of the LSB; kInvalidValue when the sample has none.

@@ -1,0 +1,200 @@
+"""The on-chip residual model file: a quantized network with what it was trained for.
+
+``delta6 train --target mcu -o MODEL.json`` writes it (and the float network as MODEL.onnx next
+to it, for comparison); ``delta6 codegen --model MODEL.json`` turns it into the firmware header;
+``delta6 evaluate --model MODEL.json`` runs it through the integer reference. JSON, schema
+``delta6-residual-model/1``:
+
+    {"schema": ..., "name": "paper-unit", "design": {"name", "hash": "0x..."},
+     "base": "analytical" | "calibrated", "calibration": {"name", "hash"} | null,
+     "network": {"rate_hz", "input_scale": [6], "output_step": [6],
+                 "features": [{"kind", "param", "multiplier": [6], "shift": [6]}, ...],
+                 "layers": [{"weights": [[...]], "bias", "multiplier", "shift", "relu"}, ...]},
+     "training": {...}}          # how it was made and what it scored; not part of the hash
+
+``hash32`` identifies the model the board runs (everything but ``training``); the device info
+reports it.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from delta6.core.errors import UserError
+from delta6.core.int8net import Feature, Int8Net, Layer
+
+SCHEMA = "delta6-residual-model/1"
+BASES = ("analytical", "calibrated")
+MAX_NAME = 23
+
+
+class ModelFileError(UserError):
+    """A model file that cannot be read or is not a valid residual model."""
+
+
+@dataclass(frozen=True)
+class ResidualModel:
+    name: str
+    design_name: str
+    design_hash: int
+    base: str                               # "analytical" or "calibrated"
+    net: Int8Net
+    calibration_name: str | None = None
+    calibration_hash: int | None = None
+    training: dict = field(default_factory=dict)
+
+    def identity(self) -> dict:
+        """Everything the board's behaviour depends on, as JSON-ready data."""
+        n = self.net
+        return {
+            "name": self.name,
+            "design": {"name": self.design_name, "hash": f"0x{self.design_hash:08x}"},
+            "base": self.base,
+            "calibration": None if self.calibration_hash is None else {
+                "name": self.calibration_name, "hash": f"0x{self.calibration_hash:08x}"},
+            "network": {
+                "rate_hz": float(n.rate_hz),
+                "input_scale": [float(x) for x in n.input_scale],
+                "output_step": [float(x) for x in n.output_step],
+                "features": [{"kind": f.kind, "param": int(f.param),
+                              "multiplier": [int(x) for x in f.multiplier],
+                              "shift": [int(x) for x in f.shift]} for f in n.features],
+                "layers": [{"weights": layer.weights.astype(int).tolist(),
+                            "bias": layer.bias.astype(int).tolist(),
+                            "multiplier": layer.multiplier.astype(int).tolist(),
+                            "shift": layer.shift.astype(int).tolist(),
+                            "relu": bool(layer.relu)} for layer in n.layers],
+            },
+        }
+
+    def hash32(self) -> int:
+        text = json.dumps(self.identity(), sort_keys=True, separators=(",", ":"))
+        return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "big")
+
+
+def check_base(model: ResidualModel, design, calibration=None) -> None:
+    """The model must correct what runs under it: ``design``'s analytical wrench without a
+    calibration, the calibrated wrench of that very calibration with one (one line, else)."""
+    if model.design_hash != design.hash32():
+        raise UserError(f"model '{model.name}' was trained for design '{model.design_name}' "
+                        f"(hash 0x{model.design_hash:08x}), not '{design.name}' "
+                        f"(0x{design.hash32():08x})")
+    if model.base == "analytical":
+        if calibration is not None:
+            raise UserError(f"model '{model.name}' corrects the analytical model, not calibration "
+                            f"'{calibration.name}'; train it with --residual-over the "
+                            "calibration, or leave --calibration out")
+        return
+    trained_over = f"calibration '{model.calibration_name}' (hash 0x{model.calibration_hash:08x})"
+    if calibration is None:
+        raise UserError(f"model '{model.name}' corrects {trained_over}; give it with "
+                        "--calibration")
+    if model.calibration_hash != calibration.hash32():
+        raise UserError(f"model '{model.name}' was trained over {trained_over}, not calibration "
+                        f"'{calibration.name}' (hash 0x{calibration.hash32():08x})")
+
+
+def dumps(model: ResidualModel) -> str:
+    body = {"schema": SCHEMA, **model.identity(), "training": model.training}
+    return json.dumps(body, indent=1) + "\n"
+
+
+def save(model: ResidualModel, path: str | Path) -> Path:
+    path = Path(path)
+    tmp = path.with_name(path.name + ".partial")
+    try:
+        tmp.write_text(dumps(model), encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError as exc:
+        raise ModelFileError(f"cannot write {path}: {exc.strerror}") from None
+    return path
+
+
+def _hex32(value, what: str, source: str) -> int:
+    try:
+        number = int(str(value), 16)
+    except ValueError:
+        raise ModelFileError(f"{source}: {what} must be a hex number like 0x1234abcd") from None
+    if not 0 <= number < 2**32:
+        raise ModelFileError(f"{source}: {what} does not fit 32 bits")
+    return number
+
+
+def _ints(values, dtype, what: str, source: str) -> np.ndarray:
+    array = np.asarray(values)
+    if array.dtype.kind not in "iu" or array.size == 0:
+        raise ModelFileError(f"{source}: {what} must hold integers")
+    info = np.iinfo(dtype)
+    if array.min() < info.min or array.max() > info.max:
+        raise ModelFileError(f"{source}: {what} out of range for {np.dtype(dtype).name}")
+    return array.astype(dtype)
+
+
+def loads(text: str, source: str = "model") -> ResidualModel:
+    """Parse and validate; any problem is one ModelFileError line naming it."""
+    try:
+        data = json.loads(text)
+    except ValueError as exc:
+        raise ModelFileError(f"{source}: not a residual model file (not JSON: {exc})") from None
+    if not isinstance(data, dict) or data.get("schema") != SCHEMA:
+        raise ModelFileError(f"{source}: not a {SCHEMA} file")
+    try:
+        name = str(data["name"])
+        if not name or len(name) > MAX_NAME or not name.isascii() or not name.isprintable():
+            raise ModelFileError(f"{source}: name must be 1..{MAX_NAME} printable ASCII "
+                                 "characters")
+        base = data["base"]
+        if base not in BASES:
+            raise ModelFileError(f"{source}: base must be one of {', '.join(BASES)}")
+        cal = data.get("calibration")
+        if (cal is None) != (base == "analytical"):
+            raise ModelFileError(f"{source}: a model over the calibrated model names its "
+                                 "calibration, one over the analytical model none")
+        net_data = data["network"]
+        features = tuple(
+            Feature(str(f["kind"]), int(f["param"]),
+                    tuple(int(x) for x in _ints(f["multiplier"], np.int16, "multiplier", source)),
+                    tuple(int(x) for x in _ints(f["shift"], np.uint8, "shift", source)))
+            for f in net_data["features"])
+        layers = tuple(
+            Layer(_ints(layer["weights"], np.int8, "weights", source),
+                  _ints(layer["bias"], np.int32, "bias", source),
+                  _ints(layer["multiplier"], np.int16, "multiplier", source),
+                  _ints(layer["shift"], np.uint8, "shift", source), bool(layer["relu"]))
+            for layer in net_data["layers"])
+        net = Int8Net(float(net_data["rate_hz"]),
+                      np.asarray(net_data["input_scale"], dtype=np.float32),
+                      np.asarray(net_data["output_step"], dtype=np.float32), features, layers)
+        for layer in layers:
+            if layer.weights.ndim != 2:
+                raise ModelFileError(f"{source}: layer weights must be a matrix")
+        net.check()
+        return ResidualModel(
+            name=name, design_name=str(data["design"]["name"]),
+            design_hash=_hex32(data["design"]["hash"], "design hash", source), base=base, net=net,
+            calibration_name=None if cal is None else str(cal["name"]),
+            calibration_hash=None if cal is None else _hex32(cal["hash"], "calibration hash",
+                                                              source),
+            training=dict(data.get("training") or {}))
+    except ModelFileError:
+        raise
+    except ValueError as exc:
+        raise ModelFileError(f"{source}: invalid network: {exc}") from None
+    except (KeyError, TypeError, AttributeError) as exc:
+        raise ModelFileError(f"{source}: missing or malformed entry ({exc})") from None
+
+
+def load(path: str | Path) -> ResidualModel:
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ModelFileError(f"{path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ModelFileError(f"{path}: cannot read ({exc})") from None
+    return loads(text, str(path))

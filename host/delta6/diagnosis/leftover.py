@@ -1,0 +1,179 @@
+"""What is left after the ladder: its size against the noise floor, whether it is structured or
+white, and where it lives (per joint, as a joint torque against the joint angle, with shape
+tests; and in Cartesian space).
+
+The noise floor is estimated from the residual itself: white noise doubles its variance in a
+first difference, while slow, structured parts hardly change from one sample to the next (the
+median absolute difference, so that rare jumps do not count). A leftover whose variance is at
+least ``STRUCTURED_EXCESS`` times that floor on some axis is *structured*: something the
+families do not describe is still there.
+
+Shape tests, per joint j, on the leftover expressed as the joint torque that would explain it
+(tau = G^-1 r) against the joint's own angle and motion; each test reports the share of the
+joint's structured leftover variance its basis explains (least squares, many samples, a few
+parameters):
+
+* ``odd polynomial``: theta, theta |theta|, theta^3 (a spring rate that changes with the
+  deflection);
+* ``even polynomial``: 1, theta^2, theta^4 (an asymmetric spring, a load-dependent offset);
+* ``periodic in the angle``: sines and cosines of 3..8 times the angle beyond a cubic (an
+  error repeating over the shaft turn faster than the joint range);
+* ``direction-dependent``: the direction of motion and play states (history);
+* ``coupled across joints``: the other joints' angles beyond the joint's own cubic.
+
+And once for the mechanism: ``pose-dependent in Cartesian space``, the share of the leftover
+force (in {B}) explained by an affine-plus-quadratic function of the plate's position (a
+harness or cable pulling on the plate).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from delta6.core.model import rotation
+from delta6.diagnosis.data import GapData
+
+STRUCTURED_EXCESS = 1.5
+#: A joint "carries" the leftover when its structured torque variance is at least this share
+#: of the largest joint's.
+JOINT_SHARE = 0.25
+#: A shape is named when its basis explains at least this share of the structured leftover.
+SHAPE_SHARE = 0.5
+#: Samples used for the shape fits (spread over the log; enough for a few parameters).
+SHAPE_SAMPLES = 60_000
+SHAPES = ("odd polynomial", "even polynomial", "periodic in the angle", "direction-dependent",
+          "coupled across joints")
+
+
+def noise_sd(values: np.ndarray, scale=1.0) -> np.ndarray:
+    """White-noise standard deviation per column of ``values / scale``, from the median
+    absolute first difference (in place on one difference array: long logs)."""
+    d = np.diff(values, axis=0)
+    d /= scale
+    d -= np.median(d, axis=0)
+    np.abs(d, out=d)
+    mad = np.median(d, axis=0, overwrite_input=True)
+    return 1.4826 * mad / np.sqrt(2.0)
+
+
+def _share(target: np.ndarray, basis: np.ndarray, structured_var: float) -> float:
+    """Share of ``structured_var`` the least-squares fit of ``target`` on ``basis`` explains."""
+    if structured_var <= 0:
+        return 0.0
+    coef, *_ = np.linalg.lstsq(basis, target, rcond=None)
+    explained = np.var(basis @ coef) if basis.shape[1] else 0.0
+    return float(np.clip(explained / structured_var, 0.0, 1.0))
+
+
+def _own(theta: np.ndarray) -> np.ndarray:
+    return np.stack([np.ones_like(theta), theta, theta**2, theta**3], axis=1)
+
+
+def _joint_shapes(tau: np.ndarray, theta: np.ndarray, j: int, direction: np.ndarray,
+                  structured_var: float) -> dict:
+    th = theta[:, j]
+    centred = tau - tau.mean()
+    own = _own(th)
+    base_own = _share(centred, own, structured_var)
+    periodic = np.stack([f(h * th) for h in range(3, 9) for f in (np.sin, np.cos)], axis=1)
+    others = np.delete(theta, j, axis=1)
+    shares = {
+        "odd polynomial": _share(centred, np.stack([th, th * np.abs(th), th**3], axis=1),
+                                 structured_var),
+        "even polynomial": _share(centred, np.stack([np.ones_like(th), th**2, th**4], axis=1),
+                                  structured_var),
+        "periodic in the angle": max(0.0, _share(centred, np.hstack([own, periodic]),
+                                                 structured_var) - base_own),
+        "direction-dependent": _share(centred, np.hstack([np.ones((len(th), 1)),
+                                                          direction]), structured_var),
+        "coupled across joints": max(0.0, _share(centred, np.hstack([own, others, others**2]),
+                                                 structured_var) - base_own),
+    }
+    best = max(shares, key=shares.get)
+    return {"shares": shares, "best": best if shares[best] >= SHAPE_SHARE else None}
+
+
+def analyse(data: GapData, leftover_fs: np.ndarray) -> dict:
+    """The verdict on the leftover ``leftover_fs`` (n, 6), FS-normalised held-out residual
+    after the ladder."""
+    noise = noise_sd(data.residual, data.fs)
+    rms = np.sqrt(np.mean(leftover_fs**2, axis=0))
+    excess = rms**2 / np.maximum(noise**2, 1e-300)
+    structured_share = np.clip(1.0 - 1.0 / np.maximum(excess, 1e-12), 0.0, 1.0)
+    structured = bool(np.any(excess >= STRUCTURED_EXCESS))
+    out = {
+        "rms_pct": (100 * rms).tolist(),
+        "noise_rms_pct": (100 * noise).tolist(),
+        "excess_over_noise": excess.tolist(),
+        "structured_share": structured_share.tolist(),
+        "structured": structured,
+        "joints": [], "per_joint": [], "cartesian": None, "shape": None,
+    }
+    step = max(1, len(data) // SHAPE_SAMPLES)
+    idx = np.arange(0, len(data), step)
+    wrench_err = leftover_fs[idx] * data.fs
+    tau = data.joint_torque_of(wrench_err, idx)
+    # Torque noise per joint from the whole-rate signal (the subsample would alias it).
+    tau_noise = noise_sd(data.joint_torque_of(leftover_fs[:min(len(data), SHAPE_SAMPLES)]
+                                              * data.fs, slice(0, min(len(data),
+                                                                      SHAPE_SAMPLES))))
+    var = tau.var(axis=0)
+    structured_var = np.maximum(var - tau_noise**2, 0.0)
+    theta = data.theta[idx]
+    direction = np.concatenate([np.tanh(data.smooth_velocity[idx] / 0.01),
+                                data.play_state((0.01, 0.05))[idx].reshape(len(idx), -1)],
+                               axis=1)
+    top = structured_var.max() if structured_var.size else 0.0
+    for j in range(6):
+        row = {"joint": j + 1, "leftover_rms_nm": float(np.sqrt(var[j])),
+               "noise_rms_nm": float(tau_noise[j]),
+               "structured_rms_nm": float(np.sqrt(structured_var[j]))}
+        row.update(_joint_shapes(tau[:, j], theta, j, direction, structured_var[j]))
+        out["per_joint"].append(row)
+        if structured and top > 0 and structured_var[j] >= JOINT_SHARE * top \
+                and var[j] >= STRUCTURED_EXCESS * tau_noise[j] ** 2:
+            out["joints"].append(j + 1)
+    out["cartesian"] = _cartesian(data, wrench_err, idx)
+    out["shape"] = _verdict_shape(out) if structured else None
+    return out
+
+
+def _cartesian(data: GapData, wrench_err: np.ndarray, idx: np.ndarray) -> dict:
+    """Share of the leftover force, turned into {B}, that an affine-plus-quadratic function of
+    the plate position explains."""
+    force_b = np.einsum("nij,nj->ni", rotation(data.theta[idx, 3:]), wrench_err[:, :3])
+    pos = data.position_mm[idx] / 1e3
+    pos = pos - pos.mean(axis=0)
+    x, y, z = pos.T
+    basis = np.stack([np.ones_like(x), x, y, z, x * x, y * y, z * z, x * y, x * z, y * z],
+                     axis=1)
+    # Against the same number of parameters separable per joint (each of joints 1..3 on its
+    # own, up to its cube): a joint-level effect is explained at least as well by that.
+    th = data.theta[idx, :3]
+    separable = np.hstack([np.ones((len(idx), 1)), th, th**2, th**3])
+    noise = noise_sd(force_b)
+    total = float(np.sum(np.maximum(force_b.var(axis=0) - noise**2, 0.0)))
+    if total <= 0:
+        return {"share": 0.0, "separable_share": 0.0}
+    centred = force_b - force_b.mean(axis=0)
+    shares = []
+    for b in (basis, separable):
+        coef, *_ = np.linalg.lstsq(b, centred, rcond=None)
+        shares.append(float(np.clip(np.sum(np.var(b @ coef, axis=0)) / total, 0.0, 1.0)))
+    return {"share": shares[0], "separable_share": shares[1]}
+
+
+def _verdict_shape(out: dict) -> str | None:
+    """One shape for the leftover: pose-dependent in Cartesian space when a function of the
+    plate's position explains the leftover force and the joints' leftovers depend on each
+    other's angles (a force on the plate reaches every joint); else the most common shape of
+    the joints that carry it."""
+    joints = out["joints"]
+    shapes = [out["per_joint"][j - 1]["best"] for j in joints]
+    cart = out["cartesian"]
+    if cart["share"] >= SHAPE_SHARE and cart["share"] >= cart["separable_share"] \
+            and "coupled across joints" in shapes:
+        return "pose-dependent in Cartesian space"
+    shapes = [s for s in shapes if s]
+    if not shapes:
+        return "unresolved"
+    return max(set(shapes), key=shapes.count)

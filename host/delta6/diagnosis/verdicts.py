@@ -1,0 +1,99 @@
+"""Verdicts beyond "present": effects the log cannot tell apart (group verdicts) and fits that
+are not physically believable (plausibility).
+
+Group verdicts. Some families describe physically different causes with nearly the same
+signature on a given log: friction, hysteresis and backlash are all direction-dependent joint
+torques. When forward selection found two members of a group significant one after the other
+(the later one removing at least ``GROUP_MIN_GAIN`` of what was left) and the backward test
+then dropped one of them (its share was absorbed by the other), the honest answer names the
+group, "direction-dependent joint torque: backlash and/or spring_hysteresis, together N % of
+the gap", rather than silently keeping one. (The pose-dependent families, offsets, rates,
+geometry, are nested enough that the backward test's choice among them is the better answer;
+they form no group.)
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from delta6.diagnosis import selection
+
+#: A member the backward test dropped joins a group verdict only if, when forward selection
+#: added it, it removed at least this share of the held-out error left (a passenger that picks
+#: up a few per cent of a neighbour's misfit is not a second explanation).
+GROUP_MIN_GAIN = 0.10
+
+
+def groups(problem: selection.Problem, kept: list[str], info: dict) -> list[dict]:
+    """Group verdicts: per group with a member dropped by the backward test after forward
+    selection found it significant, the members (kept and dropped) and their joint share of
+    the analytical model's held-out squared error."""
+    gains = info.get("forward_gain", {})
+    dropped = [n for n in info.get("dropped", []) if gains.get(n, 1.0) >= GROUP_MIN_GAIN]
+    by_group: dict[str, list[str]] = {}
+    for name in info.get("forward", []):
+        group = problem.terms[name].group
+        if group is not None and (name in kept or name in dropped):
+            by_group.setdefault(group, []).append(name)
+    out = []
+    base = info["base"].sum()
+    for label, members in by_group.items():
+        if len(members) < 2 or not any(m in dropped for m in members):
+            continue
+        full = kept + [m for m in members if m not in kept]
+        rest = [n for n in full if n not in members]
+        share = (selection.heldout_block_sse(problem, rest).sum()
+                 - selection.heldout_block_sse(problem, full).sum()) / base
+        out.append({"group": label, "members": members,
+                    "named_alone": [m for m in members if m in kept],
+                    "share_of_gap": float(share),
+                    "text": f"{label}: {' and/or '.join(members)}, together "
+                            f"{100 * share:.0f} % of the gap"})
+    return out
+
+
+def standard_errors(problem: selection.Problem, names, coef: np.ndarray) -> np.ndarray:
+    """Standard errors of a fit on all blocks: the residual variance of the fit (not just the
+    noise: a family that misfits is less certain) times the diagonal of the regularised
+    inverse Gram matrix."""
+    cols = problem.cols(names)
+    gram = problem.gram[:, cols][:, :, cols].sum(axis=0)
+    xty = problem.xty[:, cols].sum(axis=0)
+    rows = 6.0 * problem.bounds[-1]
+    sse = problem.yty.sum() - 2 * coef @ xty + coef @ gram @ coef
+    var = max(sse, 0.0) / max(rows - len(cols), 1.0)
+    reg = gram + np.diag(problem.penalty[cols]) if problem.penalty is not None else gram
+    scale = np.sqrt(np.maximum(np.diag(reg), 1e-300))
+    inv = np.linalg.pinv(reg / np.outer(scale, scale)) / np.outer(scale, scale)
+    return np.sqrt(np.maximum(np.diag(inv), 0.0) * var)
+
+
+def plausibility(problem: selection.Problem, names, coef: np.ndarray) -> dict:
+    """Per family in ``names`` (coefficients ``coef`` in their column order): every physical
+    quantity against its limit, and whether the fit stays within all of them."""
+    out = {}
+    at = 0
+    se = standard_errors(problem, names, coef)
+    for name in names:
+        term = problem.terms[name]
+        width = len(term.param_names)
+        checks = term.plausibility(coef[at:at + width], se[at:at + width])
+        at += width
+        out[name] = {"plausible": all(c["ratio"] <= 1.0 for c in checks), "checks": checks}
+    return out
+
+
+def rescue(problem: selection.Problem, kept: list[str], bad: list[str],
+           others: list[str]) -> str | None:
+    """The candidate among ``others`` with which every family of ``bad`` fits plausibly and the
+    held-out error of ``kept`` drops the most (None: no such candidate)."""
+    before = selection.heldout_block_sse(problem, kept).sum()
+    best, best_sse = None, before
+    for name in others:
+        trial = kept + [name]
+        checks = plausibility(problem, trial, selection.fit(problem, trial))
+        if not all(checks[b]["plausible"] for b in bad) or not checks[name]["plausible"]:
+            continue
+        sse = selection.heldout_block_sse(problem, trial).sum()
+        if sse < best_sse:
+            best, best_sse = name, sse
+    return best

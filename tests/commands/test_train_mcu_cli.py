@@ -1,0 +1,98 @@
+"""``delta6 train --target mcu`` and ``delta6 codegen --model``: train on a twin log, the
+model file, its ONNX float network, the header, and one-line errors with exit status 2."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from delta6.cli import main
+from delta6.core import int8net, residualmodel
+from delta6.learning import mcu
+from delta6.link.logfile import read_log
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A model trained for a few epochs on 200 s of the paper scenario with a strong,
+    learnable effect added (spring hysteresis, which the analytical model lacks)."""
+    tmp = tmp_path_factory.mktemp("train")
+    log = tmp / "cal.csv"
+    assert main(["simulate", "--scenario", "spring_hysteresis", "--magnitude", "1",
+                 "--duration", "200", "--seed", "4", "-o", str(log)]) == 0
+    model = tmp / "unit.json"
+    assert main(["train", str(log), "--target", "mcu", "--epochs", "15", "--hidden", "12",
+                 "--quiet", "-o", str(model)]) == 0
+    return log, model
+
+
+def test_training_beats_the_analytical_model_on_the_held_out_tail(trained):
+    _, path = trained
+    model = residualmodel.load(path)
+    p99 = model.training["heldout_p99_pct"]
+    assert np.mean(p99["int8"]) < 0.85 * np.mean(p99["base"])
+    assert max(abs(x) for x in model.training["quantization_loss_p99_pct"]) < 0.1
+
+
+def test_onnx_float_network_equals_the_numpy_one(trained):
+    log_path, path = trained
+    model = residualmodel.load(path)
+    log = read_log(log_path)
+    from delta6.core.design import load
+    design = load("designs/delta6.toml")
+    u, counts, valid = mcu.board_inputs(log, design, mcu.AnalyticalBase(design).predict(log),
+                                        model.net.input_scale)
+    v = int8net.feature_values(model.net.features, u, counts, valid=valid)
+    got = mcu.onnx_correction(path.with_suffix(".onnx"), v)
+    # The ONNX file is the float network the int8 one was quantized from: it must track it.
+    int_corr, _ = int8net.run(model.net, u, counts, valid=valid)
+    int_n = int_corr * model.net.output_step
+    scale = np.percentile(np.abs(got), 99, axis=0)
+    assert np.all(np.percentile(np.abs(got - int_n), 99, axis=0) <= 0.05 * scale)
+
+
+def test_codegen_writes_and_removes_the_model_header(trained, tmp_path, capsys):
+    _, path = trained
+    header = tmp_path / "generated" / "delta6_design.h"
+    assert main(["codegen", "designs/delta6.toml", "--model", str(path), "-o", str(header)]) == 0
+    text = (tmp_path / "generated" / "delta6_model.h").read_text()
+    model = residualmodel.load(path)
+    assert f"kHash = 0x{model.hash32():08X}UL" in text and "GENERATED FILE" in text
+    assert main(["codegen", "designs/delta6.toml", "--model", str(path), "-o", str(header),
+                 "--check"]) == 0
+    assert main(["codegen", "designs/delta6.toml", "-o", str(header), "--check"]) == 1
+    assert main(["codegen", "designs/delta6.toml", "-o", str(header)]) == 0
+    assert not (tmp_path / "generated" / "delta6_model.h").exists()
+    assert "removed" in capsys.readouterr().out
+
+
+def test_the_committed_tree_has_no_model_header(root):
+    assert not (root / "firmware" / "include" / "generated" / "delta6_model.h").exists()
+
+
+def test_bad_inputs_are_one_line_errors(trained, tmp_path, capsys):
+    log, path = trained
+    data = json.loads(path.read_text())
+    data["design"]["hash"] = "0x00000001"
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(data))
+    broken = tmp_path / "broken.json"
+    broken.write_text(path.read_text()[:200])
+    out = str(tmp_path / "x" / "delta6_design.h")
+    cases = [
+        (["codegen", "designs/delta6.toml", "--model", str(other), "-o", out], "trained for"),
+        (["codegen", "designs/delta6.toml", "--model", str(broken), "-o", out], "not JSON"),
+        (["codegen", "designs/delta6.toml", "--model", str(tmp_path / "none.json"), "-o", out],
+         "no such file"),
+        (["train", str(log), "--target", "mcu", "--hidden", "0", "-o", str(tmp_path / "m.json")],
+         "--hidden"),
+        (["train", str(log), "--target", "mcu", "-o", str(tmp_path / "m.onnx")], "JSON"),
+        (["train", str(tmp_path / "none.csv"), "--target", "mcu", "-o", str(tmp_path / "m.json")],
+         "none.csv"),
+    ]
+    for argv, needle in cases:
+        capsys.readouterr()
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and needle in err, (argv, err)

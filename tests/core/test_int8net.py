@@ -1,0 +1,183 @@
+"""The integer reference of the residual engine: requantization maths, the multiplier
+decomposition, the quantizer, streaming state, and the model file."""
+from __future__ import annotations
+
+import json
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from delta6.core import int8net, int8quant, residualmodel
+from delta6.core.errors import UserError
+
+from support.int8nets import random_features, random_int8net, random_stream, trained_like
+
+
+def exact_round(acc: int, m: int, s: int) -> int:
+    """round(acc * m / 2^s) with halves up, in exact rational arithmetic."""
+    q = Fraction(acc * m, 2**s)
+    return int((q + Fraction(1, 2)).__floor__())
+
+
+@given(st.integers(-2**31, 2**31 - 1), st.integers(-2**15, 2**15 - 1), st.integers(16, 46))
+def test_requantize_is_exact_rounding_halves_up(acc, m, s):
+    assert int(int8net.requantize(acc, m, s)) == exact_round(acc, m, s)
+
+
+@given(st.integers(-2**15, 2**15 - 1), st.integers(1, 30))
+def test_requantize_halves_round_up(k, s):
+    # (2k + 1) / 2 exactly: a half, rounded towards +inf.
+    assert int(int8net.requantize(2 * k + 1, 2**(s - 1), s)) == k + 1
+
+
+@given(st.floats(2.0**-30, 0.499, allow_nan=False))
+def test_quantize_multiplier_is_close_and_normalised(real):
+    m, s = int8net.quantize_multiplier(real)
+    assert int8net.MULT_MIN <= m < int8net.MULT_LIMIT
+    assert 16 <= s <= 46
+    assert abs(m * 2.0**-s - real) <= real * 2.0**-15 * 1.0001
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf"), 0.6, 2.0**-40])
+def test_quantize_multiplier_refuses_what_it_cannot_represent(bad):
+    with pytest.raises(ValueError):
+        int8net.quantize_multiplier(bad)
+
+
+def test_powers_of_two_do_not_round_past_the_mantissa():
+    # A mantissa that rounds up to 2^15 moves to the next shift instead.
+    m, s = int8net.quantize_multiplier(0.25 * (1 - 2.0**-17))
+    assert (m, s) == (int8net.MULT_MIN, 16)
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_streaming_in_pieces_equals_one_run(seed):
+    rng = np.random.default_rng(seed)
+    net = random_int8net(rng)
+    base, counts, valid = random_stream(rng, 300, gaps=0.03)
+    stride = int(rng.integers(1, int8net.MAX_STRIDE + 1))
+    whole, _ = int8net.run(net, base, counts, stride=stride, valid=valid)
+    cuts = np.sort(rng.choice(np.arange(1, 300), 4, replace=False))
+    state, parts = None, []
+    for a, b in zip([0, *cuts], [*cuts, 300]):
+        out, state = int8net.run(net, base[a:b], counts[a:b], stride=stride, valid=valid[a:b],
+                                 state=state)
+        parts.append(out)
+    np.testing.assert_array_equal(np.concatenate(parts), whole)
+
+
+def test_invalid_samples_give_zero_and_restart_the_history():
+    rng = np.random.default_rng(3)
+    net = random_int8net(rng)
+    base, counts, _ = random_stream(rng, 200)
+    valid = np.ones(200, dtype=bool)
+    valid[100] = False
+    out, _ = int8net.run(net, base, counts, valid=valid)
+    assert not out[100].any()
+    fresh, _ = int8net.run(net, base[101:], counts[101:])
+    np.testing.assert_array_equal(out[101:], fresh)
+
+
+def test_a_step_feature_looks_back_one_model_period():
+    f = [int8quant.FeatureSpec("count_step", 1), int8quant.FeatureSpec("count_step", 2)]
+    counts = np.arange(40)[:, None] * np.ones(6, dtype=int)
+    v = int8net.feature_values(f, np.zeros((40, 6)), counts, stride=3)
+    # Primed at rest: the past equals the first sample.
+    assert v[0].tolist() == [0] * 12
+    assert v[10, :6].tolist() == [3] * 6 and v[10, 6:].tolist() == [3] * 6
+    assert v[4, 6:].tolist() == [1] * 6        # 4 - 3 = 1 back, 4 - 6 clamps to sample 0
+
+
+def test_play_features_are_rate_independent():
+    # A path sampled once or at four times the rate: the play outputs agree on the common rows.
+    f = [int8quant.FeatureSpec("play", 5)]
+    path = np.round(30 * np.sin(np.linspace(0, 12, 801)))[:, None] * np.ones(6, dtype=int)
+    fine = int8net.feature_values(f, np.zeros_like(path), path)
+    coarse = int8net.feature_values(f, np.zeros_like(path[::4]), path[::4])
+    np.testing.assert_array_equal(fine[::4], coarse)
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_quantized_network_tracks_the_float_one(seed):
+    rng = np.random.default_rng(seed)
+    features = random_features(rng, 3)
+    base, counts, valid = random_stream(rng, 2000, gaps=0.0)
+    v = int8net.feature_values(features, base, counts)
+    float_net, net = trained_like(rng, features, v)
+    ref = float_net.forward(v)
+    got, _ = int8net.run(net, base, counts)
+    err = np.abs(got * net.output_step - ref)
+    scale = np.percentile(np.abs(ref), 99, axis=0) + 1e-12
+    # int8 weights and activations: a few per cent of the output range at the 99th percentile.
+    assert np.all(np.percentile(err, 99, axis=0) <= 0.06 * scale)
+
+
+def test_board_rate_stride():
+    net = random_int8net(np.random.default_rng(0), rate_hz=50.0)
+    assert [int8net.stride_for(net, r) for r in (1, 50, 74, 75, 250, 300, 400, 1000)] == \
+        [1, 1, 1, 2, 5, 6, 8, 8]
+
+
+def _model(net):
+    return residualmodel.ResidualModel(name="unit-7", design_name="delta6",
+                                       design_hash=0x535534AF, base="analytical", net=net,
+                                       training={"samples": 10})
+
+
+def test_model_file_round_trip_and_hash(tmp_path):
+    net = random_int8net(np.random.default_rng(5))
+    model = _model(net)
+    path = residualmodel.save(model, tmp_path / "m.json")
+    again = residualmodel.load(path)
+    assert again.hash32() == model.hash32()
+    assert again.identity() == model.identity()
+    # The training record is not part of the identity.
+    other = residualmodel.ResidualModel(**{**model.__dict__, "training": {"x": 1}})
+    assert other.hash32() == model.hash32()
+    changed = residualmodel.ResidualModel(**{**model.__dict__, "name": "unit-8"})
+    assert changed.hash32() != model.hash32()
+
+
+def _mutations(text):
+    data = json.loads(text)
+    yield "not json {"
+    yield json.dumps({**data, "schema": "other/1"})
+    yield json.dumps({**data, "name": ""})
+    yield json.dumps({**data, "base": "magic"})
+    d = json.loads(text)
+    d["network"]["layers"][0]["weights"][0][0] = 300
+    yield json.dumps(d)
+    d = json.loads(text)
+    d["network"]["layers"][0]["shift"][0] = 3
+    yield json.dumps(d)
+    d = json.loads(text)
+    d["network"]["features"][0]["kind"] = "magic"
+    yield json.dumps(d)
+    d = json.loads(text)
+    del d["network"]["layers"]
+    yield json.dumps(d)
+    d = json.loads(text)
+    d["design"]["hash"] = "zz"
+    yield json.dumps(d)
+    d = json.loads(text)
+    d["network"]["layers"][-1]["relu"] = True
+    yield json.dumps(d)
+
+
+def test_bad_model_files_are_one_line_user_errors(tmp_path):
+    text = residualmodel.dumps(_model(random_int8net(np.random.default_rng(6))))
+    for i, bad in enumerate(_mutations(text)):
+        with pytest.raises(UserError) as info:
+            residualmodel.loads(bad, f"bad{i}.json")
+        assert "\n" not in str(info.value) and str(info.value).startswith(f"bad{i}.json")
+
+
+@given(st.binary(max_size=200))
+def test_fuzzed_model_bytes_never_escape_as_other_errors(data):
+    try:
+        residualmodel.loads(data.decode("utf-8", "replace"), "fuzz")
+    except UserError:
+        pass

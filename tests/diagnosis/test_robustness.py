@@ -1,0 +1,179 @@
+"""The diagnosis on harder logs: one axis at a time (interleaved folds, a ladder that never
+gets worse), mixes of direction-dependent effects (backlash's own signature, group verdicts),
+implausible fits, effects the vocabulary lacks (the leftover verdict), and the excitation
+report."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from delta6 import twin
+from delta6.diagnosis import blas, ladder, selection, verdicts
+from delta6.diagnosis.data import GapData
+from delta6.diagnosis.run import diagnose
+from delta6.diagnosis.terms import TERMS
+from delta6.link.logfile import LogData
+from delta6.twin.pushes import AxisPushes
+from delta6.twin.streams import stream
+
+TERM_BY_NAME = {t.name: t for t in TERMS}
+DURATION_S = 240.0
+
+
+def run(design, effects, seed, path=None, terms=None, duration=DURATION_S):
+    r = twin.simulate(design, effects, duration_s=duration, rate_hz=50.0, seed=seed,
+                      record_temp=True, path=path)
+    log = LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c)
+    return r, diagnose(log, design, seed=0, terms=terms)
+
+
+def never_worse(verdict):
+    before = np.asarray(verdict["baseline_heldout_p99_pct"])
+    for step in verdict["ladder"]:
+        now = np.asarray(step["heldout_p99_pct"])
+        assert np.all(now <= before * (1 + ladder.TOLERANCE_REL) + ladder.TOLERANCE_PCT + 1e-12)
+        before = now
+
+
+@given(st.integers(36, 120), st.integers(3, 7))
+def test_every_folds_training_blocks_reach_every_sixth_of_the_log(n_blocks, n_folds):
+    folds = selection.make_folds(n_blocks, n_folds)
+    assert sorted(np.concatenate(folds).tolist()) == list(range(n_blocks))
+    if n_blocks < n_folds * selection.RUN_BLOCKS * 2:
+        return
+    problem = selection.Problem(y=None, x=None, slices={}, terms={},
+                                bounds=np.arange(n_blocks + 1), gram=np.zeros((n_blocks, 0, 0)),
+                                xty=np.zeros((n_blocks, 0)), yty=np.zeros(n_blocks),
+                                folds=folds)
+    sixths = np.array_split(np.arange(n_blocks), 6)
+    for fold in folds:
+        train = set(selection.train_blocks(problem, fold).tolist())
+        assert not train & set(fold.tolist())
+        assert all(train & set(s.tolist()) for s in sixths)
+
+
+@given(arrays(float, (300, 6), elements=st.floats(-1, 1)),
+       st.lists(arrays(float, (300, 6), elements=st.floats(-1, 1)), min_size=1, max_size=4))
+def test_a_damped_ladder_never_gets_worse_on_any_axis(y, preds):
+    weights, p99s, final = ladder.monotone(y, preds)
+    before = ladder.p99(100 * y)
+    assert all(0.0 <= a <= 1.0 for a in weights)
+    # Rebuild the blend from the weights: the reported p99s are those of that model.
+    blended = np.zeros_like(y)
+    for a, pred, reported in zip(weights, preds, p99s):
+        blended = blended + a * (pred - blended)
+        now = ladder.p99(100 * (y - blended))
+        assert np.allclose(now, reported)
+        assert np.all(now <= before * (1 + ladder.TOLERANCE_REL) + ladder.TOLERANCE_PCT + 1e-9)
+        before = now
+    assert np.allclose(final, blended)
+
+
+def test_one_axis_at_a_time_names_the_effect_and_never_worsens_an_axis(baseline):
+    effect = twin.make_effect("spring_hysteresis", seed=41, formulation="bouc_wen",
+                              magnitude=0.9)
+    path = AxisPushes(baseline, 300.0, stream(41, "pushes"))
+    _, verdict = run(baseline, [effect], 41, path=path, duration=300.0)
+    assert verdict["present"][:1] == ["spring_hysteresis"]
+    assert verdict["candidates"][0]["score"] > 0.6
+    never_worse(verdict)
+    report = verdict["excitation"]
+    assert set(report["families"]) == {t.name for t in TERMS if t.name != "thermal_drift"} \
+        or set(report["families"]) == {t.name for t in TERMS}
+    assert min(report["axes"]["training_share_min"]) > 0.2
+
+
+@pytest.fixture(scope="module")
+def mixes(baseline):
+    with_backlash = [twin.make_effect("backlash", seed=42, formulation="dead_zone",
+                                      magnitude=0.9),
+                     twin.make_effect("spring_hysteresis", seed=42, magnitude=0.7)]
+    without = [twin.make_effect("joint_friction", seed=43, magnitude=0.8),
+               twin.make_effect("spring_hysteresis", seed=43, magnitude=0.7)]
+    return run(baseline, with_backlash, 42)[1], run(baseline, without, 43)[1]
+
+
+def test_backlash_is_confirmed_by_its_own_signature_and_only_when_there(mixes):
+    with_backlash, without = mixes
+    assert with_backlash["signature_tests"]["backlash"]["confirmed"]
+    assert "backlash" in with_backlash["present"]
+    assert not without["signature_tests"].get("backlash", {"confirmed": False})["confirmed"]
+    assert "backlash" not in without["present"]
+    for v in mixes:
+        never_worse(v)
+
+
+def test_group_verdict_names_effects_the_log_cannot_tell_apart(baseline):
+    r = twin.simulate(baseline, [twin.make_effect("spring_hysteresis", seed=44, magnitude=0.9)],
+                      duration_s=120, seed=44)
+    data = GapData.from_log(LogData(t=r.t, theta=r.theta, wrench=r.wrench), baseline)
+    terms = [TERM_BY_NAME["spring_hysteresis"], TERM_BY_NAME["joint_friction"],
+             TERM_BY_NAME["stiffness_mismatch"]]
+    problem = selection.build_problem(data, terms)
+    base = selection.heldout_block_sse(problem, [])
+    info = {"forward": ["spring_hysteresis", "joint_friction"], "dropped": ["joint_friction"],
+            "base": base}
+    found = verdicts.groups(problem, ["spring_hysteresis"], info)
+    assert len(found) == 1
+    g = found[0]
+    assert g["members"] == ["spring_hysteresis", "joint_friction"]
+    assert g["group"] == "direction-dependent joint torque"
+    assert 0.5 < g["share_of_gap"] <= 1.0
+    assert "spring_hysteresis and/or joint_friction" in g["text"]
+    # Nothing dropped, or members of no common group: no group verdict.
+    assert verdicts.groups(problem, ["spring_hysteresis"],
+                           {**info, "dropped": []}) == []
+    assert verdicts.groups(problem, ["spring_hysteresis"],
+                           {**info, "forward": ["spring_hysteresis", "stiffness_mismatch"],
+                            "dropped": ["stiffness_mismatch"]}) == []
+
+
+def test_plausibility_flags_fits_out_of_bounds_beyond_their_uncertainty():
+    geometry = TERM_BY_NAME["geometry_error"]
+    coef = np.zeros(len(geometry.param_names))
+    coef[9] = 4.7                                   # lb1: a 4.7 mm assembly error
+    checks = {c["quantity"]: c for c in geometry.plausibility(coef)}
+    assert checks["length_error_mm"]["ratio"] > 2
+    assert checks["angle_error_rad"]["ratio"] == 0
+    # Undetermined (a standard error of 2 mm): not out of bounds beyond three of them.
+    se = np.full(len(coef), 2.0)
+    assert geometry.plausibility(coef, se)[0]["ratio"] == 0
+    hysteresis = TERM_BY_NAME["spring_hysteresis"]
+    loop = np.zeros(len(hysteresis.param_names))
+    loop[:5] = 0.02                                  # joint 1: a 0.1 N*m half-width
+    assert hysteresis.plausibility(loop)[0]["ratio"] == pytest.approx(2.0)
+
+
+def test_an_unknown_effect_leaves_a_structured_leftover_in_the_right_place(baseline):
+    effect = twin.make_effect("nonlinear_spring", seed=45, formulation="cubic", magnitude=0.9,
+                              joints=[2])
+    # The vocabulary before the three newest families (the encoder family's smooth angle
+    # errors could express a spring's curvature too).
+    newest = ("nonlinear_spring", "encoder_periodic_error", "harness")
+    terms = [t for t in TERMS if t.name not in newest]
+    _, verdict = run(baseline, [effect], 45, terms=terms)
+    left = verdict["unexplained"]["verdict"]
+    assert left["structured"] and left["joints"] == [2]
+    assert left["shape"] == "odd polynomial"
+    assert max(left["excess_over_noise"]) > 1.5
+    shares = {s["added"]: s["share_of_gap"] for s in verdict["ladder"]}
+    assert all(shares[n] >= 0.3 for n in verdict["present"])
+    never_worse(verdict)
+
+
+def test_a_clean_log_leaves_a_white_leftover(baseline):
+    _, verdict = run(baseline, [], 46, duration=120.0)
+    left = verdict["unexplained"]["verdict"]
+    assert verdict["present"] == [] and not left["structured"] and left["joints"] == []
+    assert np.all(np.asarray(left["excess_over_noise"]) < 1.5)
+
+
+def test_blas_is_held_to_one_thread_and_given_back():
+    controls = blas._controls()
+    before = [get() for get, _ in controls]
+    with blas.one_thread():
+        assert all(get() == 1 for get, _ in controls)
+    assert [get() for get, _ in controls] == before

@@ -1,0 +1,78 @@
+"""Long logs in pieces: the streamed columns equal the whole log's, the streamed percentiles
+equal numpy's, the Gram summaries do not depend on how the log is cut, and the column cache
+gives back what it was given."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from delta6 import twin
+from delta6.diagnosis import selection, stream
+from delta6.diagnosis.data import GapData
+from delta6.diagnosis.terms import TERMS
+from delta6.link.logfile import LogData
+
+
+@pytest.fixture(scope="module")
+def history_log(baseline):
+    """A twin run with every history the terms follow (plays, dwells, lags, derivatives)."""
+    effects = [twin.make_effect(n, seed=3, magnitude=0.8)
+               for n in ("backlash", "spring_hysteresis", "thermal_drift")]
+    r = twin.simulate(baseline, effects, duration_s=120, seed=3, record_temp=True)
+    return GapData.from_log(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c),
+                            baseline)
+
+
+def test_pieces_give_exactly_the_whole_logs_columns(history_log):
+    whole = stream.columns(history_log, TERMS, slice(0, len(history_log)))
+    cut = np.empty_like(whole)
+    covered = np.zeros(len(history_log), dtype=int)
+    for a, b, keep, view in stream.pieces(history_log, size=1700):
+        cut[a:b] = stream.columns(view, TERMS, keep)
+        covered[a:b] += 1
+    assert np.all(covered == 1)
+    scale = np.abs(whole).max(axis=(0, 1)) + 1e-300
+    assert np.max(np.abs(cut - whole).max(axis=(0, 1)) / scale) < 1e-9
+
+
+def test_streamed_and_kept_gram_summaries_agree(history_log, monkeypatch):
+    terms = list(TERMS[:6])
+    kept = selection.build_problem(history_log, terms, keep_columns=True)
+    monkeypatch.setattr(stream, "PIECE_SAMPLES", 1300)
+    streamed = selection.build_problem(history_log, terms, keep_columns=False)
+    assert streamed.x is None and streamed.y is None
+    assert np.allclose(streamed.gram, kept.gram, rtol=1e-9, atol=1e-12)
+    assert np.allclose(streamed.xty, kept.xty, rtol=1e-9, atol=1e-12)
+    assert np.allclose(streamed.yty, kept.yty, rtol=1e-12)
+
+
+@given(arrays(float, st.tuples(st.integers(1, 400), st.just(3)),
+              elements=st.floats(-1e3, 1e3)),
+       st.lists(st.integers(1, 97), min_size=1, max_size=8))
+def test_tails_give_numpys_percentile(values, cuts):
+    tails = stream.Tails(len(values), columns=3)
+    at, i = 0, 0
+    while at < len(values):
+        step = cuts[i % len(cuts)]
+        tails.add(values[at:at + step])
+        at += step
+        i += 1
+    assert np.allclose(tails.percentile(), np.percentile(np.abs(values), 99, axis=0),
+                       rtol=1e-12, atol=1e-12)
+
+
+def test_column_cache_round_trips_in_float32(tmp_path):
+    rng = np.random.default_rng(0)
+    cache = stream.ColumnCache(tmp_path, width=5)
+    parts = [rng.normal(size=(n, 6, 5)) for n in (7, 3, 11)]
+    at = 0
+    for p in parts:
+        cache.write(at, p)
+        at += len(p)
+    whole = np.concatenate(parts)
+    assert np.allclose(cache.read(4, 15), whole[4:15].astype(np.float32))
+    with pytest.raises(AssertionError):
+        cache.write(0, parts[0])              # out of order
