@@ -106,8 +106,10 @@ int main() {
   UBRR0 = 0;  // the emulator transmits at any rate
   UCSR0A = 1 << U2X0;
   UCSR0B = 1 << TXEN0;
+  delta6::Config loaded;  // the defaults live in flash
+  delta6::flash::copy(&loaded, &defaults, sizeof loaded);
   for (uint8_t i = 0; i < 6; ++i) {
-    sample.counts[i] = static_cast<uint16_t>(defaults.zero_counts[i] + 100 * i);
+    sample.counts[i] = static_cast<uint16_t>(loaded.zero_counts[i] + 100 * i);
     sample.wrench[i] = 1.5f * static_cast<float>(i + 1) - 4.0f;
   }
   sample.solver_ok = true;
