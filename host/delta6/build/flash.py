@@ -1,6 +1,7 @@
 """Flashing a board in one step: the generated headers for the chosen design (and calibration
-and on-chip model), PlatformIO's build and upload, then the board asked who it is. PlatformIO is the optional ``firmware`` extra
-(``pip install -e '.[firmware]'``); it downloads its AVR platforms on first use.
+and on-chip model), PlatformIO's build and upload, then the board asked who it is. PlatformIO
+is the optional ``firmware`` extra (``pip install -e '.[firmware]'``); it downloads its AVR
+platforms on first use.
 
 Each step is a function so that what cannot run here (PlatformIO needs its platforms and a board)
 is still checked: the command it prepares, and the answer of a board (the virtual board in the
