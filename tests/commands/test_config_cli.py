@@ -58,7 +58,7 @@ def test_overload_flags_the_stream_at_the_limits_set():
     assert not (after.status[~after_at_range] & P.Status.OVERRANGE).any()
 
 
-def test_host_refuses_what_it_can_tell_is_wrong_and_a_device_of_protocol_1_0():
+def test_host_refuses_what_it_can_tell_is_wrong_and_a_device_older_than_protocol_1_3():
     with Device("delta6sim://") as dev:
         with pytest.raises(DeviceError, match="within 1 m"):
             dev.set_tool((0, 0, 1.5))
@@ -66,9 +66,11 @@ def test_host_refuses_what_it_can_tell_is_wrong_and_a_device_of_protocol_1_0():
             dev.set_limits([1000, 0, 0, 0, 0, 0])
         with pytest.raises(DeviceError, match="positive"):
             dev.set_limits([-1, 0, 0, 0, 0, 0])
-        dev._set_info(dev.info()._replace(protocol=(1, 0)))
-        with pytest.raises(DeviceError, match="protocol 1.0, the command needs 1.1: update the firmware"):
-            dev.set_filter(10)
+        for old in ((1, 0), (1, 2)):
+            dev._set_info(dev.info()._replace(protocol=old))
+            with pytest.raises(DeviceError, match=f"protocol {old[0]}.{old[1]}, the command "
+                                                  "needs 1.3: update the firmware"):
+                dev.set_filter(10)
 
 
 def test_an_info_record_of_protocol_1_0_reads_with_the_pipeline_at_its_defaults():
