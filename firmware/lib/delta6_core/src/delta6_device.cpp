@@ -65,7 +65,8 @@ Device::Device(Hardware& hardware, const Identity& identity, const Config& defau
   memset(&sums_, 0, sizeof(sums_));
   loadDefaults(&config_);
   for (uint8_t i = 0; i < 6; ++i) {
-    inverse_lsb_[i] = 1.0f / scaleValue(scale(i));
+    scale_[i] = scaleForFullScale(ident(id_.full_scale[i]));
+    inverse_lsb_[i] = 1.0f / scaleValue(scale_[i]);
   }
   configurePipeline();
 }
@@ -702,9 +703,8 @@ void Device::buildInfoPiece(uint8_t request_id, uint8_t piece, uint8_t* p) const
       uint8_t* b = p - kInfoOffFullScale;
       for (uint8_t i = 0; i < 6; ++i) {
         putF32(b + kInfoOffFullScale + 4 * i, ident(id_.full_scale[i]));
-        const Scale lsb = scale(i);  // recomputed here: 12 bytes less RAM
-        b[kInfoOffLsbMantissa + i] = lsb.mantissa;
-        b[kInfoOffLsbExponent + i] = static_cast<uint8_t>(lsb.exponent);
+        b[kInfoOffLsbMantissa + i] = scale_[i].mantissa;
+        b[kInfoOffLsbExponent + i] = static_cast<uint8_t>(scale_[i].exponent);
         putU16(b + kInfoOffZeroCounts + 2 * i, config_.zero_counts[i]);
         putF32(b + kInfoOffTare + 4 * i, config_.tare[i]);
       }

@@ -146,9 +146,7 @@ class Device {
   uint16_t persistentStatus() const;
   const Counters& counters() const { return counters_; }
   const Config& config() const { return config_; }
-  proto::Scale scale(uint8_t axis) const {
-    return proto::scaleForFullScale(ident(id_.full_scale[axis]));
-  }
+  proto::Scale scale(uint8_t axis) const { return scale_[axis]; }
   // The board's serial number when only the running board knows it (Identity's is then 0).
   void setSerialNumber(uint32_t serial_number) { serial_number_ = serial_number; }
   // Highest rate the link carries in a mode (90 % of the baud rate), or 0xFFFF without a baud.
@@ -208,6 +206,7 @@ class Device {
   const Identity& id_;
   const Config& defaults_;
   Config config_;
+  proto::Scale scale_[6];
   float inverse_lsb_[6];
   LowPass6 filter_;
   bool filter_on_;
