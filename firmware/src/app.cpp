@@ -105,8 +105,10 @@ class BoardHardware : public delta6::Hardware {
   uint16_t txSpace() override { return board::txSpace(); }
   void txWrite(const uint8_t* data, uint16_t n) override {
     board::txWrite(data, n);
+    // A whole data record: it ends in the delimiter (INFO goes out in pieces, which do not),
     // data[0] is the COBS code byte, data[1] the record type (never 0, so never stuffed).
-    if (n > 1 && (data[1] == delta6::proto::kWrench || data[1] == delta6::proto::kWrenchRaw)) {
+    if (n > 1 && data[n - 1] == 0 &&
+        (data[1] == delta6::proto::kWrench || data[1] == delta6::proto::kWrenchRaw)) {
       board::markRecordQueued();
     }
   }

@@ -28,7 +28,8 @@ class Hardware {
   // Bytes the transmit queue accepts right now. The queue must be able to hold
   // Device::kMinTxBuffer bytes when empty, or the largest records never go out.
   virtual uint16_t txSpace() = 0;
-  // Queue n <= txSpace() bytes for transmission; must not block for long.
+  // Queue n <= txSpace() bytes for transmission; must not block for long. Records come whole
+  // (ending in the 0x00 delimiter), except INFO, which comes in several writes in a row.
   virtual void txWrite(const uint8_t* data, uint16_t n) = 0;
   // Read / write n bytes of non-volatile memory (Device::kConfigBlobSize at most).
   virtual void eepromRead(uint16_t address, uint8_t* data, uint16_t n) = 0;
