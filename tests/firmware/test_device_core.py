@@ -9,7 +9,7 @@ import pytest
 from delta6.core.model import wrench as model_wrench
 from delta6.link import protocol as P
 from delta6.link.decoder import SequenceTracker, StreamDecoder
-from delta6.sim.simdevice import Motion, SimulatedDevice
+from delta6.sim.simdevice import Motion, NativeCore, SimulatedDevice
 
 C = P.Command
 
@@ -510,3 +510,25 @@ def test_a_1_0_device_is_read_without_the_appended_fields():
     assert P.encode_record(old_telemetry) == P.frame(payloads[1][:48])
     with pytest.raises(P.ProtocolError):
         P.parse_payload(payloads[0][:127])
+
+
+@pytest.mark.parametrize("name", ["", "d", "n" * 23, "long-design-name-" * 3])
+def test_info_sent_in_pieces_is_the_python_encoders_frame(name):
+    """The device sends INFO in pieces split at its name fields' last byte: whatever the name
+    (empty, full, longer than the field), the bytes on the wire are exactly the frame the host's
+    encoder makes of the record they decode to."""
+    core = NativeCore(design_name=name, design_hash=0xA1B2C3D4,
+                      full_scale=[15.0, 15.0, 25.0, 0.38, 0.33, 0.43], joint_limit_rad=0.5,
+                      joint_limit_counts=1365, baud=500_000, max_rate_hz=2000,
+                      default_rate_hz=500, zero_counts=[0] * 6, serial_number=0xD6000001,
+                      tx_capacity=512)
+    core.set_time(0)
+    core.begin(0, 0x0102)
+    core.set_time(100_000)                  # the boot records have left
+    frames = [f + b"\x00" for f in core.read().split(b"\x00")[:-1]]
+    core.close()
+    info_frames = [f for f in frames if P.unframe(f[:-1])[0] == P.RecordType.INFO]
+    assert len(info_frames) == 1
+    info = P.parse_payload(P.unframe(info_frames[0][:-1]))
+    assert info.design_name == name[:23] and info.boot_id == 0x0102
+    assert P.encode_info(info) == info_frames[0]
