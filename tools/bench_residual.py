@@ -5,6 +5,7 @@
     .venv/bin/python tools/bench_residual.py --model MODEL.json   # measure a trained model
     .venv/bin/python tools/bench_residual.py --quick              # short runs, a smoke test
     .venv/bin/python tools/bench_residual.py --calibration        # over the unit's calibration
+    .venv/bin/python tools/bench_residual.py --calibration --effects backlash,joint_friction
 
 1. The twin's `paper` scenario: a calibration run (2000 s, seed 1) and an evaluation run of the
    same unit (600 s, seed 2: the first run's effects and parameters from its truth, a new
@@ -143,6 +144,8 @@ def main() -> int:
     parser.add_argument("--calibration", action="store_true",
                         help="calibrate the unit on the calibration run and train (or check "
                              "--model) over the calibrated model")
+    parser.add_argument("--effects", help="with --calibration: the effects to calibrate, "
+                        "comma-separated (default: what the diagnosis finds)")
     args = parser.parse_args()
     design = load(ROOT / "designs" / "delta6.toml")
     train_s, eval_s = (300.0, 120.0) if args.quick else (2000.0, 600.0)
@@ -153,14 +156,15 @@ def main() -> int:
     if args.calibration:
         from delta6.calibration import calibrate
         started = time.perf_counter()
-        cal = calibrate(log_of(first), design, name="paper-unit-cal",
+        effects = args.effects.split(",") if args.effects else None
+        cal = calibrate(log_of(first), design, effects=effects, name="paper-unit-cal",
                         source="twin paper seed 1").calibration
         base = mcu.CalibratedBase(design, cal)
         print(f"calibrated '{cal.name}' 0x{cal.hash32():08x} ({', '.join(cal.effects)}) in "
               f"{time.perf_counter() - started:.0f} s", flush=True)
     if args.model is None:
         args.out.mkdir(parents=True, exist_ok=True)
-        settings = mcu.McuSettings(epochs=3 if args.quick else 30)
+        settings = mcu.default_settings(base, epochs=3 if args.quick else 30)
         started = time.perf_counter()
         name = "paper-unit" if cal is None else "paper-unit-over-cal"
         result = mcu.train_mcu(log_of(first), design, base, name=name, settings=settings,
