@@ -22,6 +22,8 @@
 5. The application with the model: flash and static RAM of the ATmega328P image and of the
    avrxmega3 size check (the Nano Every's instruction set), against the image without a model.
 6. The virtual board running that application at 200 and 250 Hz: overruns and cycles.
+7. The evaluation run streamed through that application on the virtual board at the log's
+   rate (--board-seconds of it; 0 skips): Table V of the wrench the board sends.
 """
 from __future__ import annotations
 
@@ -134,6 +136,41 @@ def loop_check(image, rates, seconds: float) -> list[dict]:
     return out
 
 
+def streamed_table(image, run, design, model, cal, seconds):
+    """The evaluation run replayed to the virtual board at the log's rate: Table V of the
+    wrench records the board sends (paired with the log rows its encoders served)."""
+    from delta6.evaluation.boardstream import stream_log
+    rate = int(round(mcu.nominal_rate(run.t)))
+    started = time.perf_counter()
+    board = stream_log(image, run, rate_hz=rate, seconds=seconds)
+    moving = board.rows >= 0
+    ref = run.wrench[board.rows[moving]]
+    fs = full_scale(design)
+    base = "calibrated" if cal is not None else "analytical"
+    tables = {f"{base} + int8 residual ({model.name}), board": accuracy.percentiles(
+        board.wrench[moving], ref, fs, (95, 99, 100))}
+    # The host's integer reference on the counts the board latched, for comparison.
+    if cal is not None:
+        from delta6.core.calibrated import CalibratedModel
+        host_base = CalibratedModel(design, cal).run(board.delta, 1.0 / rate)[0]
+    else:
+        from delta6.core import model as reference_model
+        from delta6.core.model import ENCODER_COUNT_RAD
+        host_base = reference_model.wrench(design, board.delta * ENCODER_COUNT_RAD)
+    net = model.net
+    correction, _ = int8net.run(net, int8net.quantize_input(host_base, net.input_scale),
+                                board.delta, stride=int8net.stride_for(net, rate))
+    host = int8net.apply_output(host_base, correction, net.output_step)
+    gap = float(np.max(np.abs(board.wrench[moving] - host[moving]) / fs * 100))
+    tables[f"{base} + int8 residual, host on the board's counts"] = accuracy.percentiles(
+        host[moving], ref, fs, (95, 99, 100))
+    note = (f"largest |board - host| {gap:.4f} % FS; "
+            f"{moving.sum():,} records at {rate} Hz in {time.perf_counter() - started:.0f} s, "
+            f"{100 * board.matched:.1f} % with their row's counts, missed periods "
+            f"{board.stats['timing']['missed_ticks']}")
+    return tables, note
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--model", type=Path, help="a trained model file (default: train one)")
@@ -144,6 +181,9 @@ def main() -> int:
     parser.add_argument("--calibration", action="store_true",
                         help="calibrate the unit on the calibration run and train (or check "
                              "--model) over the calibrated model")
+    parser.add_argument("--board-seconds", type=float, default=None,
+                        help="seconds of the evaluation run to stream through the virtual "
+                             "board (default: all of it; --quick: 30; 0: skip)")
     parser.add_argument("--effects", help="with --calibration: the effects to calibrate, "
                         "comma-separated (default: what the diagnosis finds)")
     args = parser.parse_args()
@@ -214,6 +254,10 @@ def main() -> int:
               f"{' (calibrated)' if cal else ''} "
               f"{plain_x3.sizes.flash:,} / {plain_x3.sizes.ram:,})")
         rows = loop_check(with_model, (200, 250), args.seconds)
+        board_seconds = (30.0 if args.quick else None) if args.board_seconds is None \
+            else args.board_seconds
+        streamed = (streamed_table(with_model, second, design, model, cal, board_seconds)
+                    if board_seconds != 0 else None)
     print("\nvirtual board with the model (wrench stream):")
     ok = exact
     for r in rows:
@@ -223,6 +267,10 @@ def main() -> int:
         if r["rate"] == 200:
             ok &= r["missed"] == 0 and r["lost"] == 0
     print(f"requirement: >= 200 Hz with no overrun: {'met' if ok else 'NOT met'}")
+    if streamed is not None:
+        tables, note = streamed
+        print(f"\nstreamed by the virtual board ({note}):")
+        print_table(tables)
     return 0 if ok else 1
 
 
