@@ -67,10 +67,25 @@ volatile uint8_t queue_tail = 0;   // written by the main loop
 volatile uint8_t missed = 0;
 volatile bool latching = false;
 
+#if DELTA6_CALIBRATED || DELTA6_RESIDUAL
+// The zero counts the calibrated model's and the residual's histories were built on (a new
+// zero restarts them): one copy for both.
+uint16_t model_zero[6];
+
+// Whether the device's zero counts changed since the last sample that had all six angles.
+bool zeroChanged(const uint16_t* zero) {
+  bool changed = false;
+  for (uint8_t j = 0; j < 6; ++j) {
+    if (zero[j] != model_zero[j]) changed = true;
+    model_zero[j] = zero[j];
+  }
+  return changed;
+}
+#endif
+
 #if DELTA6_CALIBRATED
-// The calibrated model's history, and the zero counts it was built on (a new zero restarts it).
+// The calibrated model's history.
 delta6::CalibrationState calibration_state;
-uint16_t calibration_zero[6];
 #endif
 
 #if DELTA6_RESIDUAL
@@ -81,15 +96,10 @@ int16_t residual_count_ring[m::kCountHistory ? 6 * m::kHistoryLength : 1];
 int16_t residual_plays[m::kPlayCount ? 6 * m::kPlayCount : 1];
 delta6::residual::State residual_state = {residual_wrench_ring, residual_count_ring,
                                           residual_plays, 0, 1, false};
-uint16_t residual_zero[6];   // the zero counts its history was built on
 
-// The base wrench plus the model's correction; a sample without a wrench restarts the history.
-void applyResidual(bool solver_ok, const uint16_t* zero, const int16_t* delta, float* wrench) {
-  bool zero_changed = false;
-  for (uint8_t j = 0; j < 6; ++j) {
-    if (zero[j] != residual_zero[j]) zero_changed = true;
-    residual_zero[j] = zero[j];
-  }
+// The base wrench plus the model's correction; a sample without a wrench, or a new zero,
+// restarts the history.
+void applyResidual(bool solver_ok, bool zero_changed, const int16_t* delta, float* wrench) {
   if (zero_changed || !solver_ok) delta6::residual::reset(residual_state);
   if (!solver_ok) return;
   int16_t base[6] = {0, 0, 0, 0, 0, 0};
@@ -202,14 +212,10 @@ void process(const Latched& latched) {
     const uint16_t* zero = device.zeroCounts();
     int16_t delta[6];
     for (uint8_t j = 0; j < 6; ++j) delta[j] = delta6::wrap_count_delta(s.counts[j], zero[j]);
+#if DELTA6_CALIBRATED || DELTA6_RESIDUAL
+    const bool zero_changed = zeroChanged(zero);
+#endif
 #if DELTA6_CALIBRATED
-    bool zero_changed = false;
-    for (uint8_t j = 0; j < 6; ++j) {
-      if (zero[j] != calibration_zero[j]) {
-        calibration_zero[j] = zero[j];
-        zero_changed = true;
-      }
-    }
     if (zero_changed) delta6::calibration_reset(calibration_state);
     s.solver_ok = delta6::solve_calibrated(kCalibratedSolver,
                                            delta6::calibration::kCalibrationConstants,
@@ -218,7 +224,7 @@ void process(const Latched& latched) {
     s.solver_ok = delta6::solve_counts(d::kSolverConstants, delta, s.wrench) == delta6::kSolveOk;
 #endif
 #if DELTA6_RESIDUAL
-    applyResidual(s.solver_ok, zero, delta, s.wrench);
+    applyResidual(s.solver_ok, zero_changed, delta, s.wrench);
 #endif
   } else {
     s.solver_ok = false;   // no wrench without all six angles
