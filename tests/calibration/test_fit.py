@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from delta6 import twin
 from delta6.calibration import calibrate
@@ -158,3 +160,22 @@ def test_every_family_carries_the_diagnosis_priors_and_limits(baseline):
     assert np.argmax(hyst, axis=0).tolist() == [0, 2, 4]
     big = cal.with_(backlash_play_rad=np.full(6, 0.06))
     assert families(big)["backlash"].implausible(big)
+
+
+@settings(max_examples=40, deadline=None)
+@given(radii=st.lists(st.integers(1, 4096), min_size=1, max_size=4, unique=True),
+       speeds=st.lists(st.floats(1e-4, 10.0), min_size=1, max_size=4))
+def test_any_settings_map_each_parameter_onto_one_diagnosis_coefficient(baseline, radii,
+                                                                         speeds):
+    """Whatever the play radii and sign speeds, each calibration parameter maps onto exactly
+    one coefficient of the diagnosis's term, and so takes a prior scale and a limit."""
+    from delta6.calibration.families import families
+    from delta6.core.calibration import neutral
+    cal = neutral(baseline).with_(
+        hysteresis_radii_counts=tuple(radii), hysteresis_nm=np.zeros((6, len(radii))),
+        friction_speeds_rad_s=tuple(speeds), friction_sign_nm=np.zeros((6, len(speeds))))
+    for family in families(cal).values():
+        m = family.term_map
+        assert m.shape[1] == len(family.param_names) == len(family.values(cal))
+        assert np.all((m == 0) | (m == 1)) and np.all(m.sum(axis=0) == 1)
+        assert len(family.prior_sd) == m.shape[1] and min(family.prior_sd) > 0
