@@ -216,7 +216,11 @@ def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> d
         "params": {s["added"]: s["params"] for s in verdict["ladder"]},
         "candidates": [(c["name"], c["score"]) for c in verdict["candidates"]],
         "leftover": {"structured": left["structured"], "joints": left["joints"],
-                     "shape": left["shape"], "excess": left["excess_over_noise"]},
+                     "shape": left["shape"], "excess": left["excess_over_noise"],
+                     "cartesian": left["cartesian"],
+                     "joint_shapes": [{"best": j["best"], "shares": j["shares"]}
+                                      for j in left["per_joint"]]},
+        "below_noise": verdict.get("below_noise", []),
         "baseline_p99": baseline.tolist(),
         "final_p99": final.tolist(),
         "true_p99": clean_p99.tolist(),
