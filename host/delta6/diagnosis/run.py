@@ -107,11 +107,14 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
                                                  rng, confidence)
                 kept = kept + [helper]
                 break
-        for n in bad:
-            implausible[n] = checks[n]
-            names.remove(n)
-            if progress:
-                progress(f"not named: {n} fits only with implausible parameters")
+        # One at a time, the furthest out of bounds first: in a joint fit, a family that
+        # soaks up what none of them describes can push its neighbours out of bounds too;
+        # without it they may fit plausibly.
+        worst = max(bad, key=lambda n: max(c["ratio"] for c in checks[n]["checks"]))
+        implausible[worst] = checks[worst]
+        names.remove(worst)
+        if progress:
+            progress(f"not named: {worst} fits only with implausible parameters")
     base_sse = info["base"]
     group_verdicts = verdicts.groups(problem, kept, info)
     # Members of a group verdict join the ladder (in forward order): the shrink is predicted
