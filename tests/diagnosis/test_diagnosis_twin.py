@@ -56,8 +56,8 @@ def test_names_the_effect_whatever_its_formulation(baseline, name, formulation):
 @pytest.mark.parametrize("name, formulation", [("nonlinear_spring", "progressive"),
                                                ("harness", "linear")])
 def test_effects_beyond_the_first_vocabulary_are_named(baseline, name, formulation):
-    """A stiffening spring leaves the rate at rest unchanged: it is named first (a harness
-    is a stiffness too: stiffness_mismatch may follow)."""
+    """A stiffening spring is a rate error (its straight-line part, stiffness_mismatch may be
+    named too) plus a curvature: the family that explains the curvature comes first."""
     effect = twin.make_effect(name, seed=35, formulation=formulation, magnitude=0.9)
     _, verdict = run(baseline, [effect], seed=35)
     assert verdict["present"][:1] == [name], verdict["present"]

@@ -221,6 +221,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     for step in steps:
         step["named"] = step["added"] not in unnamed
     present = [n for n in chosen if n in kept and n not in unnamed]
+    present = verdicts.order_refinements(problem, present, chosen, coef_all)
     result = {
         "baseline_heldout_p99_pct": baseline_p99,
         "present": present,

@@ -87,6 +87,9 @@ class Term:
     #: Effects told apart only by details share a group (a verdict names the group when the
     #: log cannot separate them).
     group: str | None = None
+    #: The family this one refines (it contains its shape and more: a stiffening spring
+    #: is a spring-rate error plus curvature); named first when both are named.
+    refines: str | None = None
 
     def summarize(self, coef: np.ndarray) -> dict:
         out = {name: float(v) for name, v in zip(self.param_names, coef)}
@@ -284,15 +287,15 @@ _FK_STEP = 1e-6
 
 
 def _nonlinear_spring(data: GapData) -> np.ndarray:
-    # Odd in the angle (a spring pair is symmetric): |u| and u^2 times the nominal torque
-    # (u = theta / reference). Both leave the rate at rest unchanged (zero slope at theta = 0),
-    # which is what a rate error changes: a stiffening spring is this family alone, a
-    # spring-rate error stiffness_mismatch alone, and a spring with both needs both. The
-    # parameters are the extra torque at the reference deflection, as a fraction of nominal
-    # (p1 + p2 in all).
+    # Odd in the angle (a spring pair is symmetric), beyond the linear rate: |u| and u^2 times
+    # the nominal torque (u = theta / reference), each minus its linear part over the joint
+    # range (u uniform in [-1, 1]: E[u^2 |u|] / E[u^2] = 3/4, E[u^4] / E[u^2] = 3/5), so that a
+    # spring-rate error stays with stiffness_mismatch. The parameters are the curvature:
+    # the extra torque at the reference beyond the straight line, as a fraction of nominal,
+    # is 0.25 * p1 + 0.4 * p2.
     u = data.theta / NONLINEAR_REF_RAD
     tau = data.params.k * data.theta
-    feats = np.stack([tau * np.abs(u), tau * u**2], axis=-1)
+    feats = np.stack([tau * (np.abs(u) - 0.75), tau * (u**2 - 0.6)], axis=-1)
     return _torque_columns(data, feats)
 
 
@@ -478,7 +481,8 @@ TERMS: tuple[Term, ...] = (
     Term("nonlinear_spring", "torque",
          tuple(f"{kind}_{j}" for j in JOINTS for kind in ("abs_quadratic", "cubic")), "1",
          _nonlinear_spring, prior_sd=_per_joint(0.05, 2),
-         plausible=_each([("rate_change_at_ref", slice(0, 12), 0.6)])),
+         plausible=_each([("rate_change_at_ref", slice(0, 12), 0.6)]),
+         refines="stiffness_mismatch"),
     Term("encoder_periodic_error", "angle",
          tuple(f"{kind}{h}_{j}_rad" for j in JOINTS for h in ENCODER_HARMONICS
                for kind in ("sin", "cos")), "rad", _encoder_periodic,

@@ -134,3 +134,38 @@ def drop_faint(problem: selection.Problem, names: list[str]) -> tuple[list[str],
         dropped.append({"name": weakest, "share_of_gap": float(costs[weakest] / base),
                         "share_of_noise_floor": float(costs[weakest] / floor)})
     return names, dropped
+
+
+def significant_joints(problem: selection.Problem, names, coef: np.ndarray,
+                       name: str) -> set:
+    """Joints (1..6) on which a per-joint family's fitted coefficients stand out by more than
+    three standard errors (all of them for a family that is not per joint)."""
+    se = standard_errors(problem, names, coef)
+    at = 0
+    for n in names:
+        width = len(problem.terms[n].param_names)
+        if n == name:
+            c, s = coef[at:at + width], se[at:at + width]
+            if width % 6:
+                return set(range(1, 7))
+            big = (np.abs(c) > 3.0 * s).reshape(6, -1).any(axis=1)
+            return {j + 1 for j in range(6) if big[j]}
+        at += width
+    return set()
+
+
+def order_refinements(problem: selection.Problem, present: list[str], chosen: list[str],
+                      coef: np.ndarray) -> list[str]:
+    """A family that refines another (``Term.refines``: a stiffening spring's straight-line
+    part is a spring-rate error) comes first when both are named on common joints: the
+    refinement explains the shape, the other its straight part."""
+    out = list(present)
+    for name in present:
+        base = problem.terms[name].refines
+        if base is None or base not in out or out.index(base) > out.index(name):
+            continue
+        if significant_joints(problem, chosen, coef, name) \
+                & significant_joints(problem, chosen, coef, base):
+            out.remove(name)
+            out.insert(out.index(base), name)
+    return out
