@@ -227,3 +227,16 @@ def test_a_harness_leftover_is_pose_dependent_even_when_proximal_joints_look_lik
     # better than the plate's position: the joints' own shape.
     assert _verdict_shape(_leftover(shapes, [True] * 3 + [False] * 3, 0.95, 0.94)) == odd
     assert _verdict_shape(_leftover(shapes, [True] * 6, 0.08, 0.9)) == odd
+
+
+def test_implausible_families_leave_one_at_a_time_the_furthest_out_first():
+    """Geometry errors soaking up a harness push the spring rates out of bounds too; only
+    the furthest out leaves, and the rest are judged again without it."""
+    def check(*ratios):
+        return {"plausible": max(ratios) <= 1.0,
+                "checks": [{"quantity": "q", "largest": r, "limit": 1.0, "ratio": r}
+                           for r in ratios]}
+    checks = {"geometry_error": check(0.5, 2.4), "stiffness_mismatch": check(1.3),
+              "encoder_offset": check(0.2)}
+    assert verdicts.furthest_out_of_bounds(checks, ["stiffness_mismatch", "geometry_error"]) \
+        == "geometry_error"

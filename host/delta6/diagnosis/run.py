@@ -110,7 +110,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         # One at a time, the furthest out of bounds first: in a joint fit, a family that
         # soaks up what none of them describes can push its neighbours out of bounds too;
         # without it they may fit plausibly.
-        worst = max(bad, key=lambda n: max(c["ratio"] for c in checks[n]["checks"]))
+        worst = verdicts.furthest_out_of_bounds(checks, bad)
         implausible[worst] = checks[worst]
         names.remove(worst)
         if progress:

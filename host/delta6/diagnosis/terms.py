@@ -324,25 +324,21 @@ def plate_jacobian(data: GapData) -> np.ndarray:
 
 
 def _harness(data: GapData) -> np.ndarray:
-    # A cable or harness pulls on the plate with a force and a moment that depend on where
-    # the plate is: affine in its pose's displacement from rest, the plate centre's
-    # (dp, mm) and the gimbal's angles (q4..6, rad; a clamp off the centre moves with the
-    # tilt). The force f reaches joints 1..3 as J^T f (virtual work) and the wrench as
-    # G J^T f; the moment (the force times the clamp's offset) turns the gimbal, joints 4..6.
+    # A cable or harness pulls on the plate with a force that depends on where the plate is:
+    # affine in its pose's displacement from rest, the plate centre's (dp, mm) and the
+    # gimbal's angles (q4..6, rad: a clamp off the centre moves with the tilt). The force f
+    # reaches joints 1..3 as J^T f (virtual work) and the wrench as G J^T f. (The moment such
+    # a clamp puts on the gimbal is left out: on joints 4..6 it looks like their own spring
+    # rates and zeros, and in mixes it took those effects' shares.)
     from delta6.core.model import forward_kinematics
     jac = plate_jacobian(data)                                         # (n, 3, 3)
     rest = forward_kinematics(data.params, np.zeros((1, 3)))[0]
     pose = np.concatenate([data.position_mm - rest * 1e3, data.theta[:, 3:]], axis=1)
     g = data.torque_map[:, :, :3]                                      # (n, 6, 3)
     force = np.einsum("naj,nkj->nak", g, jac)                          # per N of f_k
-    moment = data.torque_map[:, :, 3:]                                 # per N*m on j4..6
-    cols = []
-    # The moment's change with the tilt is second order in the clamp's offset (and would be
-    # a gimbal spring-rate error): the moment follows the plate centre only.
-    for per, dims in ((force, 6), (moment, 3)):
-        cols.append(per)                                               # preload
-        for m in range(dims):                                          # per mm or rad
-            cols.append(per * pose[:, None, m:m + 1])
+    cols = [force]                                                     # preload, N
+    for m in range(6):                                                 # per mm or rad
+        cols.append(force * pose[:, None, m:m + 1])
     return np.concatenate(cols, axis=-1)
 
 
@@ -399,29 +395,22 @@ def _encoder_plausible(coef):
     return [("angle_error_rad", np.abs(curves).max(axis=0), 0.03)]
 
 
-#: The harness family's parameters, in ``_harness``'s column order (quantity, then the pose,
-#: then the component): the force on the plate (x, y, z in {B}; N) at rest and per unit of
-#: the pose's displacement (plate centre x, y, z in mm; gimbal angles 4..6 in rad), and the
-#: moment on joints 4..6 (N*m) at rest and per mm of the plate centre's displacement.
+#: The harness family's parameters, in ``_harness``'s column order (the pose, then the
+#: component): the force on the plate (x, y, z in {B}; N) at rest and per unit of the pose's
+#: displacement (plate centre x, y, z in mm; gimbal angles 4..6 in rad).
 _POSE_UNITS = ("_n", "_per_x_mm", "_per_y_mm", "_per_z_mm", "_per_q4_rad", "_per_q5_rad",
                "_per_q6_rad")
-HARNESS_PARTS = (("force", "xyz", _POSE_UNITS),
-                 ("moment", ("j4", "j5", "j6"), ("_nm",) + _POSE_UNITS[1:4]))
 #: Prior scales: a cable's preload of a few tenths of a newton, a stiffness of a few
-#: hundredths of a N/mm (0.5 N over 10 mm), clamped up to about 20 mm off the centre (the
-#: moments and the tilt terms are the force terms times that offset).
-_HARNESS_FORCE = (0.3,) + (0.05,) * 3 + (0.05 * 20.0,) * 3
-_HARNESS_MOMENT = (0.3 * 0.02,) + (0.05 * 0.02,) * 3
-HARNESS_PRIORS = tuple((sd,) * 3 for sd in _HARNESS_FORCE + _HARNESS_MOMENT)
+#: hundredths of a N/mm (0.5 N over 10 mm), a clamp up to about 20 mm off the centre (the
+#: tilt terms are the stiffness times that offset).
+HARNESS_PRIORS = (0.3,) * 3 + (0.05,) * 9 + (0.05 * 20.0,) * 9
 
 
 def _harness_plausible(coef):
     # Limits: 3 N of preload, 0.5 N/mm, a clamp at most 100 mm off the centre.
-    f = coef[:21].reshape(7, 3)                    # pose, component
-    m = coef[21:].reshape(4, 3)
+    f = coef.reshape(7, 3)                          # pose, component
     return [("preload_n", f[0], 3.0), ("stiffness_n_per_mm", f[1:4], 0.5),
-            ("stiffness_n_per_rad", f[4:], 0.5 * 100.0),
-            ("moment_nm", m[0], 3.0 * 0.1), ("moment_nm_per_mm", m[1:], 0.5 * 0.1)]
+            ("stiffness_n_per_rad", f[4:], 0.5 * 100.0)]
 
 
 def _thermal_plausible(coef):
@@ -489,10 +478,7 @@ TERMS: tuple[Term, ...] = (
          prior_sd=_per_joint(3e-3, 2 * len(ENCODER_HARMONICS)),
          plausible=_encoder_plausible),
     Term("harness", "torque",
-         tuple(f"{kind}_{a}{unit}" for kind, axes, units in HARNESS_PARTS for unit in units
-               for a in axes),
-         "N, N/mm, N/rad, N*m, N*m/mm, N*m/rad", _harness,
-         prior_sd=tuple(sd for sds in HARNESS_PRIORS for sd in sds),
-         plausible=_harness_plausible),
+         tuple(f"force_{a}{unit}" for unit in _POSE_UNITS for a in "xyz"),
+         "N, N/mm, N/rad", _harness, prior_sd=HARNESS_PRIORS, plausible=_harness_plausible),
 )
 EFFECT_NAMES = tuple(t.name for t in TERMS)

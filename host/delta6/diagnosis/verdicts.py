@@ -82,6 +82,12 @@ def plausibility(problem: selection.Problem, names, coef: np.ndarray) -> dict:
     return out
 
 
+def furthest_out_of_bounds(checks: dict, bad: list[str]) -> str:
+    """The family of ``bad`` whose worst quantity is furthest beyond its limit (``checks``
+    from :func:`plausibility`)."""
+    return max(bad, key=lambda n: max(c["ratio"] for c in checks[n]["checks"]))
+
+
 def rescue(problem: selection.Problem, kept: list[str], bad: list[str],
            others: list[str]) -> str | None:
     """The candidate among ``others`` with which every family of ``bad`` fits plausibly and the
