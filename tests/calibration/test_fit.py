@@ -73,3 +73,17 @@ def test_latency_is_fitted_as_the_rigs_and_not_applied(baseline):
 def test_uncorrectable_or_unknown_effects_are_refused(bad):
     with pytest.raises(UserError):
         check_effects(bad)
+
+
+def test_a_log_longer_than_one_streamed_piece_is_calibrated(baseline):
+    """The diagnosis streams long logs in pieces; the calibration's columns come from the
+    calibrated model run over the whole log, so they must see that log in one piece."""
+    from delta6.diagnosis.stream import PIECE_SAMPLES
+    effects = [twin.make_effect("stiffness_mismatch", 8, magnitude=0.9),
+               twin.make_effect("joint_friction", 8, magnitude=0.8)]
+    run = twin.simulate(baseline, effects, duration_s=1.2 * PIECE_SAMPLES / 50, rate_hz=50,
+                        seed=8)
+    assert len(run.t) > PIECE_SAMPLES
+    fit = calibrate(run, baseline, effects=["stiffness_mismatch", "joint_friction"])
+    np.testing.assert_allclose(fit.calibration.rate_ratio,
+                               1 + effects[0].params["deviation"], atol=0.004)

@@ -87,8 +87,10 @@ class _Fitter:
         self.families = families(settings)
         ctx = Context(data, terms, settings)
         all_terms = _terms(ctx, self.families) + ([_latency_term(data)] if with_latency else [])
+        # The families' columns come from the calibrated model run over the whole log (its
+        # history state included), so the log is one piece.
         self.problem = selection.build_problem(data, all_terms, n_blocks=N_BLOCKS,
-                                               progress=progress)
+                                               progress=progress, piece_samples=len(data))
 
     def rows(self, blocks) -> np.ndarray:
         b = self.problem.bounds

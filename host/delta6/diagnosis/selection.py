@@ -104,11 +104,13 @@ def noise_variance(residual: np.ndarray, fs=1.0) -> float:
 
 def build_problem(data: GapData, terms: list[Term], n_blocks: int = N_BLOCKS,
                   n_folds: int = N_FOLDS, progress=None, keep_columns: bool = True,
-                  signatures: dict | None = None, cache=None) -> Problem:
+                  signatures: dict | None = None, cache=None,
+                  piece_samples: int | None = None) -> Problem:
     """The per-block Gram summaries of all ``terms`` (one streamed pass over the log). With
     ``keep_columns`` the columns and the residual are kept too (short logs: per-sample
     predictions with :func:`heldout_prediction`); without, memory stays bounded (``cache``, a
-    ``stream.ColumnCache``, keeps them on disk for a later pass)."""
+    ``stream.ColumnCache``, keeps them on disk for a later pass). ``piece_samples``: see
+    ``stream.accumulate`` (default: its bounded piece)."""
     from delta6.diagnosis import stream
     slices, start = {}, 0
     for term in terms:
@@ -117,7 +119,8 @@ def build_problem(data: GapData, terms: list[Term], n_blocks: int = N_BLOCKS,
     bounds = np.linspace(0, len(data), n_blocks + 1).astype(int)
     gram, xty, yty, sub, x = stream.accumulate(data, terms, bounds, signatures,
                                                keep_columns=keep_columns, cache=cache,
-                                               progress=progress)
+                                               progress=progress,
+                                               piece_samples=piece_samples or stream.PIECE_SAMPLES)
     noise = noise_variance(data.residual, data.fs)
     penalty = np.zeros(start)
     for term in terms:

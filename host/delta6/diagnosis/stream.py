@@ -121,12 +121,15 @@ def blocks_in(bounds: np.ndarray, a: int, b: int) -> Iterator[tuple[int, int, in
 
 def accumulate(data: GapData, terms, bounds: np.ndarray, signatures: dict | None = None,
                keep_columns: bool = False, cache: ColumnCache | None = None,
-               progress: Callable[[str], None] | None = None):
+               progress: Callable[[str], None] | None = None,
+               piece_samples: int = PIECE_SAMPLES):
     """One pass over the log: per block, the Gram matrix X^T X, X^T y and y^T y of the
     FS-normalised columns of all ``terms`` against the residual; and the same over each
     signature's samples (``signatures``: name -> function of a view giving a (n,) mask).
     Returns (gram, xty, yty, sub, x) where ``sub`` maps a signature name to its (gram, xty,
-    yty, count) and ``x`` is the whole column array when ``keep_columns`` (else None)."""
+    yty, count) and ``x`` is the whole column array when ``keep_columns`` (else None).
+    ``piece_samples``: samples per piece; terms whose columns come from the whole log rather
+    than from the view they are given need one piece as long as the log."""
     n_blocks = len(bounds) - 1
     p = sum(len(t.param_names) for t in terms)
     gram = np.zeros((n_blocks, p, p))
@@ -136,7 +139,7 @@ def accumulate(data: GapData, terms, bounds: np.ndarray, signatures: dict | None
     sub = {name: (np.zeros((n_blocks, p, p)), np.zeros((n_blocks, p)), np.zeros(n_blocks),
                   np.zeros(n_blocks)) for name in signatures}
     x_all = np.empty((len(data), 6, p)) if keep_columns else None
-    for a, b, keep, view in pieces(data):
+    for a, b, keep, view in pieces(data, piece_samples):
         if progress:
             progress(f"columns of samples {a}..{b} of {len(data)}")
         x = columns(view, terms, keep)
