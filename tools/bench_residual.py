@@ -5,6 +5,7 @@
     .venv/bin/python tools/bench_residual.py --model MODEL.json   # measure a trained model
     .venv/bin/python tools/bench_residual.py --quick              # short runs, a smoke test
     .venv/bin/python tools/bench_residual.py --calibration        # over the unit's calibration
+    .venv/bin/python tools/bench_residual.py --calibration --effects backlash,joint_friction
 
 1. The twin's `paper` scenario: a calibration run (2000 s, seed 1) and an evaluation run of the
    same unit (600 s, seed 2: the first run's effects and parameters from its truth, a new
@@ -21,6 +22,8 @@
 5. The application with the model: flash and static RAM of the ATmega328P image and of the
    avrxmega3 size check (the Nano Every's instruction set), against the image without a model.
 6. The virtual board running that application at 200 and 250 Hz: overruns and cycles.
+7. The evaluation run streamed through that application on the virtual board at the log's
+   rate (--board-seconds of it; 0 skips): Table V of the wrench the board sends.
 """
 from __future__ import annotations
 
@@ -133,6 +136,41 @@ def loop_check(image, rates, seconds: float) -> list[dict]:
     return out
 
 
+def streamed_table(image, run, design, model, cal, seconds):
+    """The evaluation run replayed to the virtual board at the log's rate: Table V of the
+    wrench records the board sends (paired with the log rows its encoders served)."""
+    from delta6.evaluation.boardstream import stream_log
+    rate = int(round(mcu.nominal_rate(run.t)))
+    started = time.perf_counter()
+    board = stream_log(image, run, rate_hz=rate, seconds=seconds)
+    moving = board.rows >= 0
+    ref = run.wrench[board.rows[moving]]
+    fs = full_scale(design)
+    base = "calibrated" if cal is not None else "analytical"
+    tables = {f"{base} + int8 residual ({model.name}), board": accuracy.percentiles(
+        board.wrench[moving], ref, fs, (95, 99, 100))}
+    # The host's integer reference on the counts the board latched, for comparison.
+    if cal is not None:
+        from delta6.core.calibrated import CalibratedModel
+        host_base = CalibratedModel(design, cal).run(board.delta, 1.0 / rate)[0]
+    else:
+        from delta6.core import model as reference_model
+        from delta6.core.model import ENCODER_COUNT_RAD
+        host_base = reference_model.wrench(design, board.delta * ENCODER_COUNT_RAD)
+    net = model.net
+    correction, _ = int8net.run(net, int8net.quantize_input(host_base, net.input_scale),
+                                board.delta, stride=int8net.stride_for(net, rate))
+    host = int8net.apply_output(host_base, correction, net.output_step)
+    gap = float(np.max(np.abs(board.wrench[moving] - host[moving]) / fs * 100))
+    tables[f"{base} + int8 residual, host on the board's counts"] = accuracy.percentiles(
+        host[moving], ref, fs, (95, 99, 100))
+    note = (f"largest |board - host| {gap:.4f} % FS; "
+            f"{moving.sum():,} records at {rate} Hz in {time.perf_counter() - started:.0f} s, "
+            f"{100 * board.matched:.1f} % with their row's counts, missed periods "
+            f"{board.stats['timing']['missed_ticks']}")
+    return tables, note
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--model", type=Path, help="a trained model file (default: train one)")
@@ -143,6 +181,11 @@ def main() -> int:
     parser.add_argument("--calibration", action="store_true",
                         help="calibrate the unit on the calibration run and train (or check "
                              "--model) over the calibrated model")
+    parser.add_argument("--board-seconds", type=float, default=None,
+                        help="seconds of the evaluation run to stream through the virtual "
+                             "board (default: all of it; --quick: 30; 0: skip)")
+    parser.add_argument("--effects", help="with --calibration: the effects to calibrate, "
+                        "comma-separated (default: what the diagnosis finds)")
     args = parser.parse_args()
     design = load(ROOT / "designs" / "delta6.toml")
     train_s, eval_s = (300.0, 120.0) if args.quick else (2000.0, 600.0)
@@ -153,14 +196,15 @@ def main() -> int:
     if args.calibration:
         from delta6.calibration import calibrate
         started = time.perf_counter()
-        cal = calibrate(log_of(first), design, name="paper-unit-cal",
+        effects = args.effects.split(",") if args.effects else None
+        cal = calibrate(log_of(first), design, effects=effects, name="paper-unit-cal",
                         source="twin paper seed 1").calibration
         base = mcu.CalibratedBase(design, cal)
         print(f"calibrated '{cal.name}' 0x{cal.hash32():08x} ({', '.join(cal.effects)}) in "
               f"{time.perf_counter() - started:.0f} s", flush=True)
     if args.model is None:
         args.out.mkdir(parents=True, exist_ok=True)
-        settings = mcu.McuSettings(epochs=3 if args.quick else 30)
+        settings = mcu.default_settings(base, epochs=3 if args.quick else 30)
         started = time.perf_counter()
         name = "paper-unit" if cal is None else "paper-unit-over-cal"
         result = mcu.train_mcu(log_of(first), design, base, name=name, settings=settings,
@@ -210,6 +254,10 @@ def main() -> int:
               f"{' (calibrated)' if cal else ''} "
               f"{plain_x3.sizes.flash:,} / {plain_x3.sizes.ram:,})")
         rows = loop_check(with_model, (200, 250), args.seconds)
+        board_seconds = (30.0 if args.quick else None) if args.board_seconds is None \
+            else args.board_seconds
+        streamed = (streamed_table(with_model, second, design, model, cal, board_seconds)
+                    if board_seconds != 0 else None)
     print("\nvirtual board with the model (wrench stream):")
     ok = exact
     for r in rows:
@@ -219,6 +267,10 @@ def main() -> int:
         if r["rate"] == 200:
             ok &= r["missed"] == 0 and r["lost"] == 0
     print(f"requirement: >= 200 Hz with no overrun: {'met' if ok else 'NOT met'}")
+    if streamed is not None:
+        tables, note = streamed
+        print(f"\nstreamed by the virtual board ({note}):")
+        print_table(tables)
     return 0 if ok else 1
 
 

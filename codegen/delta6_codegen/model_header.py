@@ -88,6 +88,9 @@ def render_model(model: ResidualModel, design_label: str, model_label: str) -> s
         f"constexpr uint8_t kPlayCount = {len(net.play_radii())};",
         f"constexpr uint8_t kWrenchHistory = {int(net.max_lag('wrench_step') > 0)};",
         f"constexpr uint8_t kCountHistory = {int(net.max_lag('count_step') > 0)};",
+        "// 0: no feature reads the base wrench (the application skips its float quantization).",
+        "constexpr uint8_t kUsesWrench = "
+        f"{int(any(f.kind in ('wrench', 'wrench_step') for f in net.features))};",
         f"const {ns}Model kModel = {{",
         f"    {int(round(net.rate_hz))}, {len(net.features)}, kFeatures, {len(net.layers)}, kLayers,"
         " kInputScale, kOutputStep,",

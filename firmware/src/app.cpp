@@ -86,9 +86,11 @@ void applyResidual(bool solver_ok, const uint16_t* zero, const int16_t* delta, f
   }
   if (zero_changed || !solver_ok) delta6::residual::reset(residual_state);
   if (!solver_ok) return;
-  int16_t base[6];
+  int16_t base[6] = {0, 0, 0, 0, 0, 0};
   int16_t correction[6];
-  delta6::residual::quantizeInput(m::kModel, wrench, base);
+  // A model that never reads the base wrench (e.g. a linear map of the counts) saves the
+  // float quantization: its outputs do not depend on `base`.
+  if (m::kUsesWrench) delta6::residual::quantizeInput(m::kModel, wrench, base);
   delta6::residual::step(m::kModel, residual_state, base, delta, correction);
   delta6::residual::applyOutput(m::kModel, correction, wrench);
 }

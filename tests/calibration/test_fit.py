@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from delta6 import twin
 from delta6.calibration import calibrate
@@ -87,3 +89,93 @@ def test_a_log_longer_than_one_streamed_piece_is_calibrated(baseline):
     fit = calibrate(run, baseline, effects=["stiffness_mismatch", "joint_friction"])
     np.testing.assert_allclose(fit.calibration.rate_ratio,
                                1 + effects[0].params["deviation"], atol=0.004)
+
+
+@pytest.fixture(scope="module")
+def paper_run(baseline):
+    """A short run of the twin's flagship unit: every correctable effect at once, a geometry
+    the history effects can masquerade as."""
+    return twin.simulate(baseline, twin.scenario_effects("paper", 1), duration_s=120,
+                         rate_hz=50, seed=1)
+
+
+def _plausible_and_saved(fit, tmp_path):
+    """Every fitted family within the diagnosis's plausible limits, and the file writes and
+    reads back (its validation holds)."""
+    from delta6.calibration.families import families
+    from delta6.core import calibration as calibration_file
+    cal = fit.calibration
+    for effect in cal.effects:
+        family = families(cal)[effect]
+        assert not family.implausible(cal), (effect, family.plausibility(cal))
+    path = calibration_file.save(cal, tmp_path / "unit.toml")
+    assert calibration_file.load(path).hash32() == cal.hash32()
+
+
+def test_the_paper_unit_is_calibrated_with_plausible_parameters(baseline, paper_run, tmp_path):
+    """Unbounded, the Gauss-Newton fit drove a + b of a branch (which the statics hardly see)
+    further with every iteration, past the file's 5 mm bound; the priors hold it."""
+    fit = calibrate(paper_run, baseline, effects=[
+        "stiffness_mismatch", "joint_friction", "link_compliance", "encoder_offset",
+        "spring_hysteresis", "backlash", "geometry_error"])
+    assert "geometry_error" in fit.calibration.effects
+    assert fit.calibration.fit["left_out"] == []
+    _plausible_and_saved(fit, tmp_path)
+    assert np.all(np.abs(fit.calibration.delta_a_mm + fit.calibration.delta_b_mm) < 0.5)
+    assert np.all(np.array(fit.heldout_after["p99_pct"])
+                  < 0.35 * np.array(fit.heldout_before["p99_pct"]))
+
+
+def test_a_family_that_fits_only_implausibly_is_left_out_with_a_note(baseline, paper_run,
+                                                                     tmp_path):
+    """Without the history families, the geometry soaks up their direction-dependent torques
+    with millimetres of error: it is left out, said, and the rest is still calibrated."""
+    fit = calibrate(paper_run, baseline, effects=["stiffness_mismatch", "link_compliance",
+                                                  "encoder_offset", "geometry_error"])
+    cal = fit.calibration
+    assert "geometry_error" not in cal.effects and cal.fit["left_out"] == ["geometry_error"]
+    assert any(n.startswith("geometry_error: left out") for n in fit.notes)
+    assert not np.any(cal.delta_a_mm) and not np.any(cal.gimbal_misalignment_rad)
+    assert {"stiffness_mismatch", "encoder_offset"} <= set(cal.effects)
+    _plausible_and_saved(fit, tmp_path)
+    assert np.all(np.array(fit.heldout_after["p99_pct"])
+                  < 0.8 * np.array(fit.heldout_before["p99_pct"]))
+
+
+def test_every_family_carries_the_diagnosis_priors_and_limits(baseline):
+    from delta6.calibration.families import families
+    from delta6.core.calibration import neutral
+    from delta6.diagnosis.terms import TERMS
+    cal = neutral(baseline)
+    by_name = {t.name: t for t in TERMS}
+    for name, family in families(cal).items():
+        term = by_name[name]
+        assert family.term_map.shape == (len(term.param_names), len(family.param_names))
+        assert len(family.prior_sd) == len(family.param_names)
+        assert set(family.prior_sd) <= set(term.prior_sd)
+        assert len(family.values(cal)) == len(family.param_names)
+        assert not np.any(family.values(cal)) and not family.implausible(cal)
+    # the play radii of 16, 64, 256 counts are the diagnosis's 0.006, 0.024, 0.096 rad
+    hyst = families(cal)["spring_hysteresis"].term_map[:5, :3]
+    assert np.argmax(hyst, axis=0).tolist() == [0, 2, 4]
+    big = cal.with_(backlash_play_rad=np.full(6, 0.06))
+    assert families(big)["backlash"].implausible(big)
+
+
+@settings(max_examples=40, deadline=None)
+@given(radii=st.lists(st.integers(1, 4096), min_size=1, max_size=4, unique=True),
+       speeds=st.lists(st.floats(1e-4, 10.0), min_size=1, max_size=4))
+def test_any_settings_map_each_parameter_onto_one_diagnosis_coefficient(baseline, radii,
+                                                                         speeds):
+    """Whatever the play radii and sign speeds, each calibration parameter maps onto exactly
+    one coefficient of the diagnosis's term, and so takes a prior scale and a limit."""
+    from delta6.calibration.families import families
+    from delta6.core.calibration import neutral
+    cal = neutral(baseline).with_(
+        hysteresis_radii_counts=tuple(radii), hysteresis_nm=np.zeros((6, len(radii))),
+        friction_speeds_rad_s=tuple(speeds), friction_sign_nm=np.zeros((6, len(speeds))))
+    for family in families(cal).values():
+        m = family.term_map
+        assert m.shape[1] == len(family.param_names) == len(family.values(cal))
+        assert np.all((m == 0) | (m == 1)) and np.all(m.sum(axis=0) == 1)
+        assert len(family.prior_sd) == m.shape[1] and min(family.prior_sd) > 0

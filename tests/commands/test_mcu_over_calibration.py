@@ -37,8 +37,7 @@ def over_cal(tmp_path_factory, baseline, unit_logs):
         dataclasses.replace(cal, name="other", rate_ratio=np.ones(6)), folder / "other.toml")
     model_path = folder / "onchip.json"
     assert main(["train", str(unit_logs[0]), "--target", "mcu", "--residual-over",
-                 str(cal_path), "--epochs", "3", "--hidden", "8", "--quiet",
-                 "-o", str(model_path)]) == 0
+                 str(cal_path), "--epochs", "3", "--quiet", "-o", str(model_path)]) == 0
     return cal, cal_path, other_path, model_path
 
 
@@ -46,6 +45,9 @@ def test_the_model_names_the_calibration_it_corrects(over_cal):
     cal, _, _, model_path = over_cal
     model = residualmodel.load(model_path)
     assert model.base == "calibrated"
+    # The default over a calibration: one linear layer over the counts (fits the 200 Hz loop).
+    assert [f.kind for f in model.net.features] == ["counts"]
+    assert [layer.shape for layer in model.net.layers] == [(6, 6)]
     assert (model.calibration_name, model.calibration_hash) == (cal.name, cal.hash32())
 
 

@@ -85,7 +85,7 @@ def test_bad_inputs_are_one_line_errors(trained, tmp_path, capsys):
         (["codegen", "designs/delta6.toml", "--model", str(broken), "-o", out], "not JSON"),
         (["codegen", "designs/delta6.toml", "--model", str(tmp_path / "none.json"), "-o", out],
          "no such file"),
-        (["train", str(log), "--target", "mcu", "--hidden", "0", "-o", str(tmp_path / "m.json")],
+        (["train", str(log), "--target", "mcu", "--hidden", "49", "-o", str(tmp_path / "m.json")],
          "--hidden"),
         (["train", str(log), "--target", "mcu", "-o", str(tmp_path / "m.onnx")], "JSON"),
         (["train", str(tmp_path / "none.csv"), "--target", "mcu", "-o", str(tmp_path / "m.json")],

@@ -73,8 +73,10 @@ def test_a_residual_over_the_calibration_runs_on_the_board_and_info_names_both(b
     calibration and the model, and the board's wrench is the Python calibrated wrench plus the
     integer reference's correction on the counts the board latched."""
     truth, cal, path = unit
-    # 100 Hz: the calibrated solve and the network together take about 108,000 cycles a sample
-    # (docs/ondevice-model.md), more than a 200 Hz period.
+    # The analytical default network (it reads the base wrench, so the application's float
+    # quantization is exercised) at 100 Hz: with the calibrated solve it takes about 100,000
+    # cycles a sample, more than a 200 Hz period (the default over a calibration, a linear map
+    # of the counts, sustains 200 Hz: docs/ondevice-model.md).
     check = twin.simulate(duration_s=4, rate_hz=100, **twin.same_unit(truth, 23))
     counts = np.round(check.theta / ENCODER_COUNT_RAD).astype(np.int64)
     base = CalibratedModel(baseline, cal).run(counts, 1.0 / 100)[0]

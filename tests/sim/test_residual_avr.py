@@ -9,6 +9,7 @@ import pytest
 
 from delta6.build import appbuild, avrbuild
 from delta6.core import int8net, residualmodel
+from delta6.core.int8quant import FeatureSpec
 from delta6.sim import residualbench
 from delta6_codegen import render, render_model
 
@@ -26,7 +27,7 @@ def _header_dir(tmp_path, net, design=None):
     return tmp_path, model
 
 
-@pytest.mark.parametrize("kind, rate", [("trained", 250), ("random", 50)])
+@pytest.mark.parametrize("kind, rate", [("trained", 250), ("linear", 200), ("random", 50)])
 def test_avr_gives_the_reference_integers(tmp_path, kind, rate):
     rng = np.random.default_rng(42)
     samples = 1500
@@ -35,6 +36,10 @@ def test_avr_gives_the_reference_integers(tmp_path, kind, rate):
         features = random_features(rng, 5)
         _, net = trained_like(rng, features, int8net.feature_values(features, base, counts),
                               hidden=(16,))
+    elif kind == "linear":   # the default over a calibration: one layer over the counts
+        features = (FeatureSpec("counts"),)
+        _, net = trained_like(rng, features, int8net.feature_values(features, base, counts),
+                              hidden=())
     else:
         net = random_int8net(rng)
     include, model = _header_dir(tmp_path, net)

@@ -6,6 +6,11 @@ The columns use the diagnosis's per-sample maps of the analytical model (``G``: 
 to wrench, ``J = dW/dtheta``, ``dW/d(geometry)``) and the calibrated model's own *causal*
 history features (``delta6.core.calibrated``), so what is fitted is exactly what the board
 computes. Each family returns columns (n, 6, p) in the units of its parameters.
+
+Each family also says how its parameters read in the diagnosis's term of the same effect
+(``term_map``: a linear map onto that term's coefficients), so the fit carries the same
+physics as the diagnosis: the term's prior scales (``Term.prior_sd``) regularise the fit, and
+the term's plausible limits (``Term.plausibility``) judge the fitted calibration.
 """
 from __future__ import annotations
 
@@ -16,9 +21,10 @@ import numpy as np
 
 from delta6.core import model
 from delta6.core.calibrated import JointTerms
-from delta6.core.calibration import Calibration
+from delta6.core.calibration import Calibration, CalibrationError, validate
+from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.diagnosis.data import GapData
-from delta6.diagnosis.terms import force_rotation
+from delta6.diagnosis.terms import FRICTION_VELOCITIES_RAD_S, HYSTERESIS_RADII, TERMS, Term, force_rotation
 
 
 @dataclass
@@ -38,7 +44,38 @@ class Family:
     param_names: tuple[str, ...]
     columns: Callable[[Context], np.ndarray]
     apply: Callable[[Calibration, np.ndarray], Calibration]
+    #: The family's parameters as they stand in a calibration (deviation from neutral).
+    values: Callable[[Calibration], np.ndarray]
+    #: (term width, family width): the parameters as the diagnosis term's coefficients.
+    term_map: np.ndarray
+    #: The calibration's attributes the family sets.
+    fields: tuple[str, ...]
     on_device: bool = True
+
+    @property
+    def term(self) -> Term:
+        return _TERMS[self.effect]
+
+    @property
+    def prior_sd(self) -> tuple[float, ...]:
+        """Each parameter's prior scale: the term's, of the coefficient it maps onto."""
+        prior = np.asarray(self.term.prior_sd, dtype=float)
+        return tuple(float(prior[i]) for i in np.argmax(np.abs(self.term_map), axis=0))
+
+    def plausibility(self, cal: Calibration) -> list[dict]:
+        """The fitted parameters against the term's plausible limits (``Term.plausibility``),
+        and against the calibration file's own bounds (a check named ``file_bounds``)."""
+        checks = self.term.plausibility(self.term_map @ self.values(cal))
+        probe = neutral_like(cal).with_(**{f: getattr(cal, f) for f in self.fields})
+        try:
+            validate(probe)
+        except CalibrationError as exc:
+            checks.append({"quantity": f"file_bounds ({exc})", "largest": float("inf"),
+                           "limit": 0.0, "ratio": float("inf")})
+        return checks
+
+    def implausible(self, cal: Calibration) -> list[dict]:
+        return [c for c in self.plausibility(cal) if c["ratio"] > 1.0]
 
 
 def _torque(ctx: Context, per_joint: np.ndarray) -> np.ndarray:
@@ -108,6 +145,60 @@ def _apply_friction(cal, c):
                 presliding_nm=c[:, s + 1])
 
 
+def neutral_like(cal: Calibration) -> Calibration:
+    """The neutral calibration with ``cal``'s design and settings (radii, speeds, filters)."""
+    radii, speeds = cal.hysteresis_radii_counts, cal.friction_speeds_rad_s
+    return Calibration(name=cal.name, design_name=cal.design_name, design_hash=cal.design_hash,
+                       direction_half_counts=cal.direction_half_counts,
+                       hysteresis_radii_counts=radii, hysteresis_nm=np.zeros((6, len(radii))),
+                       speed_filter_s=cal.speed_filter_s, friction_speeds_rad_s=speeds,
+                       friction_sign_nm=np.zeros((6, len(speeds))))
+
+
+_TERMS = {t.name: t for t in TERMS}
+
+
+def _nearest(values, grid) -> np.ndarray:
+    """Index of the nearest grid point to each value on a log scale."""
+    return np.argmin(np.abs(np.log(np.asarray(values, float))[:, None]
+                            - np.log(np.asarray(grid, float))[None, :]), axis=1)
+
+
+def _per_joint_map(blocks: np.ndarray) -> np.ndarray:
+    """A map that acts joint by joint with the same (term per joint, family per joint) block."""
+    return np.kron(np.eye(6), blocks)
+
+
+def _hysteresis_map(radii) -> np.ndarray:
+    block = np.zeros((len(HYSTERESIS_RADII), len(radii)))
+    block[_nearest(np.asarray(radii) * ENCODER_COUNT_RAD, HYSTERESIS_RADII),
+          np.arange(len(radii))] = 1.0
+    return _per_joint_map(block)
+
+
+def _friction_map(speeds) -> np.ndarray:
+    v = len(FRICTION_VELOCITIES_RAD_S)
+    block = np.zeros((v + 2, len(speeds) + 2))
+    block[_nearest(speeds, FRICTION_VELOCITIES_RAD_S), np.arange(len(speeds))] = 1.0
+    block[v, len(speeds)] = block[v + 1, len(speeds) + 1] = 1.0     # viscous, pre-sliding
+    return _per_joint_map(block)
+
+
+def _friction_values(cal):
+    return np.concatenate([cal.friction_sign_nm, cal.viscous_nm_s_per_rad[:, None],
+                           cal.presliding_nm[:, None]], axis=1).ravel()
+
+
+def _compliance_map() -> np.ndarray:
+    out = np.zeros((7, 4))        # term: axial (3), bending (3), tilt; family: elbow (3), tilt
+    out[3:6, 0:3] = np.eye(3)
+    out[6, 3] = 1.0
+    return out
+
+
+_GEOMETRY_FIELDS = ("delta_a_mm", "delta_b_mm", "delta_la_mm", "delta_lb_mm",
+                    "delta_azimuth_rad", "delta_rest_angle_rad", "gimbal_misalignment_rad")
+
 JOINTS = tuple(f"j{i}" for i in range(1, 7))
 BRANCHES = tuple(f"b{i}" for i in range(1, 4))
 
@@ -122,20 +213,32 @@ def families(cal: Calibration) -> dict[str, Family]:
         + tuple(f"gimbal_misalignment_{a}_rad" for a in "xyz")
     return {f.effect: f for f in (
         Family("encoder_offset", tuple(f"offset_{j}_rad" for j in JOINTS), _offset,
-               lambda c, x: _add(c, offset_rad=x)),
+               lambda c, x: _add(c, offset_rad=x), lambda c: np.asarray(c.offset_rad),
+               np.eye(6), ("offset_rad",)),
         Family("stiffness_mismatch", tuple(f"rate_ratio_{j}" for j in JOINTS), _rate,
-               lambda c, x: _add(c, rate_ratio=x)),
-        Family("geometry_error", geometry_names, _geometry, _apply_geometry),
+               lambda c, x: _add(c, rate_ratio=x), lambda c: np.asarray(c.rate_ratio) - 1.0,
+               np.eye(6), ("rate_ratio",)),
+        Family("geometry_error", geometry_names, _geometry, _apply_geometry,
+               lambda c: np.concatenate([getattr(c, f) for f in _GEOMETRY_FIELDS]),
+               np.eye(21), _GEOMETRY_FIELDS),
         Family("spring_hysteresis", tuple(f"hysteresis_{j}_r{r}_nm" for j in JOINTS for r in radii),
-               _hysteresis, lambda c, x: _add(c, hysteresis_nm=x.reshape(6, -1))),
+               _hysteresis, lambda c, x: _add(c, hysteresis_nm=x.reshape(6, -1)),
+               lambda c: np.asarray(c.hysteresis_nm).ravel(), _hysteresis_map(radii),
+               ("hysteresis_nm",)),
         Family("joint_friction", tuple(f"{k}_{j}" for j in JOINTS for k in
                                        tuple(f"sign_v{v:g}_nm" for v in speeds)
                                        + ("viscous_nm_s_per_rad", "presliding_nm")),
-               _friction, _apply_friction),
+               _friction, _apply_friction, _friction_values, _friction_map(speeds),
+               ("friction_sign_nm", "viscous_nm_s_per_rad", "presliding_nm")),
         Family("backlash", tuple(f"backlash_play_{j}_rad" for j in JOINTS), _backlash,
-               lambda c, x: _add(c, backlash_play_rad=x)),
+               lambda c, x: _add(c, backlash_play_rad=x),
+               lambda c: np.asarray(c.backlash_play_rad),
+               _per_joint_map(np.eye(len(_TERMS["backlash"].param_names) // 6, 1)),
+               ("backlash_play_rad",)),
         Family("link_compliance", tuple(f"elbow_{b}_rad_per_nm" for b in BRANCHES)
                + ("tilt_rad_per_nm",), _compliance,
                lambda c, x: _add(c, elbow_rad_per_nm=x[:3]).with_(
-                   tilt_rad_per_nm=float(c.tilt_rad_per_nm + x[3]))),
+                   tilt_rad_per_nm=float(c.tilt_rad_per_nm + x[3])),
+               lambda c: np.append(c.elbow_rad_per_nm, c.tilt_rad_per_nm), _compliance_map(),
+               ("elbow_rad_per_nm", "tilt_rad_per_nm")),
     )}

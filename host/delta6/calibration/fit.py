@@ -14,6 +14,13 @@
    the model's first-order response around the analytical model; each iteration solves the
    normal equations for the residual of the *nonlinear* calibrated model (FS-normalised, all
    six axes) and updates the calibration. Then the final calibration is fitted on all blocks.
+   The parameters carry the diagnosis's physical priors (``Term.prior_sd``: a Gaussian prior
+   on the calibration's values, not on the step, so a direction the log hardly excites, such
+   as a + b of a branch, stays near zero instead of drifting with every iteration).
+4. **Plausibility.** A family whose fitted parameters leave the diagnosis term's plausible
+   limits (``Term.plausibility``) or the file's bounds is left out (the worst first) and the
+   rest refitted; the calibration and the report say so (``fit.left_out``). An implausible
+   calibration is never written.
 """
 from __future__ import annotations
 
@@ -32,7 +39,9 @@ from delta6.core.errors import UserError
 from delta6.diagnosis import selection
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.run import diagnose_data
-from delta6.diagnosis.terms import Term
+from delta6.diagnosis.terms import TERMS, Term
+
+TERMS_BY_NAME = {t.name: t for t in TERMS}
 
 LATENCY = "sensor_latency"
 N_BLOCKS = 40
@@ -58,14 +67,15 @@ class CalibrationFit:
 def _latency_term(data: GapData) -> Term:
     def build(d):
         return -np.gradient(d.model, d.t, axis=0)[:, :, None]
-    return Term(LATENCY, "time", ("latency_s",), "s", build)
+    prior = TERMS_BY_NAME[LATENCY].prior_sd[:1]         # the diagnosis's, first order
+    return Term(LATENCY, "time", ("latency_s",), "s", build, prior_sd=prior)
 
 
 def _terms(ctx: Context, fams: dict) -> list[Term]:
     out = []
     for name, fam in fams.items():
         out.append(Term(name, "calibration", fam.param_names, "",
-                        lambda d, fam=fam: fam.columns(ctx)))
+                        lambda d, fam=fam: fam.columns(ctx), prior_sd=fam.prior_sd))
     return out
 
 
@@ -103,13 +113,18 @@ class _Fitter:
         if len(cols) == 0:
             return cal, latency
         gram = p.gram[np.ix_(blocks, cols, cols)].sum(axis=0)
+        penalty = p.penalty[cols]
         rows = self.rows(blocks)
         x = p.x[rows][:, :, cols].reshape(-1, len(cols))
         fs = self.data.fs
         for _ in range(iterations):
             pred = self.predict(cal, latency)
             r = ((self.data.reference - pred) / fs)[rows].reshape(-1)
-            step = selection.solve(gram, x.T @ r)
+            # The prior is on the values (current + step), so it pulls them, not the step,
+            # towards zero: (G + P) step = X^T r - P current.
+            current = np.concatenate([[latency] if n == LATENCY
+                                      else self.families[n].values(cal) for n in names])
+            step = selection.solve(gram, x.T @ r - penalty * current, penalty)
             at = 0
             for name in names:
                 width = p.slices[name].stop - p.slices[name].start
@@ -151,6 +166,23 @@ def _extend(fitter: _Fitter, chosen: list[str], rng, progress) -> list[str]:
         current = trials[best]
 
 
+def _worst_implausible(fitter: _Fitter, cal: Calibration, chosen) -> tuple | None:
+    """The chosen family furthest out of its plausible bounds, with its failed checks (None:
+    every family is plausible)."""
+    worst, worst_ratio = None, 1.0
+    for effect in chosen:
+        failed = fitter.families[effect].implausible(cal)
+        ratio = max((c["ratio"] for c in failed), default=0.0)
+        if ratio > worst_ratio:
+            worst, worst_ratio = (effect, failed), ratio
+    return worst
+
+
+def _describe(checks) -> str:
+    return "; ".join(f"{c['quantity']} {c['largest']:.3g} > {c['limit']:.3g}"
+                     if np.isfinite(c["largest"]) else c["quantity"] for c in checks)
+
+
 def check_effects(effects) -> None:
     for e in effects:
         if e == "thermal_drift":
@@ -187,21 +219,35 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
     fitter = _Fitter(data, base, with_latency, progress)
     if effects is None:
         chosen = _extend(fitter, chosen, np.random.default_rng(seed), progress)
-    names = chosen + ([LATENCY] if with_latency else [])
-
     held = np.arange(N_BLOCKS - HELDOUT_BLOCKS, N_BLOCKS)
     train = np.arange(0, N_BLOCKS - HELDOUT_BLOCKS - 1)
-    if progress:
-        progress("fitting on the training blocks")
-    start = base.with_(effects=tuple(chosen))
-    cal, latency = fitter.fit(start, names, train, ITERATIONS)
-    rows = fitter.rows(held)
-    before = _table(data.residual_pct[rows])
-    calibrated = fitter.predict(cal)          # what the board gives: no latency
-    after = _table((100.0 * (calibrated - data.reference) / data.fs)[rows])
-    if progress:
-        progress("fitting on all blocks")
-    cal, latency = fitter.fit(cal, names, np.arange(N_BLOCKS), FINAL_ITERATIONS, latency)
+    left_out = {}
+    while True:
+        names = chosen + ([LATENCY] if with_latency else [])
+        if progress:
+            progress("fitting on the training blocks")
+        start = base.with_(effects=tuple(chosen))
+        cal, latency = fitter.fit(start, names, train, ITERATIONS)
+        bad = _worst_implausible(fitter, cal, chosen)
+        if bad is None:
+            rows = fitter.rows(held)
+            before = _table(data.residual_pct[rows])
+            calibrated = fitter.predict(cal)          # what the board gives: no latency
+            after = _table((100.0 * (calibrated - data.reference) / data.fs)[rows])
+            if progress:
+                progress("fitting on all blocks")
+            cal, latency = fitter.fit(cal, names, np.arange(N_BLOCKS), FINAL_ITERATIONS,
+                                      latency)
+            bad = _worst_implausible(fitter, cal, chosen)
+        if bad is None:
+            break
+        effect, checks = bad
+        left_out[effect] = checks
+        chosen.remove(effect)
+        note = f"{effect}: left out, it fits only out of plausible bounds ({_describe(checks)})"
+        notes.append(note)
+        if progress:
+            progress(note)
     seconds = time.perf_counter() - started
     fit_record = {
         "log": source, "samples": len(data), "duration_s": float(data.t[-1] - data.t[0]),
@@ -211,6 +257,7 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
         "heldout": f"last {HELDOUT_BLOCKS} of {N_BLOCKS} time blocks (one buffer block); "
                    "the parameters below are refitted on the whole log",
         "not_applied": notes,
+        "left_out": sorted(left_out),
         "seconds": round(seconds, 2),
         "heldout_before": before, "heldout_after": after,
     }

@@ -49,8 +49,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--threads", type=number("--threads", int, 1), default=1, metavar="N",
                         help="CPU threads for training (default 1: these networks are small, "
                              "and on a busy machine more threads wait more than they work)")
-    parser.add_argument("--hidden", default="16", metavar="N[xM]",
-                        help="--target mcu: hidden layer widths, e.g. 16 or 16x8 (default 16)")
+    parser.add_argument("--hidden", metavar="N[xM]",
+                        help="--target mcu: hidden layer widths, e.g. 16 or 16x8, or 0 for a "
+                             "linear map (default 16 over analytical; over a calibration a "
+                             "linear map of the counts)")
     parser.add_argument("--name", help="--target mcu: model name, at most 23 characters "
                                        "(default: the output file's stem)")
     parser.add_argument("-o", "--output", required=True, metavar="MODEL.onnx",
@@ -120,12 +122,14 @@ def _rows(table: dict) -> dict:
 
 
 def _hidden(text: str) -> tuple[int, ...]:
+    if text.strip() == "0":
+        return ()
     try:
         sizes = tuple(int(x) for x in text.lower().split("x"))
     except ValueError:
         raise UserError(f"--hidden takes widths like 16 or 16x8, got {text!r}") from None
     if not sizes or any(not 1 <= s <= 48 for s in sizes) or len(sizes) > 4:
-        raise UserError("--hidden: one to four layers of 1..48 neurons")
+        raise UserError("--hidden: 0 (linear) or one to four layers of 1..48 neurons")
     return sizes
 
 
@@ -149,7 +153,7 @@ def run_mcu(args: argparse.Namespace) -> int:
     if args.model is not None:
         raise UserError("--model picks a host network; --target mcu trains its own small MLP "
                         "(see --hidden)")
-    hidden = _hidden(args.hidden)
+    hidden = None if args.hidden is None else _hidden(args.hidden)
     output = Path(args.output)
     name = args.name or output.stem
     if not name or len(name) > 23 or not name.isascii() or not name.isprintable():
@@ -166,7 +170,8 @@ def run_mcu(args: argparse.Namespace) -> int:
     from delta6.core import residualmodel
     from delta6.learning import mcu
     say = None if args.quiet else (lambda text: print(f"  {text}", file=sys.stderr, flush=True))
-    settings = mcu.McuSettings(hidden=hidden, epochs=args.epochs or 30, seed=args.seed)
+    settings = mcu.default_settings(base, epochs=args.epochs or 30, seed=args.seed,
+                                    **({} if hidden is None else {"hidden": hidden}))
     result = mcu.train_mcu(log, design, base, name=name, settings=settings, progress=say,
                            source=Path(args.log).name)
     path = residualmodel.save(result.model, output)

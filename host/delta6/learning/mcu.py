@@ -28,10 +28,17 @@ from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.core.residualmodel import ResidualModel
 from delta6.core.spec import full_scale
 
-#: The default features (docs/ondevice-model.md says why): the base wrench, the counts, the
-#: base wrench's step over one model period, and plays of 4, 16 and 64 counts.
+#: The default features over the analytical model (docs/ondevice-model.md says why): the base
+#: wrench, the counts, the base wrench's step over one model period, and plays of 4, 16 and 64
+#: counts, into one hidden layer of 16.
 DEFAULT_FEATURES = (FeatureSpec("wrench"), FeatureSpec("counts"), FeatureSpec("wrench_step", 1),
                     FeatureSpec("play", 4), FeatureSpec("play", 16), FeatureSpec("play", 64))
+DEFAULT_HIDDEN = (16,)
+#: Over a calibration: a linear map of the counts (36 multiply-accumulates). The calibrated
+#: model already carries the history terms; wider inputs and hidden layers gained nothing on
+#: held-out data there and cost the cycles the calibrated solve needs (docs/ondevice-model.md).
+CALIBRATED_FEATURES = (FeatureSpec("counts"),)
+CALIBRATED_HIDDEN = ()
 #: Base wrench input steps: full scale is 2^14 steps, so int16 holds +-2 full scales.
 INPUT_STEPS_PER_FS = 16384.0
 MIN_SAMPLES = 200
@@ -42,7 +49,7 @@ Progress = Callable[[str], None]
 @dataclass
 class McuSettings:
     features: tuple = DEFAULT_FEATURES
-    hidden: tuple = (16,)
+    hidden: tuple = DEFAULT_HIDDEN
     epochs: int = 30
     batch: int = 1024
     learning_rate: float = 3e-3
@@ -56,6 +63,14 @@ class McuResult:
     model: ResidualModel
     float_net: FloatNet
     report: dict = field(default_factory=dict)
+
+
+def default_settings(base, **overrides) -> McuSettings:
+    """The settings for a residual over ``base``: the analytical model's default network, or
+    the linear map of the counts over a calibrated model; ``overrides`` replace fields."""
+    if getattr(base, "name", "") == "calibrated":
+        overrides = {"features": CALIBRATED_FEATURES, "hidden": CALIBRATED_HIDDEN, **overrides}
+    return McuSettings(**overrides)
 
 
 class AnalyticalBase:
