@@ -154,7 +154,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     candidates = []
     for term in terms:
         sse = alone[term.name]
-        boot = selection.bootstrap_gain(base_sse, sse, rng)
+        boot = selection.stratified_gain(base_sse, sse, rng)
         candidates.append({
             "name": term.name,
             "heldout_p99_pct": held["p99"][("alone", term.name)].tolist(),
