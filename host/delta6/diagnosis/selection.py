@@ -225,7 +225,7 @@ def loudness_strata(sse: np.ndarray, share: float = LOUD_SHARE) -> np.ndarray:
         return np.ones(len(sse), dtype=int)
     before = (np.cumsum(sse[order]) - sse[order]) / total
     out = np.zeros(len(sse), dtype=int)
-    out[order[before < share]] = 1
+    out[order[before < share - 1e-9]] = 1      # (rounding of the cumulative sum)
     return out
 
 
