@@ -25,7 +25,8 @@ nonlinear_spring    torque      a spring rate that changes with the deflection (
 encoder_periodic_   angle       an encoder error periodic in the shaft angle (harmonics
 error                           1..4 of a turn, any phase)
 harness             torque      a parallel elastic path (a cable to the plate): a force on
-                                the plate affine in the plate's position, through the
+                                the plate affine in the plate's pose, plus one-sided terms
+                                (a slack cable that only pulls once taut), through the
                                 mechanism to the joints
 ==================  ==========  =======================================================
 
