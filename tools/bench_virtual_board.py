@@ -3,6 +3,8 @@
     .venv/bin/python tools/bench_virtual_board.py            # about two minutes
     .venv/bin/python tools/bench_virtual_board.py --seconds 1 --rates 250,400,500
     .venv/bin/python tools/bench_virtual_board.py --pipeline on     # filter + tool frame only
+    .venv/bin/python tools/bench_virtual_board.py --calibration CAL.toml [--model M.json] \
+        --rates 150,200,250,300      # a unit's calibrated image (and its on-chip residual)
 
 For each stream mode (wrench, wrench+raw) it steps the sample rate up while the encoders
 follow a moving trajectory (the solver's cost depends on the angles), and measures over a
@@ -122,11 +124,22 @@ def main() -> int:
                         help="comma-separated rates to try, ascending")
     parser.add_argument("--pipeline", choices=("off", "on", "both"), default="both",
                         help="the device's filter and tool frame off, on, or both (default)")
+    parser.add_argument("--calibration", type=Path, metavar="CAL.toml",
+                        help="measure the image with this unit's calibration compiled in")
+    parser.add_argument("--model", type=Path, metavar="MODEL.json",
+                        help="... and this on-chip residual model")
     args = parser.parse_args()
     pipelines = {"off": [False], "on": [True], "both": [False, True]}[args.pipeline]
     rates = [int(r) for r in args.rates.split(",")]
 
-    image = firmware(defines=["DELTA6_MAX_RATE_HZ=2000", "DELTA6_MAX_RATE_PIPELINE_HZ=2000"])
+    unrated = ["DELTA6_MAX_RATE_HZ=2000", "DELTA6_MAX_RATE_PIPELINE_HZ=2000"]
+    if args.calibration or args.model:
+        from delta6.commands.codegen import design_firmware
+        from delta6.core.paths import DEFAULT_DESIGN
+        image = design_firmware(Path(DEFAULT_DESIGN), args.calibration, args.model,
+                                defines=unrated)
+    else:
+        image = firmware(defines=unrated)
     print(f"firmware image: {image.elf.name}, flash {image.sizes.flash} B, "
           f"static RAM {image.sizes.ram} B (ATmega328P, {F_CPU / 1e6:g} MHz, {P.DEFAULT_BAUD} baud)")
     t, theta = demo_trajectory(duration_s=30.0, rate_hz=1000.0, amplitude=0.9)

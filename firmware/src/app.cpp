@@ -27,20 +27,30 @@
 #endif
 
 // The fastest rate the board sustains without overruns in both stream modes, for the info
-// record and the START check: 350 Hz at 16 MHz (tools/bench_virtual_board.py on the emulated
-// ATmega328P: wrench streams sustain 400 Hz, wrench+raw 350 Hz; the 4809 runs the same code
-// within about 10 %), scaled with the clock.
-#ifndef DELTA6_MAX_RATE_HZ
-#define DELTA6_MAX_RATE_HZ (350UL * (F_CPU / 1000000UL) / 16UL)
-#endif
+// record and the START check, at 16 MHz and scaled with the clock
+// (tools/bench_virtual_board.py [--calibration CAL --model M] on the emulated ATmega328P; the
+// 4809 runs the same code within about 10 %):
+// - the analytical model: 350 Hz (wrench streams sustain 400 Hz, wrench+raw 350 Hz);
+// - a calibrated unit, with or without an on-chip residual: 200 Hz (the calibrated solve is
+//   about 51,000 cycles; wrench streams alone would sustain 250 Hz, wrench+raw does not).
 // With the wrench pipeline on (a low-pass filter or a tool frame: about 19,000 more cycles
-// per sample), 250 Hz at 16 MHz in both modes (tools/bench_virtual_board.py --pipeline on:
-// 300 Hz overruns), scaled with the clock.
-#ifndef DELTA6_MAX_RATE_PIPELINE_HZ
-#define DELTA6_MAX_RATE_PIPELINE_HZ (250UL * (F_CPU / 1000000UL) / 16UL)
+// per sample): 250 Hz for the analytical model (300 Hz overruns), 150 Hz calibrated.
+#if DELTA6_CALIBRATED || DELTA6_RESIDUAL
+#define DELTA6_RATED_HZ 200UL
+#define DELTA6_RATED_PIPELINE_HZ 150UL
+#else
+#define DELTA6_RATED_HZ 350UL
+#define DELTA6_RATED_PIPELINE_HZ 250UL
 #endif
+#ifndef DELTA6_MAX_RATE_HZ
+#define DELTA6_MAX_RATE_HZ (DELTA6_RATED_HZ * (F_CPU / 1000000UL) / 16UL)
+#endif
+#ifndef DELTA6_MAX_RATE_PIPELINE_HZ
+#define DELTA6_MAX_RATE_PIPELINE_HZ (DELTA6_RATED_PIPELINE_HZ * (F_CPU / 1000000UL) / 16UL)
+#endif
+// The rate a fresh board streams at: 250 Hz, or the board's highest if that is lower.
 #ifndef DELTA6_DEFAULT_RATE_HZ
-#define DELTA6_DEFAULT_RATE_HZ 250
+#define DELTA6_DEFAULT_RATE_HZ (DELTA6_MAX_RATE_HZ < 250UL ? DELTA6_MAX_RATE_HZ : 250UL)
 #endif
 
 namespace {

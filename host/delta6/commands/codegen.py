@@ -256,18 +256,19 @@ def _remove(path: Path) -> bool:
 
 
 def build_image(design: design_mod.Design, include_dir: Path, cal=None,
-                model=None) -> avrbuild.Image:
+                model=None, defines=()) -> avrbuild.Image:
     """The firmware application for ``design`` (headers under ``include_dir``), in
     build/designs/NAME/atmega328p/ (NAME-cal-HASH for a calibrated unit, +MODEL-HASH with a
-    model)."""
+    model; ``defines``, for benchmarks, build into atmega328p-defines/)."""
     from delta6.build.appbuild import build_app
     name = build_name(design, cal, model)
-    return build_app(include_dir, name=f"delta6-{name}",
-                     out_dir=avrbuild.design_build_dir(name) / "atmega328p")
+    folder = "atmega328p-defines" if defines else "atmega328p"
+    return build_app(include_dir, name=f"delta6-{name}", defines=list(defines),
+                     out_dir=avrbuild.design_build_dir(name) / folder)
 
 
 def design_firmware(path: Path, calibration: Path | None = None,
-                    model_path: Path | None = None) -> avrbuild.Image:
+                    model_path: Path | None = None, defines=()) -> avrbuild.Image:
     """Generate ``path``'s header (and ``calibration``'s and ``model_path``'s) into
     build/designs/NAME/include/ (the committed headers are left alone) and build the
     application for it: what ``delta6 virtual --design [--calibration] [--model]`` runs."""
@@ -275,7 +276,7 @@ def design_firmware(path: Path, calibration: Path | None = None,
     design, cal, model = headers.design, headers.cal, headers.model
     header = avrbuild.design_include_dir(build_name(design, cal, model)) / HEADER_RELPATH
     write_headers(header, headers)
-    return build_image(design, include_dir_of(header), cal, model)
+    return build_image(design, include_dir_of(header), cal, model, defines)
 
 
 def _write_if_changed(path: Path, text: str) -> bool:
