@@ -96,3 +96,17 @@ def test_bad_inputs_are_one_line_errors(trained, tmp_path, capsys):
         assert main(argv) == 2, argv
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and needle in err, (argv, err)
+
+
+def test_a_log_of_another_design_is_refused_before_training(tmp_path, capsys):
+    # The board runs the model on one design: training it on another design's log would
+    # write a model that silently corrects the wrong mechanism.
+    log = tmp_path / "stiff.csv"
+    assert main(["simulate", "--design", "designs/stiff.toml", "--duration", "20",
+                 "-o", str(log)]) == 0
+    capsys.readouterr()
+    assert main(["train", str(log), "--target", "mcu", "--epochs", "1", "--quiet",
+                 "-o", str(tmp_path / "m.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "recorded with design stiff" in err, err
+    assert not (tmp_path / "m.json").exists()

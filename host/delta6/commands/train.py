@@ -163,6 +163,9 @@ def run_mcu(args: argparse.Namespace) -> int:
     design = load_checked(args.design)
     base = _mcu_base(args, design)
     log = read_log(args.log)
+    # the board runs this model on one design (and calibration): a log of another is refused
+    calibration_mod.check_log_meta(log.meta, design, getattr(base, "calibration", None),
+                                   source=str(args.log))
     try:
         import torch  # noqa: F401
     except ImportError:
