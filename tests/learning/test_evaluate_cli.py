@@ -45,3 +45,17 @@ def test_bad_models_get_one_line_and_exit_2(tmp_path, tiny_models, unit_logs, ca
         assert main(["evaluate", str(unit_logs[1]), *argv]) == 2
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and words in err, err
+
+
+def test_a_plot_that_cannot_be_written_is_refused_in_one_line(tmp_path, capsys):
+    log = tmp_path / "run.csv"
+    assert main(["simulate", "--duration", "10", "-o", str(log)]) == 0
+    for plot, words in ((tmp_path / "errors.txt", "not an image format"),
+                        (tmp_path / "none" / "errors.png", "does not exist"),
+                        (tmp_path, "is a folder")):
+        capsys.readouterr()
+        assert main(["evaluate", str(log), "--plot", str(plot)]) == 2, plot
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and words in err, err
+    assert main(["evaluate", str(log), "--plot", str(tmp_path / "errors.svg")]) == 0
+    assert (tmp_path / "errors.svg").read_text().lstrip().startswith("<?xml")

@@ -15,7 +15,7 @@ from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.spec import full_scale
 from delta6.core.workspace import load_checked
 from delta6.evaluation import tablev
-from delta6.evaluation.error_plot import plot_errors
+from delta6.evaluation.error_plot import check_plot_path, plot_errors
 from delta6.learning import LearnedEstimator
 from delta6.learning.mcu import McuEstimator
 from delta6.link.logfile import read_log
@@ -77,6 +77,8 @@ class Computed:
 def run(args: argparse.Namespace) -> int:
     if args.json:
         check_output_file(args.json, "--json")
+    if args.plot:
+        check_plot_path(args.plot)
     design = load_checked(args.design)
     log = read_log(args.log)
     if len(log) == 0:
