@@ -18,6 +18,7 @@ from delta6.evaluation import tablev
 from delta6.evaluation.error_plot import check_plot_path, plot_errors
 from delta6.learning import LearnedEstimator
 from delta6.learning.mcu import McuEstimator
+from delta6.link.logdata import require_reference_wrench
 from delta6.link.logfile import read_log
 
 NAME = "evaluate"
@@ -83,6 +84,8 @@ def run(args: argparse.Namespace) -> int:
     log = read_log(args.log)
     if len(log) == 0:
         raise UserError(f"{args.log}: no samples")
+    require_reference_wrench(log.meta, args.log, "Table V compares the estimators with a "
+                             "reference (docs/calibration.md)")
     rows = [Computed(e.name, e.predict(log)) for e in estimators(args, design, log)]
     result = tablev.table(rows, log, design)
     if args.json:
