@@ -58,7 +58,19 @@ def _records() -> list[str]:
                     "// Bytes on the wire beyond the payload: CRC, one COBS code byte, the "
                     "delimiter.",
                     f"const uint8_t kFrameOverhead = {P.FRAME_OVERHEAD};",
-                    f"const uint8_t kMaxFrameBytes = {size + P.FRAME_OVERHEAD};", ""]
+                    f"const uint8_t kMaxFrameBytes = {size + P.FRAME_OVERHEAD};", "",
+                    *_size_table("Record", {int(t): n for t, n in P.RECORD_SIZES.items()})]
+
+
+def _size_table(what: str, sizes: dict[int, int]) -> list[str]:
+    """Payload size by type code from the first one (0: no such type), in flash: a switch
+    would become a lookup table in the AVR's RAM."""
+    first, last = min(sizes), max(sizes)
+    values = ", ".join(str(sizes.get(code, 0)) for code in range(first, last + 1))
+    return [f"// Payload size of each {what.lower()} type from kFirst{what}Type on (0: none).",
+            f"const uint8_t kFirst{what}Type = 0x{first:02X};",
+            f"const uint8_t k{what}TypeCount = {last - first + 1};",
+            f"const uint8_t k{what}SizeByType[k{what}TypeCount] DELTA6_FLASH = {{{values}}};", ""]
 
 
 def _commands() -> list[str]:
@@ -76,11 +88,12 @@ def _commands() -> list[str]:
         f"const uint8_t kLastCommand = 0x{max(P.Command):02X};",
         f"const uint8_t kMaxCommandSize = {max(P.COMMAND_SIZES.values())};",
         "// Receive buffer (encoded bytes): longer command frames are discarded and counted.",
-        f"const uint8_t kCommandBuffer = {P.COMMAND_BUFFER};", ""]
+        f"const uint8_t kCommandBuffer = {P.COMMAND_BUFFER};", "",
+        *_size_table("Command", {int(c): n for c, n in P.COMMAND_SIZES.items()})]
 
 
 def _status() -> list[str]:
-    lines = ["// --- status word bits (docs/protocol.md section 5); bit 15 is reserved ---"]
+    lines = ["// --- status word bits (docs/protocol.md section 5) ---"]
     for flag in P.Status:
         lines.append(f"const uint16_t kStatus{camel(flag.name)} = 1u << {int(flag).bit_length() - 1};")
     return lines + [f"const uint16_t kStatusEncoderMask = 0x{P.ENCODER_MASK:04X};", ""]
@@ -93,6 +106,11 @@ def _config_blob() -> list[str]:
             f"const uint16_t kConfigMagic = 0x{P.CONFIG_MAGIC:04X};",
             f"const uint8_t kConfigLayoutVersion = {P.CONFIG_LAYOUT_VERSION};",
             f"const uint16_t kConfigBlobSize = {P.CONFIG_BLOB_SIZE};",
+            "// Older layouts the device still loads: each is a prefix of the newest (same",
+            "// offsets), its blob shorter; the fields it lacks take the defaults.",
+            *[line for v in sorted(P.CONFIG_LAYOUTS) if v != P.CONFIG_LAYOUT_VERSION
+              for line in (f"const uint8_t kConfigLayoutV{v} = {v};",
+                           f"const uint16_t kConfigBlobSizeV{v} = {P.CONFIG_BLOB_SIZES[v]};")],
             *_offsets("kConfig", layout), ""]
 
 
@@ -105,10 +123,12 @@ def _scaling() -> list[str]:
         f"const int8_t kMinExponent = {wirescale.MIN_EXPONENT};",
         f"const int8_t kMaxExponent = {wirescale.MAX_EXPONENT};",
         f"const uint8_t kMantissaCount = {len(mantissas)};",
-        f"const uint8_t kMantissas[kMantissaCount] = {{{', '.join(map(str, mantissas))}}};",
+        "// In flash on the AVR (DELTA6_FLASH): read them with flash::byte and flash::f32.",
+        f"const uint8_t kMantissas[kMantissaCount] DELTA6_FLASH = "
+        f"{{{', '.join(map(str, mantissas))}}};",
         "// Decades as float literals: the host (delta6.link.wirescale) rounds the same decimals",
         "// to float32, so both ends pick the same step even at exact boundaries.",
-        "const float kDecades[kMaxExponent - kMinExponent + 1] = {",
+        "const float kDecades[kMaxExponent - kMinExponent + 1] DELTA6_FLASH = {",
         "    " + ", ".join(f"1e{e}f" for e in exponents) + "};",
         f"const float kHeadroom = {wirescale.HEADROOM!r}f;",
         "// A wrench value: counts of the LSB; kInvalidValue when the sample has none.",
@@ -135,6 +155,8 @@ def render_wire() -> str:
         "#define DELTA6_GENERATED_WIRE_H",
         "",
         "#include <stdint.h>",
+        "",
+        "#include \"delta6_flash.h\"",
         "",
         "namespace delta6 {",
         "namespace proto {",

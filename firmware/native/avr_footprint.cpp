@@ -29,14 +29,15 @@ class NullHardware : public delta6::Hardware {
 NullHardware hardware;
 // What the application passes: the identity straight from the generated design header.
 namespace d = delta6::design;
-const delta6::Identity identity = {
+const delta6::Identity identity DELTA6_FLASH = {
     d::kName, d::kHash,
     {d::kFullScale[0], d::kFullScale[1], d::kFullScale[2], d::kFullScale[3], d::kFullScale[4],
      d::kFullScale[5]},
     d::kJointLimitRad, d::kJointLimitCounts,
     {delta6::kFirmwareVersionMajor, delta6::kFirmwareVersionMinor, delta6::kFirmwareVersionPatch},
-    500000, 2000, 0, 0, nullptr, 0, nullptr, 0};
-const delta6::Config defaults = {200, 1, false, {0, 0, 0, 0, 0, 0}, {0, 0, 0, 0, 0, 0}};
+    500000, 2000, 0, 0, nullptr, 0, nullptr, 0, 0};
+const delta6::Config defaults DELTA6_FLASH = {200, 1, false, {0, 0, 0, 0, 0, 0}, {0, 0, 0, 0, 0, 0},
+                                 0.0f, {0, 0, 0}, {0, 0, 0}, {0, 0, 0, 0, 0, 0}};
 delta6::Device device(hardware, identity, defaults);
 
 }  // namespace

@@ -42,14 +42,15 @@ class CaptureHardware : public delta6::Hardware {
 };
 
 CaptureHardware hardware;
-const delta6::Identity identity = {"delta6", 0x535534AF,
+const delta6::Identity identity DELTA6_FLASH = {"delta6", 0x535534AF,
                                    {15.03f, 15.03f, 25.1f, 0.3805f, 0.3347f, 0.4266f},
                                    0.5236f, 1365,
                                    {delta6::kFirmwareVersionMajor, delta6::kFirmwareVersionMinor,
                                     delta6::kFirmwareVersionPatch},
-                                   500000, 2000, 0, 0, nullptr, 0, nullptr, 0};
-const delta6::Config defaults = {500, 1, false, {0, 0, 0, 0, 0, 0},
-                                 {1200, 5400, 9800, 14100, 300, 16000}};
+                                   500000, 2000, 0, 0, nullptr, 0, nullptr, 0, 0};
+const delta6::Config defaults DELTA6_FLASH = {500, 1, false, {0, 0, 0, 0, 0, 0},
+                                 {1200, 5400, 9800, 14100, 300, 16000},
+                                 0.0f, {0, 0, 0}, {0, 0, 0}, {0, 0, 0, 0, 0, 0}};
 delta6::Device device(hardware, identity, defaults);
 delta6::Sample sample;
 
@@ -105,8 +106,10 @@ int main() {
   UBRR0 = 0;  // the emulator transmits at any rate
   UCSR0A = 1 << U2X0;
   UCSR0B = 1 << TXEN0;
+  delta6::Config loaded;  // the defaults live in flash
+  delta6::flash::copy(&loaded, &defaults, sizeof loaded);
   for (uint8_t i = 0; i < 6; ++i) {
-    sample.counts[i] = static_cast<uint16_t>(defaults.zero_counts[i] + 100 * i);
+    sample.counts[i] = static_cast<uint16_t>(loaded.zero_counts[i] + 100 * i);
     sample.wrench[i] = 1.5f * static_cast<float>(i + 1) - 4.0f;
   }
   sample.solver_ok = true;

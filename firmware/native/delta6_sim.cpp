@@ -46,6 +46,7 @@ struct Setup {
     identity.calibration_hash = 0;
     identity.model_name = nullptr;
     identity.model_hash = 0;
+    identity.max_rate_pipeline_hz = 0;
     memset(&defaults, 0, sizeof(defaults));
     defaults.rate_hz = default_rate;
     defaults.mode = delta6::proto::kModeWrench;
@@ -56,6 +57,8 @@ struct Setup {
 struct Sim : Setup {
   SimHardware hardware;
   Device device;
+  bool sampled = false;
+  uint32_t last_sample_us = 0;
 
   Sim(const char* design_name, uint32_t hash, const float* full_scale, float joint_limit,
       int16_t joint_limit_counts, uint32_t baud, uint16_t max_rate, uint16_t default_rate,
@@ -109,6 +112,14 @@ void d6sim_samples(void* p, uint32_t n, const uint32_t* time_us, const uint16_t*
     x.overrun = overrun[k] != 0;
     x.loop_time_us = loop_us[k];
     x.temperature_centi = temperature;
+    if (s->sampled) {
+      // The board's main loop serves waiting answers while it idles between samples (the
+      // queue drains meanwhile): once here, half way.
+      s->hardware.setTime(s->last_sample_us + (x.time_us - s->last_sample_us) / 2);
+      s->device.service();
+    }
+    s->sampled = true;
+    s->last_sample_us = x.time_us;
     s->hardware.setTime(x.time_us);
     s->device.onSample(x);
   }
@@ -139,6 +150,9 @@ void d6sim_break_eeprom(void* p, int broken) {
 }
 uint16_t d6sim_link_limit(void* p, uint8_t mode) {
   return static_cast<Sim*>(p)->device.linkRateLimit(mode);
+}
+void d6sim_set_max_rate_pipeline(void* p, uint16_t hz) {
+  static_cast<Sim*>(p)->identity.max_rate_pipeline_hz = hz;
 }
 uint32_t d6sim_sizeof_device() { return sizeof(Device); }
 
@@ -199,9 +213,20 @@ uint32_t d6_parse_commands(const uint8_t* data, uint32_t n, uint8_t* out, uint32
   return rows;
 }
 
+// pipeline: cutoff Hz, tool translation (3), tool rpy (3); null for none (and no limits).
 void d6_encode_config(const uint16_t* rate_mode_active, const float* tare, const uint16_t* zero,
-                      uint32_t design_hash, uint8_t* blob) {
+                      const float* pipeline, const uint16_t* limits, uint32_t design_hash,
+                      uint8_t* blob) {
   Config c;
+  memset(&c, 0, sizeof(c));
+  if (pipeline) {
+    c.filter_hz = pipeline[0];
+    for (int i = 0; i < 3; ++i) {
+      c.tool_translation[i] = pipeline[1 + i];
+      c.tool_rpy[i] = pipeline[4 + i];
+    }
+  }
+  if (limits) memcpy(c.limits, limits, sizeof(c.limits));
   c.rate_hz = rate_mode_active[0];
   c.mode = static_cast<uint8_t>(rate_mode_active[1]);
   c.tare_active = rate_mode_active[2] != 0;

@@ -86,7 +86,8 @@ const uint8_t kTypes[] = {proto::kCmdGetInfo, proto::kCmdPing, proto::kCmdStart,
                           proto::kCmdStop, proto::kCmdSetMode, proto::kCmdTare,
                           proto::kCmdClearTare, proto::kCmdSaveConfig,
                           proto::kCmdLoadDefaults, proto::kCmdSetZero, proto::kCmdZeroHere,
-                          proto::kCmdGetTelemetry, 0x8C, 0xFF, 0x01, 0x03};
+                          proto::kCmdGetTelemetry, proto::kCmdSetFilter, proto::kCmdSetTool,
+                          proto::kCmdSetLimits, proto::kLastCommand + 1, 0xFF, 0x01, 0x03};
 
 // A command frame (delimiter included) into out; returns its length.
 uint16_t makeCommand(uint8_t* out) {
@@ -101,6 +102,18 @@ uint16_t makeCommand(uint8_t* out) {
     proto::putU16(out + 3, static_cast<uint16_t>(below(20)));
   }
   if (type == proto::kCmdSetMode && below(2)) out[3] = static_cast<uint8_t>(1 + below(2));
+  // Pipeline settings the device accepts, half of the time (random bits mostly are not).
+  if (type == proto::kCmdSetFilter && below(2)) {
+    proto::putF32(out + 3, below(4) ? static_cast<float>(below(300)) : 0.0f);
+  }
+  if (type == proto::kCmdSetTool && below(2)) {
+    for (uint8_t i = 0; i < 6; ++i) {
+      proto::putF32(out + 3 + 4 * i, (static_cast<float>(below(2001)) - 1000.0f) * 1e-3f);
+    }
+  }
+  if (type == proto::kCmdSetLimits && below(2)) {
+    for (uint8_t i = 0; i < 6; ++i) proto::putU16(out + 3 + 2 * i, static_cast<uint16_t>(below(3000)));
+  }
   return proto::finishFrame(out, size);
 }
 

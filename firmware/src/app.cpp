@@ -27,14 +27,30 @@
 #endif
 
 // The fastest rate the board sustains without overruns in both stream modes, for the info
-// record and the START check: 350 Hz at 16 MHz (tools/bench_virtual_board.py on the emulated
-// ATmega328P: wrench streams sustain 400 Hz, wrench+raw 350 Hz; the 4809 runs the same code
-// within about 10 %), scaled with the clock.
-#ifndef DELTA6_MAX_RATE_HZ
-#define DELTA6_MAX_RATE_HZ (350UL * (F_CPU / 1000000UL) / 16UL)
+// record and the START check, at 16 MHz and scaled with the clock
+// (tools/bench_virtual_board.py [--calibration CAL --model M] on the emulated ATmega328P; the
+// 4809 runs the same code within about 10 %):
+// - the analytical model: 350 Hz (wrench streams sustain 400 Hz, wrench+raw 350 Hz);
+// - a calibrated unit, with or without an on-chip residual: 200 Hz (the calibrated solve is
+//   about 51,000 cycles; wrench streams alone would sustain 250 Hz, wrench+raw does not).
+// With the wrench pipeline on (a low-pass filter or a tool frame: about 19,000 more cycles
+// per sample): 250 Hz for the analytical model (300 Hz overruns), 150 Hz calibrated.
+#if DELTA6_CALIBRATED || DELTA6_RESIDUAL
+#define DELTA6_RATED_HZ 200UL
+#define DELTA6_RATED_PIPELINE_HZ 150UL
+#else
+#define DELTA6_RATED_HZ 350UL
+#define DELTA6_RATED_PIPELINE_HZ 250UL
 #endif
+#ifndef DELTA6_MAX_RATE_HZ
+#define DELTA6_MAX_RATE_HZ (DELTA6_RATED_HZ * (F_CPU / 1000000UL) / 16UL)
+#endif
+#ifndef DELTA6_MAX_RATE_PIPELINE_HZ
+#define DELTA6_MAX_RATE_PIPELINE_HZ (DELTA6_RATED_PIPELINE_HZ * (F_CPU / 1000000UL) / 16UL)
+#endif
+// The rate a fresh board streams at: 250 Hz, or the board's highest if that is lower.
 #ifndef DELTA6_DEFAULT_RATE_HZ
-#define DELTA6_DEFAULT_RATE_HZ 250
+#define DELTA6_DEFAULT_RATE_HZ (DELTA6_MAX_RATE_HZ < 250UL ? DELTA6_MAX_RATE_HZ : 250UL)
 #endif
 
 namespace {
@@ -61,10 +77,25 @@ volatile uint8_t queue_tail = 0;   // written by the main loop
 volatile uint8_t missed = 0;
 volatile bool latching = false;
 
+#if DELTA6_CALIBRATED || DELTA6_RESIDUAL
+// The zero counts the calibrated model's and the residual's histories were built on (a new
+// zero restarts them): one copy for both.
+uint16_t model_zero[6];
+
+// Whether the device's zero counts changed since the last sample that had all six angles.
+bool zeroChanged(const uint16_t* zero) {
+  bool changed = false;
+  for (uint8_t j = 0; j < 6; ++j) {
+    if (zero[j] != model_zero[j]) changed = true;
+    model_zero[j] = zero[j];
+  }
+  return changed;
+}
+#endif
+
 #if DELTA6_CALIBRATED
-// The calibrated model's history, and the zero counts it was built on (a new zero restarts it).
+// The calibrated model's history.
 delta6::CalibrationState calibration_state;
-uint16_t calibration_zero[6];
 #endif
 
 #if DELTA6_RESIDUAL
@@ -75,15 +106,10 @@ int16_t residual_count_ring[m::kCountHistory ? 6 * m::kHistoryLength : 1];
 int16_t residual_plays[m::kPlayCount ? 6 * m::kPlayCount : 1];
 delta6::residual::State residual_state = {residual_wrench_ring, residual_count_ring,
                                           residual_plays, 0, 1, false};
-uint16_t residual_zero[6];   // the zero counts its history was built on
 
-// The base wrench plus the model's correction; a sample without a wrench restarts the history.
-void applyResidual(bool solver_ok, const uint16_t* zero, const int16_t* delta, float* wrench) {
-  bool zero_changed = false;
-  for (uint8_t j = 0; j < 6; ++j) {
-    if (zero[j] != residual_zero[j]) zero_changed = true;
-    residual_zero[j] = zero[j];
-  }
+// The base wrench plus the model's correction; a sample without a wrench, or a new zero,
+// restarts the history.
+void applyResidual(bool solver_ok, bool zero_changed, const int16_t* delta, float* wrench) {
   if (zero_changed || !solver_ok) delta6::residual::reset(residual_state);
   if (!solver_ok) return;
   int16_t base[6] = {0, 0, 0, 0, 0, 0};
@@ -101,8 +127,10 @@ class BoardHardware : public delta6::Hardware {
   uint16_t txSpace() override { return board::txSpace(); }
   void txWrite(const uint8_t* data, uint16_t n) override {
     board::txWrite(data, n);
+    // A whole data record: it ends in the delimiter (INFO goes out in pieces, which do not),
     // data[0] is the COBS code byte, data[1] the record type (never 0, so never stuffed).
-    if (n > 1 && (data[1] == delta6::proto::kWrench || data[1] == delta6::proto::kWrenchRaw)) {
+    if (n > 1 && data[n - 1] == 0 &&
+        (data[1] == delta6::proto::kWrench || data[1] == delta6::proto::kWrenchRaw)) {
       board::markRecordQueued();
     }
   }
@@ -127,7 +155,8 @@ class BoardHardware : public delta6::Hardware {
 };
 
 BoardHardware hardware;
-delta6::Identity identity = {
+// In flash, like the defaults (the serial number, known at run time, goes to the device).
+const delta6::Identity identity DELTA6_FLASH = {
     d::kName,
     d::kHash,
     {d::kFullScale[0], d::kFullScale[1], d::kFullScale[2], d::kFullScale[3], d::kFullScale[4],
@@ -137,7 +166,7 @@ delta6::Identity identity = {
     {delta6::kFirmwareVersionMajor, delta6::kFirmwareVersionMinor, delta6::kFirmwareVersionPatch},
     board::kBaud,
     DELTA6_MAX_RATE_HZ,
-    0,   // serial number: set in setup()
+    0,   // serial number: given to the device in setup()
     kEepromAddress,
 #if DELTA6_CALIBRATED
     delta6::calibration::kName,
@@ -153,14 +182,29 @@ delta6::Identity identity = {
     nullptr,   // no on-chip residual model
     0,
 #endif
+    DELTA6_MAX_RATE_PIPELINE_HZ,
 };
 // Zero counts 0 until the assembly is calibrated (ZERO_HERE, then SAVE_CONFIG).
-const delta6::Config defaults = {
+// No filter, the identity tool frame, no overload limits.
+const delta6::Config defaults DELTA6_FLASH = {
     DELTA6_DEFAULT_RATE_HZ, delta6::proto::kModeWrench, false, {0, 0, 0, 0, 0, 0},
-    {0, 0, 0, 0, 0, 0}};
+    {0, 0, 0, 0, 0, 0}, 0.0f, {0, 0, 0}, {0, 0, 0}, {0, 0, 0, 0, 0, 0}};
 delta6::Device device(hardware, identity, defaults);
 
 bool workPending() { return queue_tail != queue_head || board::rxAvailable(); }
+
+#if DELTA6_CALIBRATED
+// The calibrated solver reads the fine table only (each joint has its calibrated table): the
+// design's constants without the analytical solver's joint and branch tables, so that the
+// linker drops those (1 KB of flash the calibrated image with a residual model needs).
+constexpr delta6::SolverConstants calibratedSolver() {
+  delta6::SolverConstants c = d::kSolverConstants;
+  c.branch_table = nullptr;
+  c.joint_table = nullptr;
+  return c;
+}
+constexpr delta6::SolverConstants kCalibratedSolver = calibratedSolver();
+#endif
 
 // Check the frames, solve, and hand the sample to the device.
 void process(const Latched& latched) {
@@ -178,23 +222,19 @@ void process(const Latched& latched) {
     const uint16_t* zero = device.zeroCounts();
     int16_t delta[6];
     for (uint8_t j = 0; j < 6; ++j) delta[j] = delta6::wrap_count_delta(s.counts[j], zero[j]);
+#if DELTA6_CALIBRATED || DELTA6_RESIDUAL
+    const bool zero_changed = zeroChanged(zero);
+#endif
 #if DELTA6_CALIBRATED
-    bool zero_changed = false;
-    for (uint8_t j = 0; j < 6; ++j) {
-      if (zero[j] != calibration_zero[j]) {
-        calibration_zero[j] = zero[j];
-        zero_changed = true;
-      }
-    }
     if (zero_changed) delta6::calibration_reset(calibration_state);
-    s.solver_ok = delta6::solve_calibrated(d::kSolverConstants,
+    s.solver_ok = delta6::solve_calibrated(kCalibratedSolver,
                                            delta6::calibration::kCalibrationConstants,
                                            calibration_state, delta, s.wrench) == delta6::kSolveOk;
 #else
     s.solver_ok = delta6::solve_counts(d::kSolverConstants, delta, s.wrench) == delta6::kSolveOk;
 #endif
 #if DELTA6_RESIDUAL
-    applyResidual(s.solver_ok, zero, delta, s.wrench);
+    applyResidual(s.solver_ok, zero_changed, delta, s.wrench);
 #endif
   } else {
     s.solver_ok = false;   // no wrench without all six angles
@@ -239,7 +279,7 @@ void onSampleTick() {
 void setup() {
   board::mark(D6_MARK_BOOT);
   board::init();
-  identity.serial_number = board::serialNumber();
+  device.setSerialNumber(board::serialNumber());
   // Loads the configuration, starts the sample timer.
   device.begin(board::resetCause(), board::bootId());
   board::mark(D6_MARK_READY);

@@ -5,6 +5,7 @@
 #include <Arduino.h>
 #include <avr/interrupt.h>
 #include <avr/io.h>
+#include <avr/pgmspace.h>
 #include <avr/sleep.h>   // set_sleep_mode
 #include <avr/wdt.h>
 
@@ -108,13 +109,14 @@ uint32_t serialNumber() { return 0; }
 void startSampling(uint16_t rate_hz) {
   // Timer 1 in CTC mode: the smallest prescaler whose 16-bit count holds one period. The
   // period is rounded to the timer's tick (0.5 us up to 2 ms periods); micros() is the truth.
-  static const uint16_t kPrescale[] = {8, 64, 256, 1024};
-  static const uint8_t kSelect[] = {_BV(CS11), _BV(CS11) | _BV(CS10), _BV(CS12),
-                                    _BV(CS12) | _BV(CS10)};
+  // In flash: constant tables would take RAM otherwise.
+  static const uint16_t kPrescale[] PROGMEM = {8, 64, 256, 1024};
+  static const uint8_t kSelect[] PROGMEM = {_BV(CS11), _BV(CS11) | _BV(CS10), _BV(CS12),
+                                            _BV(CS12) | _BV(CS10)};
   uint8_t k = 0;
   uint32_t ticks = 0;
   for (; k < 4; ++k) {
-    ticks = (F_CPU / kPrescale[k] + rate_hz / 2) / rate_hz;
+    ticks = (F_CPU / pgm_read_word(&kPrescale[k]) + rate_hz / 2) / rate_hz;
     if (ticks <= 65536UL) break;
   }
   if (k == 4) {
@@ -129,7 +131,7 @@ void startSampling(uint16_t rate_hz) {
   OCR1A = static_cast<uint16_t>(ticks - 1);
   TIFR1 = _BV(OCF1A);
   TIMSK1 = _BV(OCIE1A);
-  TCCR1B = _BV(WGM12) | kSelect[k];
+  TCCR1B = _BV(WGM12) | pgm_read_byte(&kSelect[k]);
   SREG = sreg;
 }
 

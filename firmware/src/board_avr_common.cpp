@@ -11,9 +11,17 @@
 
 #include "board.h"
 #include "board_contract.h"
+#include "delta6_device.h"
 #include "uart_queue.h"
 
 static_assert(board::kTxQueue == uartq::kTxSize, "one transmit queue size");
+static_assert(board::kTxQueue - 1 >= delta6::Device::kMinTxBuffer,
+              "the transmit queue holds the largest record");
+// The longest command frame: its payload (at most the command buffer), the CRC, COBS's code
+// byte and the delimiter.
+static_assert(uartq::kRxSize >= delta6::proto::kCommandBuffer + delta6::proto::kFrameOverhead,
+              "the receive ring holds the longest command frame");
+static_assert((uartq::kRxSize & (uartq::kRxSize - 1)) == 0, "the receive ring's size is a power of two");
 
 namespace uartq {
 

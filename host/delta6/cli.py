@@ -13,8 +13,9 @@ from delta6.core.design import DesignError
 from delta6.core.errors import UserError
 
 #: Subcommand modules, in the order ``delta6 --help`` lists them.
-COMMAND_MODULES = ("design", "codegen", "virtual", "info", "stream", "log", "tare", "decode",
-                   "convert", "simulate", "diagnose", "calibrate", "evaluate", "flash", "train")
+COMMAND_MODULES = ("design", "codegen", "virtual", "info", "config", "stream", "log", "tare",
+                   "decode", "convert", "simulate", "diagnose", "calibrate", "evaluate", "flash",
+                   "train")
 
 DESCRIPTION = ("Delta6, a low-cost 6-axis force/torque sensor: design reports, firmware, the "
                "virtual board, the device tools, the digital twin and the gap diagnosis.")

@@ -24,6 +24,8 @@ import numpy as np
 import pytest
 
 from delta6.cli import main
+from delta6.link import cobs
+from delta6.link import protocol as P
 from delta6.link.bulkdecode import decode_capture
 from delta6.link.logfile import LogError, read_log
 
@@ -38,11 +40,17 @@ STOPPED = 0
 def start_device(tmp_path: Path, *options: str) -> tuple[subprocess.Popen, str, Path]:
     sent = tmp_path / "sent.bin"
     proc = subprocess.Popen([sys.executable, str(SUPPORT / "ptydevice.py"),
-                             "delta6sim://?rate=500", "--sent", str(sent), *options],
+                             "delta6sim://?rate=500", "--sent", str(sent),
+                             "--received", str(received_file(sent)), *options],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
     port = proc.stdout.readline().strip()
     assert port.startswith("/dev/"), proc.stderr.read()
     return proc, port, sent
+
+
+def received_file(sent: Path) -> Path:
+    """Where the device process keeps the bytes it received (next to those it sent)."""
+    return sent.with_name("received.bin")
 
 
 def delta6(*args: str) -> subprocess.Popen:
@@ -295,16 +303,16 @@ def test_every_file_reader_survives_a_truncated_log(tmp_path, capsys):
 def test_an_interrupted_tare_does_not_leave_the_device_busy(device):
     """SIGTERM during a tare of 65535 samples (over two minutes): one line, status 143, and the
     device is told to stop averaging; after SIGKILL, `tare --abort` frees it."""
-    port, _ = device
+    port, sent = device
     tare = delta6("tare", "--port", port, "--samples", "65535")
-    wait_for_port(tare, port)              # then the tare is averaging on the device
+    wait_for_command(tare, sent, P.Command.TARE)   # then the tare is averaging on the device
     tare.send_signal(signal.SIGTERM)
     status, err = finish(tare)
     assert status == 143 and err.strip() == "delta6 tare: interrupted (SIGTERM)", err
     quick = delta6("tare", "--port", port, "--samples", "5", "--clear")
     assert finish(quick)[0] == 0
     killed = delta6("tare", "--port", port, "--samples", "65535")
-    wait_for_port(killed, port)
+    wait_for_command(killed, sent, P.Command.TARE)
     killed.send_signal(signal.SIGKILL)
     finish(killed)
     busy = delta6("tare", "--port", port, "--samples", "5")
@@ -316,19 +324,20 @@ def test_an_interrupted_tare_does_not_leave_the_device_busy(device):
     assert status == 0 and out.startswith("tare over 5 samples: Fx")
 
 
-def wait_for_port(proc: subprocess.Popen, port: str, timeout: float = 30.0) -> None:
-    """Until ``proc`` has the port open, and half a second more (its command is on its way)."""
+def wait_for_command(proc: subprocess.Popen, sent: Path, command, timeout: float = 30.0) -> None:
+    """Until the device has received ``command`` from ``proc`` (a frame with that type byte
+    after what it had received when called): a fixed wait after opening the port is too short
+    on a loaded machine."""
+    received = received_file(sent)
+    start = received.stat().st_size if received.exists() else 0
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline and proc.poll() is None:
-        try:
-            fds = list(Path(f"/proc/{proc.pid}/fd").iterdir())
-            if any(os.readlink(fd) == port for fd in fds):
-                time.sleep(0.5)
-                return
-        except OSError:
-            pass
+        data = received.read_bytes()[start:] if received.exists() else b""
+        frames = (cobs.decode(f) for f in data.split(b"\0")[:-1] if f)
+        if any(f and f[0] == int(command) for f in frames):
+            return
         time.sleep(0.02)
-    raise AssertionError(f"{proc.args} never opened {port}")
+    raise AssertionError(f"{proc.args} never sent {command!r}")
 
 
 def finish_out(proc: subprocess.Popen, timeout: float = 30.0) -> tuple[int, str]:

@@ -1,6 +1,8 @@
-"""``delta6 flash``: the header and PlatformIO command it prepares, the board's answer checked
-against the expected design hash, and one line with exit 2 for every way it can fail. A stand-in
-``pio`` records its arguments (PlatformIO cannot download its platforms here)."""
+"""``delta6 flash``: the headers and PlatformIO command it prepares, the board's answer checked
+against the expected design, calibration and model hashes, and one line with exit 2 for every
+way it can fail. A stand-in ``pio`` records its arguments (PlatformIO cannot download its
+platforms here); tests/sim/test_flash_check.py checks the hashes of a calibrated board with a
+model."""
 from __future__ import annotations
 
 import shlex
@@ -8,9 +10,11 @@ import shlex
 import pytest
 
 from delta6.cli import main
+from delta6.commands.codegen import generate_headers
 from delta6.core.design import load
 
 from conftest import DESIGNS
+from support.onchip import calibration_and_model
 
 
 @pytest.fixture
@@ -69,7 +73,7 @@ def test_a_board_with_another_design_is_exit_2(project, tmp_path, capsys):
     ("no-path", "PlatformIO (pio) is not installed: pip install -e '.[firmware]'"),
     ("fails", "PlatformIO failed (exit status 3) running run -d"),
     ("silent", "did not answer within 0.3 s after flashing"),
-    ("calibration", "--calibration: this firmware version builds in no calibration"),
+    ("calibration", "cal.toml"),
 ])
 def test_failures_are_one_line_and_exit_2(case, message, project, tmp_path, capsys, monkeypatch):
     pio, _ = fake_pio(tmp_path, status=3 if case == "fails" else 0)
@@ -87,3 +91,63 @@ def test_failures_are_one_line_and_exit_2(case, message, project, tmp_path, caps
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert message in err[-1] and err[-1].startswith("delta6 flash: error: ")
+
+
+@pytest.fixture(scope="module")
+def onchip(tmp_path_factory):
+    return calibration_and_model(load(DESIGNS / "delta6.toml"), tmp_path_factory.mktemp("onchip"))
+
+
+def test_calibration_and_model_headers_are_codegens_and_the_board_must_report_them(
+        project, tmp_path, capsys, onchip):
+    """The three headers land where the nano_every build includes them, byte for byte what
+    delta6 codegen writes; the simulated device carries neither calibration nor model, so the
+    hash check refuses it in one line."""
+    cal, cal_path, model, model_path = onchip
+    pio, record = fake_pio(tmp_path)
+    status = main(["flash", "--port", "delta6sim://", "--firmware-dir", str(project),
+                   "--pio", str(pio), "--calibration", str(cal_path), "--model", str(model_path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2
+    assert record.read_text().split()[:5] == ["run", "-d", str(project), "-e", "nano_every"]
+    generated = project / "include" / "generated"
+    want = generate_headers(DESIGNS / "delta6.toml", cal_path, model_path)
+    assert (generated / "delta6_design.h").read_text() == want.text
+    assert (generated / "delta6_calibration.h").read_text() == want.cal_text
+    assert (generated / "delta6_model.h").read_text() == want.model_text
+    assert err[-1] == (
+        "delta6 flash: error: the board on delta6sim:// reports no calibration, no model, "
+        f"expected calibration '{cal.name}' (hash 0x{cal.hash32():08x}), model "
+        f"'{model.name}' (hash 0x{model.hash32():08x}): the upload did not take, or another "
+        "board answered")
+
+
+def test_flashing_without_a_calibration_removes_the_last_ones_headers(project, tmp_path, capsys,
+                                                                       onchip):
+    _, cal_path, _, model_path = onchip
+    pio, _ = fake_pio(tmp_path)
+    main(["flash", "--port", "delta6sim://", "--firmware-dir", str(project), "--pio", str(pio),
+          "--calibration", str(cal_path), "--model", str(model_path)])
+    generated = project / "include" / "generated"
+    assert (generated / "delta6_calibration.h").exists()
+    capsys.readouterr()
+    assert main(["flash", "--port", "delta6sim://", "--firmware-dir", str(project), "--dry-run"]) == 0
+    plan = capsys.readouterr().out
+    assert f"would remove {generated / 'delta6_calibration.h'}" in plan
+    assert f"would remove {generated / 'delta6_model.h'}" in plan
+    assert (generated / "delta6_calibration.h").exists()        # a dry run changes nothing
+    assert main(["flash", "--port", "delta6sim://", "--firmware-dir", str(project),
+                 "--pio", str(pio)]) == 0
+    assert not (generated / "delta6_calibration.h").exists()
+    assert not (generated / "delta6_model.h").exists()
+
+
+def test_a_model_without_its_calibration_is_refused_before_anything_is_written(
+        project, tmp_path, capsys, onchip):
+    _, _, _, model_path = onchip
+    pio, record = fake_pio(tmp_path)
+    status = main(["flash", "--port", "delta6sim://", "--firmware-dir", str(project),
+                   "--pio", str(pio), "--model", str(model_path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1 and err[0].startswith("delta6 flash: error: ")
+    assert not record.exists() and not (project / "include").exists()

@@ -17,9 +17,9 @@ from support.streams import make_frames
 
 
 def capture_from_sim(seconds=0.5, raw=True, **kwargs) -> tuple[bytes, SimulatedDevice]:
-    # START follows the boot at once here; a queue with room for the 190-byte boot INFO beside
-    # the first raw records keeps them all (a 256-byte one drops the first, counted and flagged).
-    kwargs.setdefault("tx_capacity", 320)
+    # Room for the boot records (250 bytes with INFO) and the first data record at once: the
+    # stream starts at the device's first sample, before the boot records drained.
+    kwargs.setdefault("tx_capacity", 512)
     sim = SimulatedDevice(**kwargs)
     sim.write(P.encode_command(P.Command.SET_MODE, 1, P.Mode.WRENCH_RAW if raw else P.Mode.WRENCH))
     sim.write(P.encode_command(P.Command.START, 2, 500))

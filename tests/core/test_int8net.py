@@ -110,9 +110,17 @@ def test_quantized_network_tracks_the_float_one(seed):
     ref = float_net.forward(v)
     got, _ = int8net.run(net, base, counts)
     err = np.abs(got * net.output_step - ref)
-    scale = np.percentile(np.abs(ref), 99, axis=0) + 1e-12
-    # int8 weights and activations: a few per cent of the output range at the 99th percentile.
-    assert np.all(np.percentile(err, 99, axis=0) <= 0.06 * scale)
+    # Quantization errors scale with the terms an output sums, not with their sum (two large
+    # terms that cancel leave a small output with the error of both): the output's gross
+    # magnitude, sum_j |W_ij h_j| + |b_i|, is the range the error is measured against.
+    _, acts = float_net.forward(v, hidden=True)
+    gross = (np.abs(acts[-1]) @ np.abs(float_net.weights[-1]).T
+             + np.abs(float_net.biases[-1])) * float_net.output_gain
+    scale = np.percentile(gross, 99, axis=0) + 1e-12
+    # int8 weights and activations: a few per cent of that range at the 99th percentile
+    # (1.5 % at most over 300 random networks; the old bound against the net output, 6 %,
+    # failed where two hidden terms cancelled).
+    assert np.all(np.percentile(err, 99, axis=0) <= 0.03 * scale)
 
 
 def test_board_rate_stride():

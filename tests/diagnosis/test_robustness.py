@@ -177,3 +177,66 @@ def test_blas_is_held_to_one_thread_and_given_back():
     with blas.one_thread():
         assert all(get() == 1 for get, _ in controls)
     assert [get() for get, _ in controls] == before
+
+
+@pytest.fixture(scope="module")
+def clean_log(baseline):
+    r = twin.simulate(baseline, [], duration_s=DURATION_S, rate_hz=50.0, seed=47,
+                      record_temp=True)
+    return LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c)
+
+
+@pytest.mark.parametrize("share_of_noise, named", [(0.06, False), (0.6, True)])
+def test_a_family_is_named_only_above_the_noise_floor(baseline, clean_log, share_of_noise,
+                                                      named):
+    """The same spring-rate error, injected at a given share of the white noise's squared
+    error over the log: held-out scoring finds it either way, but below one axis's worth of
+    noise it is not named (nothing tells its cause from noise or an unknown neighbour)."""
+    data = GapData.from_log(clean_log, baseline)
+    cols = TERM_BY_NAME["stiffness_mismatch"].columns(data) / data.fs[None, :, None]
+    shape = cols @ np.array([1.0, -0.5, 0.8, 0.0, 0.0, 0.0])
+    floor = 6 * len(data) * selection.noise_variance(data.residual, data.fs)
+    scale = np.sqrt(share_of_noise * floor / np.sum(shape**2))
+    log = LogData(t=clean_log.t, theta=clean_log.theta,
+                  wrench=clean_log.wrench + scale * shape * data.fs, temp_c=clean_log.temp_c)
+    verdict = diagnose(log, baseline, seed=0)
+    if named:
+        assert verdict["present"] == ["stiffness_mismatch"]
+        assert verdict["below_noise"] == []
+    else:
+        assert verdict["present"] == [] and verdict["ladder"] == []
+        faint = {f["name"]: f for f in verdict["below_noise"]}
+        assert faint["stiffness_mismatch"]["share_of_noise_floor"] < verdicts.NOISE_SHARE
+
+
+def _leftover(shapes, structured, cart, separable):
+    rows = [{"best": b, "structured": s} for b, s in zip(shapes, structured)]
+    return {"joints": [j + 1 for j in range(3) if structured[j]], "per_joint": rows,
+            "cartesian": {"share": cart, "separable_share": separable}}
+
+
+def test_a_harness_leftover_is_pose_dependent_even_when_proximal_joints_look_like_rates():
+    """A force on the plate, clamped off its centre: the proximal joints' leftover can look
+    like a rate error of their own, but the gimbal's follows the plate's position."""
+    from delta6.diagnosis.leftover import _verdict_shape
+    odd, coupled = "odd polynomial", "coupled across joints"
+    shapes = [odd, odd, odd, None, coupled, coupled]
+    assert _verdict_shape(_leftover(shapes, [True] * 3 + [False, True, True], 0.95, 0.94)) \
+        == "pose-dependent in Cartesian space"
+    # Coupling only in joints at the noise floor, or a force the joints' own angles explain
+    # better than the plate's position: the joints' own shape.
+    assert _verdict_shape(_leftover(shapes, [True] * 3 + [False] * 3, 0.95, 0.94)) == odd
+    assert _verdict_shape(_leftover(shapes, [True] * 6, 0.08, 0.9)) == odd
+
+
+def test_implausible_families_leave_one_at_a_time_the_furthest_out_first():
+    """Geometry errors soaking up a harness push the spring rates out of bounds too; only
+    the furthest out leaves, and the rest are judged again without it."""
+    def check(*ratios):
+        return {"plausible": max(ratios) <= 1.0,
+                "checks": [{"quantity": "q", "largest": r, "limit": 1.0, "ratio": r}
+                           for r in ratios]}
+    checks = {"geometry_error": check(0.5, 2.4), "stiffness_mismatch": check(1.3),
+              "encoder_offset": check(0.2)}
+    assert verdicts.furthest_out_of_bounds(checks, ["stiffness_mismatch", "geometry_error"]) \
+        == "geometry_error"

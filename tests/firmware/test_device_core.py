@@ -9,7 +9,7 @@ import pytest
 from delta6.core.model import wrench as model_wrench
 from delta6.link import protocol as P
 from delta6.link.decoder import SequenceTracker, StreamDecoder
-from delta6.sim.simdevice import Motion, SimulatedDevice
+from delta6.sim.simdevice import Motion, NativeCore, SimulatedDevice
 
 C = P.Command
 
@@ -148,7 +148,7 @@ def test_tare_averages_on_the_device(bench):
 
 def test_a_retried_request_is_answered_but_not_run_again(bench):
     bench.sim.motion = Motion.static(np.full(6, 0.05))
-    bench.send(C.START, 1000)
+    bench.answer(bench.send(C.START, 1000))     # behind the boot records still draining
     first = bench.send(C.TARE, 50, request=77, run=0.01)
     assert [r for r in first if isinstance(r, P.Ack)] == []          # still averaging
     again = bench.send(C.TARE, 50, request=77, run=0.1)              # retry while averaging
@@ -294,10 +294,9 @@ def test_garbage_to_the_device_is_counted_and_streaming_goes_on(bench):
 
 
 def test_encoder_faults_flag_exactly_their_samples():
-    # A queue that holds the 190-byte boot INFO beside the first two raw records: START comes
-    # at once here, while that INFO still drains (the drops a smaller queue gives are counted
-    # and flagged: test_answers_go_first_on_a_full_link_...).
-    b = Bench(rate_hz=500, encoder_faults={3: 0.3, 6: 0.1}, seed=4, tx_capacity=320)
+    # A transmit queue with room for the boot records (250 bytes with INFO) and the first
+    # data records at once: this test is about faults, not about the link.
+    b = Bench(rate_hz=500, encoder_faults={3: 0.3, 6: 0.1}, seed=4, tx_capacity=512)
     b.send(C.SET_MODE, P.Mode.WRENCH_RAW)
     b.send(C.START, 500)
     records = data(b.run(1.0))
@@ -347,10 +346,10 @@ def test_overrange_and_joint_limit(bench):
 
 
 def test_answers_go_first_on_a_full_link_and_every_drop_is_a_counted_gap():
-    """A 200-byte transmit queue at 1.6 kHz: the 190-byte info record only fits into an empty
-    queue, so data records give way until it went out. The host sees exactly the gaps the
-    device counts, and the first record after each gap says so."""
-    b = Bench(rate_hz=1000, tx_capacity=200, baud=500_000)
+    """A transmit queue 8 bytes longer than the info frame at 1.6 kHz: the info record only
+    fits into an empty queue, so data records give way until it went out. The host sees
+    exactly the gaps the device counts, and the first record after each gap says so."""
+    b = Bench(rate_hz=1000, tx_capacity=P.wire_bytes(P.RecordType.INFO) + 8, baud=500_000)
     records = b.send(C.START, 1600)
     infos = 0
     for _ in range(20):
@@ -489,8 +488,8 @@ def test_a_1_0_device_is_read_without_the_appended_fields():
     """A 1.0 device's INFO (128 bytes) and TELEMETRY (48) records parse with the boot id left
     unknown (None) and no calibration; a 1.0 host reads the 1.1 records by their known prefix.
     The offsets are docs/protocol.md's, written here by hand: INFO's boot id at 156, after the
-    calibration hash (128) and name (132), then (1.2) the model's hash (158) and name (162);
-    TELEMETRY's at 48."""
+    calibration hash (128) and name (132), then (1.2) the model's hash (158) and name (162),
+    then (1.3) the pipeline's fields (186..227); TELEMETRY's at 48."""
     bench = Bench(rate_hz=500, boot_id=0x1234)
     bench.sim.write(P.encode_command(C.GET_INFO, 9) + P.encode_command(C.GET_TELEMETRY, 10))
     bench.sim.advance(0.02)                      # the answers leave at the baud rate
@@ -498,16 +497,38 @@ def test_a_1_0_device_is_read_without_the_appended_fields():
     bench.sim.close()
     payloads = [P.unframe(f) for f in raw.split(b"\x00")[:-1]]
     info, telemetry = (P.parse_payload(p) for p in payloads)
-    assert [len(p) for p in payloads] == [186, 50]
+    assert [len(p) for p in payloads] == [228, 50]
     assert payloads[0][158:186] == bytes(28) and info.model_hash == 0       # no model built in
     assert payloads[0][156:158] == (0x1234).to_bytes(2, "little")   # u16, little-endian
     assert payloads[1][48:50] == (0x1234).to_bytes(2, "little")
     assert payloads[0][128:132] == bytes(4) and info.calibration_hash == 0   # none built in
     old_info = P.parse_payload(payloads[0][:128])
     old_telemetry = P.parse_payload(payloads[1][:48])
-    assert old_info == info._replace(boot_id=None)
+    assert old_info == info._replace(**P.APPENDED_FIELDS[P.RecordType.INFO])
     assert old_telemetry == telemetry._replace(boot_id=None)
     assert P.encode_record(old_info, minor=0) == P.frame(payloads[0][:128])
     assert P.encode_record(old_telemetry) == P.frame(payloads[1][:48])
     with pytest.raises(P.ProtocolError):
         P.parse_payload(payloads[0][:127])
+
+
+@pytest.mark.parametrize("name", ["", "d", "n" * 23, "long-design-name-" * 3])
+def test_info_sent_in_pieces_is_the_python_encoders_frame(name):
+    """The device sends INFO in pieces split at its name fields' last byte: whatever the name
+    (empty, full, longer than the field), the bytes on the wire are exactly the frame the host's
+    encoder makes of the record they decode to."""
+    core = NativeCore(design_name=name, design_hash=0xA1B2C3D4,
+                      full_scale=[15.0, 15.0, 25.0, 0.38, 0.33, 0.43], joint_limit_rad=0.5,
+                      joint_limit_counts=1365, baud=500_000, max_rate_hz=2000,
+                      default_rate_hz=500, zero_counts=[0] * 6, serial_number=0xD6000001,
+                      tx_capacity=512)
+    core.set_time(0)
+    core.begin(0, 0x0102)
+    core.set_time(100_000)                  # the boot records have left
+    frames = [f + b"\x00" for f in core.read().split(b"\x00")[:-1]]
+    core.close()
+    info_frames = [f for f in frames if P.unframe(f[:-1])[0] == P.RecordType.INFO]
+    assert len(info_frames) == 1
+    info = P.parse_payload(P.unframe(info_frames[0][:-1]))
+    assert info.design_name == name[:23] and info.boot_id == 0x0102
+    assert P.encode_info(info) == info_frames[0]

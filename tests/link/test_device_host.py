@@ -60,9 +60,10 @@ def test_raw_mode_gives_angles_and_the_reference_wrench():
 
 
 def test_commands_are_answered_while_streaming_without_losing_samples():
-    """At a pace the link's spare 10 % carries (a burst of 190-byte info records faster than
-    that makes data records give way, counted as gaps: the next test). 500 Hz: at 1 kHz the
-    records queued while a 190-byte INFO drains (3.8 ms) can overflow a 256-byte queue."""
+    """At a pace the link's spare 10 % carries (a burst of info records faster than that
+    makes data records give way, counted as gaps: the next test). 500 Hz: at 1 kHz a 232-byte
+    INFO frame and the next answer no longer fit the 256-byte transmit queue together with
+    the data records (docs/protocol.md section 4)."""
     with Device("delta6sim://") as dev:
         dev.start(500)
         for _ in range(10):
@@ -176,10 +177,12 @@ def test_a_vanishing_port_ends_iteration_with_a_clear_error_after_the_last_sampl
 
 
 def test_sequence_gaps_match_what_the_device_dropped():
-    with Device("delta6sim://?tx_capacity=200") as dev:
+    # A transmit queue just larger than the INFO frame, as small as the device allows.
+    capacity = P.wire_bytes(P.RecordType.INFO) + 8
+    with Device(f"delta6sim://?tx_capacity={capacity}") as dev:
         dev.start(1600)
         for _ in range(15):
-            dev.info(refresh=True)       # 190-byte answers push data records out of the way
+            dev.info(refresh=True)       # INFO answers push data records out of the way
         first = take(dev, 1)[0].seq
         time.sleep(0.05)
         dropped = dev.telemetry().tx_dropped

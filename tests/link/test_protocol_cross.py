@@ -85,13 +85,13 @@ def cpp_parse(lib, data: bytes) -> list[tuple]:
 
 
 def command_with_args():
+    kinds = {"B": st.integers(0, 255), "H": u16, "f": st.floats(width=32)}
+
     def build(command):
-        fmt = P.COMMAND_ARGS[command]
-        count = int(fmt[:-1] or 1) if fmt else 0
-        kind = fmt[-1:] if fmt else ""
-        values = st.integers(0, 255) if kind == "B" else u16
+        args = [kinds[f.code] for f in P.COMMAND_LAYOUTS[command].fields[2:]
+                for _ in range(f.count)]
         return st.tuples(st.just(command), st.integers(0, 255),
-                         st.lists(values, min_size=count, max_size=count))
+                         st.tuples(*args).map(list))
     return st.sampled_from(list(P.Command)).flatmap(build)
 
 
@@ -160,14 +160,18 @@ def test_config_blob_is_protected_by_its_crc(lib):
     blob = ctypes.create_string_buffer(P.CONFIG_BLOB_SIZE)
     lib.d6_encode_config((ctypes.c_uint16 * 3)(500, P.Mode.WRENCH_RAW, 1),
                          (ctypes.c_float * 6)(*[0.25] * 6),
-                         (ctypes.c_uint16 * 6)(1, 2, 3, 4, 5, 6), 0x535534AF, blob)
+                         (ctypes.c_uint16 * 6)(1, 2, 3, 4, 5, 6),
+                         (ctypes.c_float * 7)(20.0, 0.0, 0.0, 0.125, 0.0, 0.5, -1.5),
+                         (ctypes.c_uint16 * 6)(100, 0, 3000, 7, 8, 32767), 0x535534AF, blob)
     raw = blob.raw
     assert raw[:2] == b"D6"                   # the magic reads "D6" in a hex dump
     assert P.crc16(raw) == 0                  # CRC big-endian at the end, like frames
     assert P.CONFIG_LAYOUT.unpack(raw) == {
         "magic": P.CONFIG_MAGIC, "layout": P.CONFIG_LAYOUT_VERSION, "size": P.CONFIG_BLOB_SIZE,
         "design_hash": 0x535534AF, "rate_hz": 500, "mode": P.Mode.WRENCH_RAW, "tare_active": 1,
-        "tare": (0.25,) * 6, "zero_counts": (1, 2, 3, 4, 5, 6)}
+        "tare": (0.25,) * 6, "zero_counts": (1, 2, 3, 4, 5, 6), "filter_hz": 20.0,
+        "tool_translation": (0.0, 0.0, 0.125), "tool_rpy": (0.0, 0.5, -1.5),
+        "limits": (100, 0, 3000, 7, 8, 32767)}
     assert len(raw) == P.CONFIG_LAYOUT.size + P.CRC_SIZE
 
 

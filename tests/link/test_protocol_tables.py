@@ -90,7 +90,7 @@ def test_command_table_in_the_docs_is_the_commands():
     rows = table_rows(section("4. Commands"))
     documented = {}
     for code, name, args, *_ in rows:
-        kind = re.match(r"-|(\d+ x )?u(8|16)", args).group(0)
+        kind = ", ".join(m.group(0) for m in re.finditer(r"(\d+ x )?[uif](8|16|32)\b", args)) or "-"
         documented[name] = (int(code, 16), "" if kind == "-" else kind)
     assert documented == {
         c.name: (int(c), ", ".join(f.c_type for f in layout.fields[2:]))

@@ -42,8 +42,11 @@ def test_the_board_streams_the_python_calibrated_wrench(baseline, unit):
     image = design_firmware(DESIGN, path)
     check = twin.simulate(duration_s=4, rate_hz=200, **twin.same_unit(truth, 22))
     run = stream_log(image, check, rate_hz=200, hold_s=2.0)
-    # The board says which calibration it applies.
+    # The board says which calibration it applies, and the rates it sustains with it (the
+    # calibrated solve takes most of a 250 Hz period): a fresh board streams at its highest.
     assert run.info.calibration_hash == cal.hash32() and run.info.calibration_name == "e2e-unit"
+    assert (run.info.max_rate_hz, run.info.max_rate_pipeline_hz) == (200, 150)
+    assert run.info.rate_hz == 200
     assert run.matched == 1.0 and run.stats["timing"]["missed_ticks"] == 0
     assert np.all(run.status & 0x00FF == 0)
     fs = full_scale(baseline)

@@ -13,6 +13,7 @@ import time
 import numpy as np
 import pytest
 
+from delta6.core import lowpass, toolframe
 from delta6.core.design import load
 from delta6.core.model import wrench as model_wrench
 from delta6.link import protocol as P
@@ -442,3 +443,35 @@ def test_bus_contention_is_detected(motion):
         stats = board.stats()
     assert stats["encoders"]["contention"] >= 6 * len(samples)
     assert all(s.status & P.ENCODER_MASK == 0 for s in samples)   # the bits still arrive
+
+
+def test_filter_tool_frame_and_limits_on_the_board(image, design, motion):
+    """The pipeline as the AVR image runs it: a 20 Hz low-pass and a tool frame a centimetre
+    up and turned 90 degrees about z, against the reference model filtered and moved by the
+    Python references; OVERRANGE exactly on the samples over the Fz limit (or clipped)."""
+    _, _, replay = motion
+    with VirtualBoard(image=image, replay=replay, zero=ZERO, speed=0, live=True) as board:
+        with Device(board.port) as dev:
+            dev.set_zero(ZERO)
+            dev.set_mode("raw")
+            dev.set_filter(20)
+            dev.set_tool((0.0, 0.0, 0.01), (0.0, 0.0, math.pi / 2))
+            dev.set_limits([None, None, 5.0, None, None, None])
+            dev.start(250)
+            samples = drain(dev, dev.get(timeout=10).t + 1.2)
+            info = dev.info()
+            health = dev.health
+    _, seq, status, wrench, counts = samples_as_arrays(samples)
+    assert health.samples_lost == 0 and np.all(np.diff(seq) == 1)
+    assert (info.filter_hz, info.limits[2]) == (20.0, round(5.0 / info.lsb[2]))
+    ref = model_wrench(design, P.counts_to_theta(counts, ZERO)).astype(np.float32)
+    filtered = lowpass.run(ref, *lowpass.design(20, 250))
+    want = toolframe.to_tool(filtered, (0.0, 0.0, 0.01), (0.0, 0.0, math.pi / 2))
+    lsb, fs = np.asarray(info.lsb), np.asarray(info.full_scale)
+    settled = slice(60, None)      # the reference filter starts at the first sample received
+    assert np.all(np.abs(wrench[settled] - want[settled]) <= 1.5 * lsb + 4e-6 * fs.max())
+    fz_counts = np.round(wrench[:, 2] / lsb[2])
+    over = (status & P.Status.OVERRANGE) != 0
+    at_range = (np.abs(np.round(wrench / lsb)) >= P.MAX_VALUE).any(axis=1)
+    assert over.any() and (~over).any()
+    assert np.array_equal(over[~at_range], (np.abs(fz_counts) > info.limits[2])[~at_range])

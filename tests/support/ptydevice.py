@@ -1,8 +1,9 @@
 """A simulated Delta6 behind a pseudo-terminal, in a process of its own: the device side of the
 fault tests. It can be killed like a board can be unplugged, it can garble bytes both ways, and
-it keeps a clean copy of every byte the device sent, to check that no logged row is made up.
+it keeps a clean copy of every byte the device sent, to check that no logged row is made up,
+and of every byte it received, to see when a host's command has arrived.
 
-    python tests/support/ptydevice.py URL [--noise P] [--seed N] [--sent FILE]
+    python tests/support/ptydevice.py URL [--noise P] [--seed N] [--sent FILE] [--received FILE]
 
 prints the pty's path on stdout, then serves until SIGTERM (or SIGKILL). ``--noise P``: with
 probability P per chunk, each direction gets a burst of random bytes or a flipped bit.
@@ -38,6 +39,7 @@ def main() -> int:
     parser.add_argument("--noise", type=float, default=0.0)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--sent")
+    parser.add_argument("--received")
     args = parser.parse_args()
     rnd = random.Random(args.seed)
     master, slave = os.openpty()      # the slave stays open here: no hang-up between clients
@@ -45,6 +47,7 @@ def main() -> int:
     os.set_blocking(master, False)
     device = serial.serial_for_url(args.url, baudrate=500_000, timeout=0)
     sent = open(args.sent, "wb", buffering=0) if args.sent else None
+    received = open(args.received, "wb", buffering=0) if args.received else None
     stop = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
     print(os.ttyname(slave), flush=True)
@@ -56,6 +59,8 @@ def main() -> int:
             except OSError:
                 data = b""
             if data:
+                if received is not None:
+                    received.write(data)
                 if args.noise and rnd.random() < args.noise:
                     data = garble(data, rnd)
                 device.write(data)

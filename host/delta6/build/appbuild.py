@@ -14,6 +14,12 @@ from delta6.build import avrbuild, nativebuild
 
 APP_DIR = avrbuild.FIRMWARE / "src"
 SIZE_PROBE = avrbuild.FIRMWARE / "native" / "app_size_probe.cpp"
+#: Register saves through shared prologue/epilogue routines instead of inline pushes: about
+#: 800 bytes less flash for a few cycles per call (under 1 % of a solve), which the
+#: ATmega328P's 32 KB need for the calibrated image with a residual model and the wrench
+#: pipeline; and no switch statements turned into lookup tables (avr-gcc puts those in RAM).
+#: Compile and link flags (LTO generates the code at link time).
+APP_FLAGS = ("-mcall-prologues",)
 
 
 def solver_sources() -> list[Path]:
@@ -37,7 +43,8 @@ def build_app(include_dir: Path | None = None, *, name: str = "delta6-app",
     include = include_dir if include_dir is not None else avrbuild.COMMITTED_DESIGN_INCLUDE
     return avrbuild.build_image(name, app_sources(),
                                 include_dirs=[include, APP_DIR, avrbuild.CORE_LIB],
-                                defines=defines, out_dir=out_dir)
+                                defines=defines, out_dir=out_dir, extra_flags=APP_FLAGS,
+                                link_flags=APP_FLAGS)
 
 
 def size_check_app(mcu: str = "avrxmega3", include_dir: Path | None = None,

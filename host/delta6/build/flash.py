@@ -1,6 +1,7 @@
-"""Flashing a board in one step: the generated headers for the chosen design, PlatformIO's build
-and upload, then the board asked who it is. PlatformIO is the optional ``firmware`` extra
-(``pip install -e '.[firmware]'``); it downloads its AVR platforms on first use.
+"""Flashing a board in one step: the generated headers for the chosen design (and calibration
+and on-chip model), PlatformIO's build and upload, then the board asked who it is. PlatformIO
+is the optional ``firmware`` extra (``pip install -e '.[firmware]'``); it downloads its AVR
+platforms on first use.
 
 Each step is a function so that what cannot run here (PlatformIO needs its platforms and a board)
 is still checked: the command it prepares, and the answer of a board (the virtual board in the
@@ -26,13 +27,36 @@ ANSWER_TIMEOUT = 15.0
 
 @dataclass(frozen=True)
 class Expected:
-    """What the flashed board must report: the design it was generated for."""
+    """What the flashed board must report: the design it was generated for, and the
+    calibration and on-chip model built in (hash 0 and no name: none)."""
 
     design_name: str
     design_hash: int
+    calibration_name: str = ""
+    calibration_hash: int = 0
+    model_name: str = ""
+    model_hash: int = 0
+
+    def parts(self) -> list[tuple[str, str, int]]:
+        """(what, name, hash) of the design, the calibration and the model."""
+        return [("design", self.design_name, self.design_hash),
+                ("calibration", self.calibration_name, self.calibration_hash),
+                ("model", self.model_name, self.model_hash)]
 
     def describe(self) -> str:
-        return f"design '{self.design_name}' (hash 0x{self.design_hash:08x})"
+        return ", ".join(_describe(what, name, h) for what, name, h in self.parts()
+                         if h or what == "design")
+
+
+def _describe(what: str, name: str, hash32: int) -> str:
+    return f"{what} '{name}' (hash 0x{hash32:08x})" if hash32 else f"no {what}"
+
+
+def reported(info) -> Expected:
+    """What a board's INFO record says it carries (a device older than protocol 1.1 or 1.2
+    reads as no calibration or no model)."""
+    return Expected(info.design_name, info.design_hash, info.calibration_name,
+                    info.calibration_hash, info.model_name, info.model_hash)
 
 
 def find_pio(explicit: str | None = None) -> str:
@@ -90,8 +114,12 @@ def check_board(port: str, expected: Expected, *, baud: int, timeout: float = AN
                 raise UserError(f"the board on {port} did not answer within {timeout:g} s after "
                                 f"flashing ({last})") from None
             time.sleep(0.5)
-    if info.design_hash != expected.design_hash:
-        raise UserError(f"the board on {port} reports design '{info.design_name}' (hash "
-                        f"0x{info.design_hash:08x}), expected {expected.describe()}: the upload "
+    got = reported(info)
+    wrong = [(mine, theirs) for mine, theirs in zip(expected.parts(), got.parts())
+             if mine[2] != theirs[2]]
+    if wrong:
+        said = ", ".join(_describe(*theirs) for _, theirs in wrong)
+        wanted = ", ".join(_describe(*mine) for mine, _ in wrong)
+        raise UserError(f"the board on {port} reports {said}, expected {wanted}: the upload "
                         "did not take, or another board answered")
     return info

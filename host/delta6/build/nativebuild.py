@@ -52,6 +52,8 @@ def build_executable(name: str, sources, include_dirs=(), flags: tuple[str, ...]
 
 
 def core_sources() -> list[Path]:
-    """The portable firmware core's protocol and device sources (not the solver's)."""
-    return [FIRMWARE_CORE / f"delta6_{part}.cpp" for part in ("crc16", "cobs", "protocol", "device")]
+    """The portable firmware core's protocol and device sources, with the device's wrench
+    pipeline (low-pass filter, tool frame); not the solver's."""
+    return [FIRMWARE_CORE / f"delta6_{part}.cpp"
+            for part in ("crc16", "cobs", "protocol", "filter", "toolframe", "device")]
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 from delta6.build import avrbuild
 from delta6.core import calibration as calibration_mod
@@ -95,6 +96,51 @@ def model_text(design: design_mod.Design, design_path: Path, model_path: Path | 
     return model, render_model(model, source_label(design_path), source_label(model_path))
 
 
+class Headers(NamedTuple):
+    """A design's header and, if given, a calibration's and a model's, checked together."""
+
+    design: design_mod.Design
+    text: str
+    cal: calibration_mod.Calibration | None
+    cal_text: str | None
+    model: residualmodel.ResidualModel | None
+    model_text: str | None
+
+
+def generate_headers(design_path: Path, cal_path: Path | None = None,
+                     model_path: Path | None = None) -> Headers:
+    """Everything ``delta6 codegen`` (and ``delta6 flash``) writes for a firmware: refuses a
+    calibration of another design and a model over another base."""
+    design, text = header_text(design_path)
+    cal, cal_text = calibration_text(design, design_path, cal_path)
+    model, model_text_ = model_text(design, design_path, model_path, cal)
+    return Headers(design, text, cal, cal_text, model, model_text_)
+
+
+def write_headers(out: Path, headers: Headers) -> list[str]:
+    """Write the design header to ``out`` and the calibration and model headers next to it,
+    removing those the firmware must not carry (a header left from an earlier build would be
+    compiled in). Returns one line per file, saying what was done."""
+    design, cal, model = headers.design, headers.cal, headers.model
+    cal_out, model_out = out.with_name(CALIBRATION_HEADER), out.with_name(MODEL_HEADER)
+    lines = []
+    verb = "wrote" if _write_if_changed(out, headers.text) else "unchanged:"
+    lines.append(f"{verb} {_rel(out)} for design '{design.name}' (hash 0x{design.hash32():08x})")
+    if cal is not None:
+        verb = "wrote" if _write_if_changed(cal_out, headers.cal_text) else "unchanged:"
+        lines.append(f"{verb} {_rel(cal_out)} for calibration '{cal.name}' "
+                     f"(hash 0x{cal.hash32():08x})")
+    elif _remove(cal_out):
+        lines.append(f"removed {_rel(cal_out)}: the firmware is the uncalibrated one")
+    if model is not None:
+        verb = "wrote" if _write_if_changed(model_out, headers.model_text) else "unchanged:"
+        lines.append(f"{verb} {_rel(model_out)} for model '{model.name}' (hash "
+                     f"0x{model.hash32():08x}, {model.net.macs} multiply-accumulates per sample)")
+    elif _remove(model_out):
+        lines.append(f"removed {_rel(model_out)}: no model")
+    return lines
+
+
 def build_name(design: design_mod.Design, cal=None, model=None) -> str:
     """The build directory's name: one per design, per calibrated unit and per model."""
     name = design.name if cal is None else f"{design.name}-cal-{cal.hash32():08x}"
@@ -129,27 +175,14 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("give a design file (delta6 codegen designs/delta6.toml) or --wire")
     if args.build or args.output is None:
         paths.checkout()    # the firmware tree the header belongs to, or one line saying so
-    design, text = header_text(args.design)
-    cal, cal_text = calibration_text(design, args.design, args.calibration)
-    model, model_text_ = model_text(design, args.design, args.model, cal)
-    out = output_path(args, design, cal, model)
-    cal_out = out.with_name(CALIBRATION_HEADER)
-    model_out = out.with_name(MODEL_HEADER)
+    headers = generate_headers(args.design, args.calibration, args.model)
+    out = output_path(args, headers.design, headers.cal, headers.model)
     if args.check:
-        return _check(args, out, text, {cal_out: cal_text, model_out: model_text_})
-    verb = "wrote" if _write_if_changed(out, text) else "unchanged:"
-    print(f"{verb} {_rel(out)} for design '{design.name}' (hash 0x{design.hash32():08x})")
-    if cal is not None:
-        verb = "wrote" if _write_if_changed(cal_out, cal_text) else "unchanged:"
-        print(f"{verb} {_rel(cal_out)} for calibration '{cal.name}' (hash 0x{cal.hash32():08x})")
-    elif _remove(cal_out):
-        print(f"removed {_rel(cal_out)}: the firmware is the uncalibrated one")
-    if model is not None:
-        verb = "wrote" if _write_if_changed(model_out, model_text_) else "unchanged:"
-        print(f"{verb} {_rel(model_out)} for model '{model.name}' (hash 0x{model.hash32():08x}, "
-              f"{model.net.macs} multiply-accumulates per sample)")
-    elif _remove(model_out):
-        print(f"removed {_rel(model_out)}: no model")
+        return _check(args, out, headers.text, {out.with_name(CALIBRATION_HEADER): headers.cal_text,
+                                                out.with_name(MODEL_HEADER): headers.model_text})
+    for line in write_headers(out, headers):
+        print(line)
+    design, cal, model = headers.design, headers.cal, headers.model
     if args.build:
         image = build_image(design, include_dir_of(out), cal, model)
         sizes = image.sizes
@@ -223,32 +256,27 @@ def _remove(path: Path) -> bool:
 
 
 def build_image(design: design_mod.Design, include_dir: Path, cal=None,
-                model=None) -> avrbuild.Image:
+                model=None, defines=()) -> avrbuild.Image:
     """The firmware application for ``design`` (headers under ``include_dir``), in
     build/designs/NAME/atmega328p/ (NAME-cal-HASH for a calibrated unit, +MODEL-HASH with a
-    model)."""
+    model; ``defines``, for benchmarks, build into atmega328p-defines/)."""
     from delta6.build.appbuild import build_app
     name = build_name(design, cal, model)
-    return build_app(include_dir, name=f"delta6-{name}",
-                     out_dir=avrbuild.design_build_dir(name) / "atmega328p")
+    folder = "atmega328p-defines" if defines else "atmega328p"
+    return build_app(include_dir, name=f"delta6-{name}", defines=list(defines),
+                     out_dir=avrbuild.design_build_dir(name) / folder)
 
 
 def design_firmware(path: Path, calibration: Path | None = None,
-                    model_path: Path | None = None) -> avrbuild.Image:
+                    model_path: Path | None = None, defines=()) -> avrbuild.Image:
     """Generate ``path``'s header (and ``calibration``'s and ``model_path``'s) into
     build/designs/NAME/include/ (the committed headers are left alone) and build the
     application for it: what ``delta6 virtual --design [--calibration] [--model]`` runs."""
-    design, text = header_text(path)
-    cal, cal_text = calibration_text(design, path, calibration)
-    model, model_text_ = model_text(design, path, model_path, cal)
+    headers = generate_headers(path, calibration, model_path)
+    design, cal, model = headers.design, headers.cal, headers.model
     header = avrbuild.design_include_dir(build_name(design, cal, model)) / HEADER_RELPATH
-    _write_if_changed(header, text)
-    for name, wanted in ((CALIBRATION_HEADER, cal_text), (MODEL_HEADER, model_text_)):
-        if wanted is not None:
-            _write_if_changed(header.with_name(name), wanted)
-        else:
-            _remove(header.with_name(name))
-    return build_image(design, include_dir_of(header), cal, model)
+    write_headers(header, headers)
+    return build_image(design, include_dir_of(header), cal, model, defines)
 
 
 def _write_if_changed(path: Path, text: str) -> bool:

@@ -1,5 +1,6 @@
-"""``delta6 flash``: generate the headers for a design, build and upload the firmware with
-PlatformIO, then check that the board answers with the design it was built for."""
+"""``delta6 flash``: generate the headers for a design (and a unit's calibration and an on-chip
+residual model), build and upload the firmware with PlatformIO, then check that the board
+answers with the design, calibration and model it was built with."""
 from __future__ import annotations
 
 import argparse
@@ -8,14 +9,21 @@ from pathlib import Path
 
 from delta6.build import flash
 from delta6.commands._port import number
-from delta6.commands.codegen import HEADER_RELPATH, _write_if_changed, header_text, source_label
+from delta6.commands.codegen import (
+    CALIBRATION_HEADER,
+    HEADER_RELPATH,
+    MODEL_HEADER,
+    generate_headers,
+    source_label,
+    write_headers,
+)
 from delta6.core import paths
 from delta6.core.errors import UserError
 from delta6.link.device import DEFAULT_BAUD
 
 NAME = "flash"
 HELP = ("generate the headers, build and upload the firmware with PlatformIO (nano_every), and "
-        "check the board answers with the expected design hash")
+        "check the board answers with the expected design, calibration and model hashes")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -25,9 +33,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         default=paths.DEFAULT_DESIGN,
                         help="design to build the firmware for (default: designs/delta6.toml)")
     parser.add_argument("--calibration", metavar="CAL.toml", type=Path,
-                        help="per-unit calibration to build in (needs firmware that carries one)")
-    parser.add_argument("--model", metavar="MODEL", type=Path,
-                        help="learned estimator to build in (needs firmware that carries one)")
+                        help="a unit's calibration (delta6 calibrate) to build in, as delta6 "
+                             f"codegen --calibration does ({CALIBRATION_HEADER}); without it "
+                             "the firmware is the uncalibrated one")
+    parser.add_argument("--model", metavar="MODEL.json", type=Path,
+                        help="an on-chip residual model (delta6 train --target mcu) to build in, "
+                             f"as delta6 codegen --model does ({MODEL_HEADER}); without it none")
     parser.add_argument("--env", default=flash.DEFAULT_ENV, metavar="ENV",
                         help=f"PlatformIO environment (default {flash.DEFAULT_ENV}; see "
                              "firmware/platformio.ini)")
@@ -46,27 +57,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    for option, value in (("--calibration", args.calibration), ("--model", args.model)):
-        if value is not None:
-            raise UserError(f"{option}: this firmware version builds in no {option[2:]} (its info "
-                            "record carries the design hash only); flash without it")
     firmware_dir = args.firmware_dir or paths.checkout() / "firmware"
     if not (firmware_dir / "platformio.ini").is_file():
         raise UserError(f"{firmware_dir}: no platformio.ini (not the firmware project)")
-    design, text = header_text(args.design)
-    expected = flash.Expected(design.name, design.hash32())
+    headers = generate_headers(args.design, args.calibration, args.model)
+    cal, model = headers.cal, headers.model
+    expected = flash.Expected(
+        headers.design.name, headers.design.hash32(),
+        cal.name if cal else "", cal.hash32() if cal else 0,
+        model.name if model else "", model.hash32() if model else 0)
     header = firmware_dir / "include" / HEADER_RELPATH
     pio = args.pio or "pio"
     if not args.dry_run:
         pio = flash.find_pio(args.pio)
     command = flash.pio_command(pio, firmware_dir, args.env, args.port)
     if args.dry_run:
-        print(f"would write {header} for {expected.describe()} from {source_label(args.design)}")
+        print(f"would write {header} for design '{headers.design.name}' (hash "
+              f"0x{headers.design.hash32():08x}) from {source_label(args.design)}")
+        for name, part in ((CALIBRATION_HEADER, cal), (MODEL_HEADER, model)):
+            path = header.with_name(name)
+            if part is not None:
+                print(f"would write {path} for '{part.name}' (hash 0x{part.hash32():08x})")
+            elif path.exists():
+                print(f"would remove {path}")
         print("would run: " + " ".join(command))
         print(f"then expect the board on {args.port} to report {expected.describe()}")
         return 0
-    verb = "wrote" if _write_if_changed(header, text) else "unchanged:"
-    print(f"{verb} {header} for {expected.describe()}", file=sys.stderr)
+    for line in write_headers(header, headers):
+        print(line, file=sys.stderr)
     print("running: " + " ".join(command), file=sys.stderr)
     flash.run_pio(command)
     info = flash.check_board(args.port, expected, baud=args.baud, timeout=args.timeout)

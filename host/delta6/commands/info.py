@@ -5,6 +5,7 @@ import argparse
 import json
 
 from delta6.commands._port import AXES, add_port_arguments, flag_names, open_device
+from delta6.commands.config import pipeline_lines
 from delta6.link.protocol import Mode, Status, config_problem_text, link_rate_limit
 
 NAME = "info"
@@ -25,12 +26,13 @@ def run(args: argparse.Namespace) -> int:
     problem = (config_problem_text(info.config_problem)
                if info.status & Status.CONFIG_DEFAULTS and info.config_problem else None)
     if args.json:
-        # No sentinels in JSON: an unknown temperature is null, not 32767.
+        # No sentinels in JSON: an unknown temperature is null, not 32767; no limit is null.
         health = {**telemetry._asdict(), "temperature_c": telemetry.temperature_c}
         if telemetry.temperature_c is None:
             health["temperature_centi"] = None
-        out = {**info._asdict(), "lsb": list(info.lsb), "ping_s": rtt, "telemetry": health,
-               "config_problem_text": problem}
+        out = {**info._asdict(), "lsb": list(info.lsb),
+               "limit_values": [None if v != v else v for v in info.limit_values],
+               "ping_s": rtt, "telemetry": health, "config_problem_text": problem}
         print(json.dumps(out, indent=2, allow_nan=False))
         return 0
     unit = ("N",) * 3 + ("N*m",) * 3
@@ -42,7 +44,10 @@ def run(args: argparse.Namespace) -> int:
          if info.calibration_hash else "  no calibration: the analytical model"),
         (f"  on-chip residual model '{info.model_name}' (hash 0x{info.model_hash:08x})"
          if info.model_hash else "  no on-chip residual model"),
-        f"  rate {info.rate_hz} Hz (board max {info.max_rate_hz} Hz; link at {info.baud} baud "
+        f"  rate {info.rate_hz} Hz (board max {info.max_rate_hz} Hz"
+        + (f", {info.max_rate_pipeline_hz} Hz with the filter or tool frame on"
+           if info.max_rate_pipeline_hz and info.max_rate_pipeline_hz < info.max_rate_hz else "")
+        + f"; link at {info.baud} baud "
         f"carries {link_rate_limit(info.baud, Mode.WRENCH)} Hz wrench, "
         f"{link_rate_limit(info.baud, Mode.WRENCH_RAW)} Hz wrench+raw)",
         f"  mode {Mode(info.mode).name.lower()}, {'streaming' if info.streaming else 'stopped'}, "
@@ -54,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
                      f"{info.tare[i]:>+11.5g}")
     lines.append("  zero counts " + " ".join(str(c) for c in info.zero_counts)
                  + f"; joint limit {info.joint_limit_rad:.4f} rad")
+    lines += pipeline_lines(info)
     t = telemetry
     lines.append(f"  health: {t.samples} samples, {t.overruns} overruns, "
                  f"encoder errors {list(t.encoder_errors)}, {t.solver_errors} solver errors, "

@@ -128,9 +128,10 @@ def analyse(data: GapData, leftover_fs: np.ndarray) -> dict:
                "noise_rms_nm": float(tau_noise[j]),
                "structured_rms_nm": float(np.sqrt(structured_var[j]))}
         row.update(_joint_shapes(tau[:, j], theta, j, direction, structured_var[j]))
+        row["structured"] = bool(var[j] >= STRUCTURED_EXCESS * tau_noise[j] ** 2)
         out["per_joint"].append(row)
         if structured and top > 0 and structured_var[j] >= JOINT_SHARE * top \
-                and var[j] >= STRUCTURED_EXCESS * tau_noise[j] ** 2:
+                and row["structured"]:
             out["joints"].append(j + 1)
     out["cartesian"] = _cartesian(data, wrench_err, idx)
     out["shape"] = _verdict_shape(out) if structured else None
@@ -164,14 +165,17 @@ def _cartesian(data: GapData, wrench_err: np.ndarray, idx: np.ndarray) -> dict:
 
 def _verdict_shape(out: dict) -> str | None:
     """One shape for the leftover: pose-dependent in Cartesian space when a function of the
-    plate's position explains the leftover force and the joints' leftovers depend on each
-    other's angles (a force on the plate reaches every joint); else the most common shape of
-    the joints that carry it."""
+    plate's position explains the leftover force and some joint's structured leftover depends
+    on the other joints' angles (a force on the plate reaches every joint; one clamped off
+    the plate's centre turns the gimbal with a moment that follows the plate's position, even
+    when the proximal joints' share looks like a rate error of their own); else the most
+    common shape of the joints that carry it."""
     joints = out["joints"]
     shapes = [out["per_joint"][j - 1]["best"] for j in joints]
     cart = out["cartesian"]
-    if cart["share"] >= SHAPE_SHARE and cart["share"] >= cart["separable_share"] \
-            and "coupled across joints" in shapes:
+    coupled = any(row["structured"] and row["best"] == "coupled across joints"
+                  for row in out["per_joint"])
+    if cart["share"] >= SHAPE_SHARE and cart["share"] >= cart["separable_share"] and coupled:
         return "pose-dependent in Cartesian space"
     shapes = [s for s in shapes if s]
     if not shapes:

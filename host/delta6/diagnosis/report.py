@@ -137,6 +137,10 @@ def verdict_lines(result: dict) -> list[str]:
         lines.append(f"- Not named: {p['name']} carries only {100 * p['share_of_gap']:.0f} % "
                      "of the gap while a structured leftover remains: it may be absorbing part "
                      "of an effect the vocabulary lacks.")
+    for f in result.get("below_noise", []):
+        lines.append(f"- Not named: {f['name']} removes only "
+                     f"{100 * f['share_of_noise_floor']:.0f} % of the noise floor's squared "
+                     "error (less than one axis's white noise): it cannot be told from noise.")
     for name, check in result["implausible"].items():
         worst = max(check["checks"], key=lambda c: c["ratio"])
         lines.append(f"- Not named: {name} fits only by going out of bounds ({worst['quantity']}"

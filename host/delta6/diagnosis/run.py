@@ -107,11 +107,14 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
                                                  rng, confidence)
                 kept = kept + [helper]
                 break
-        for n in bad:
-            implausible[n] = checks[n]
-            names.remove(n)
-            if progress:
-                progress(f"not named: {n} fits only with implausible parameters")
+        # One at a time, the furthest out of bounds first: in a joint fit, a family that
+        # soaks up what none of them describes can push its neighbours out of bounds too;
+        # without it they may fit plausibly.
+        worst = verdicts.furthest_out_of_bounds(checks, bad)
+        implausible[worst] = checks[worst]
+        names.remove(worst)
+        if progress:
+            progress(f"not named: {worst} fits only with implausible parameters")
     base_sse = info["base"]
     group_verdicts = verdicts.groups(problem, kept, info)
     # Members of a group verdict join the ladder (in forward order): the shrink is predicted
@@ -120,6 +123,20 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
              and any(n in g["members"] for g in group_verdicts)]
     if extra:
         steps_found = selection._rebuild(problem, kept + extra, base_sse, rng, confidence)
+    # A family whose own share is lost in the noise (the error it removes is less than one
+    # axis's white noise over the log) is neither named nor kept: at the noise floor any
+    # smooth family fits something, and nothing tells its cause from noise or from a
+    # neighbouring, unknown effect (whose share it would take from the family that has it).
+    ladder_names, faint = verdicts.drop_faint(problem, [s.added for s in steps_found])
+    if faint:
+        steps_found = selection._rebuild(problem, ladder_names, base_sse, rng, confidence)
+        kept = [n for n in kept if n in ladder_names]
+        if progress:
+            progress("not named, below the noise floor: "
+                     + ", ".join(f["name"] for f in faint))
+    floor = verdicts.noise_floor_sse(problem)
+    group_verdicts = [g for g in group_verdicts
+                      if verdicts.above_noise(g["share_of_gap"] * base_sse.sum(), floor)]
 
     # Held-out predictions: every candidate alone, and the refit after every ladder step.
     models = {("alone", t.name): (problem.cols([t.name]),
@@ -200,13 +217,16 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     if left_verdict["structured"] and base_total > 0 and left / base_total >= MISSING_SHARE:
         partial = [{"name": s["added"], "share_of_gap": s["share_of_gap"]} for s in steps
                    if s["share_of_gap"] < PARTIAL_SHARE]
+    unnamed = {p["name"] for p in partial}
     for step in steps:
-        step["named"] = not any(p["name"] == step["added"] for p in partial)
+        step["named"] = step["added"] not in unnamed
+    present = [n for n in chosen if n in kept and n not in unnamed]
+    present = verdicts.order_refinements(problem, present, chosen, coef_all)
     result = {
         "baseline_heldout_p99_pct": baseline_p99,
-        "present": [n for n in chosen if n in kept
-                    and not any(p["name"] == n for p in partial)],
+        "present": present,
         "partial": partial,
+        "below_noise": faint,
         "groups": group_verdicts,
         "ladder": steps,
         "candidates": candidates,

@@ -87,6 +87,9 @@ class Term:
     #: Effects told apart only by details share a group (a verdict names the group when the
     #: log cannot separate them).
     group: str | None = None
+    #: The family this one refines (it contains its shape and more: a stiffening spring
+    #: is a spring-rate error plus curvature); named first when both are named.
+    refines: str | None = None
 
     def summarize(self, coef: np.ndarray) -> dict:
         out = {name: float(v) for name, v in zip(self.param_names, coef)}
@@ -321,17 +324,21 @@ def plate_jacobian(data: GapData) -> np.ndarray:
 
 
 def _harness(data: GapData) -> np.ndarray:
-    # A force f on the plate, affine in the plate's displacement from rest (f0 + K dp, K any
-    # 3 x 3 in N/mm), reaches the joints as J^T f (virtual work) and the wrench as G J^T f.
+    # A cable or harness pulls on the plate with a force that depends on where the plate is:
+    # affine in its pose's displacement from rest, the plate centre's (dp, mm) and the
+    # gimbal's angles (q4..6, rad: a clamp off the centre moves with the tilt). The force f
+    # reaches joints 1..3 as J^T f (virtual work) and the wrench as G J^T f. (The moment such
+    # a clamp puts on the gimbal is left out: on joints 4..6 it looks like their own spring
+    # rates and zeros, and in mixes it took those effects' shares.)
     from delta6.core.model import forward_kinematics
     jac = plate_jacobian(data)                                         # (n, 3, 3)
     rest = forward_kinematics(data.params, np.zeros((1, 3)))[0]
-    dp_mm = (data.position_mm - rest * 1e3)                            # (n, 3)
+    pose = np.concatenate([data.position_mm - rest * 1e3, data.theta[:, 3:]], axis=1)
     g = data.torque_map[:, :, :3]                                      # (n, 6, 3)
-    gj = np.einsum("naj,nkj->nak", g, jac)                             # per N of f_k
-    cols = [gj]                                                        # preload, N
-    for m in range(3):                                                 # K[:, m] per mm of dp_m
-        cols.append(gj * dp_mm[:, None, m:m + 1])
+    force = np.einsum("naj,nkj->nak", g, jac)                          # per N of f_k
+    cols = [force]                                                     # preload, N
+    for m in range(6):                                                 # per mm or rad
+        cols.append(force * pose[:, None, m:m + 1])
     return np.concatenate(cols, axis=-1)
 
 
@@ -386,6 +393,24 @@ def _encoder_plausible(coef):
                       for f in (np.sin(h * q), np.cos(h * q) - 1.0)], axis=1)   # (101, 2H)
     curves = basis @ coef.reshape(6, -1).T                                        # (101, 6)
     return [("angle_error_rad", np.abs(curves).max(axis=0), 0.03)]
+
+
+#: The harness family's parameters, in ``_harness``'s column order (the pose, then the
+#: component): the force on the plate (x, y, z in {B}; N) at rest and per unit of the pose's
+#: displacement (plate centre x, y, z in mm; gimbal angles 4..6 in rad).
+_POSE_UNITS = ("_n", "_per_x_mm", "_per_y_mm", "_per_z_mm", "_per_q4_rad", "_per_q5_rad",
+               "_per_q6_rad")
+#: Prior scales: a cable's preload of a few tenths of a newton, a stiffness of a few
+#: hundredths of a N/mm (0.5 N over 10 mm), a clamp up to about 20 mm off the centre (the
+#: tilt terms are the stiffness times that offset).
+HARNESS_PRIORS = (0.3,) * 3 + (0.05,) * 9 + (0.05 * 20.0,) * 9
+
+
+def _harness_plausible(coef):
+    # Limits: 3 N of preload, 0.5 N/mm, a clamp at most 100 mm off the centre.
+    f = coef.reshape(7, 3)                          # pose, component
+    return [("preload_n", f[0], 3.0), ("stiffness_n_per_mm", f[1:4], 0.5),
+            ("stiffness_n_per_rad", f[4:], 0.5 * 100.0)]
 
 
 def _thermal_plausible(coef):
@@ -445,17 +470,15 @@ TERMS: tuple[Term, ...] = (
     Term("nonlinear_spring", "torque",
          tuple(f"{kind}_{j}" for j in JOINTS for kind in ("abs_quadratic", "cubic")), "1",
          _nonlinear_spring, prior_sd=_per_joint(0.05, 2),
-         plausible=_each([("rate_change_at_ref", slice(0, 12), 0.6)])),
+         plausible=_each([("rate_change_at_ref", slice(0, 12), 0.6)]),
+         refines="stiffness_mismatch"),
     Term("encoder_periodic_error", "angle",
          tuple(f"{kind}{h}_{j}_rad" for j in JOINTS for h in ENCODER_HARMONICS
                for kind in ("sin", "cos")), "rad", _encoder_periodic,
          prior_sd=_per_joint(3e-3, 2 * len(ENCODER_HARMONICS)),
          plausible=_encoder_plausible),
     Term("harness", "torque",
-         tuple(f"preload_{a}_n" for a in "xyz")
-         + tuple(f"k_{a}{b}_n_per_mm" for b in "xyz" for a in "xyz"), "N, N/mm", _harness,
-         prior_sd=(0.3,) * 3 + (0.05,) * 9,
-         plausible=_each([("preload_n", slice(0, 3), 3.0),
-                          ("stiffness_n_per_mm", slice(3, 12), 0.5)])),
+         tuple(f"force_{a}{unit}" for unit in _POSE_UNITS for a in "xyz"),
+         "N, N/mm, N/rad", _harness, prior_sd=HARNESS_PRIORS, plausible=_harness_plausible),
 )
 EFFECT_NAMES = tuple(t.name for t in TERMS)

@@ -82,6 +82,12 @@ def plausibility(problem: selection.Problem, names, coef: np.ndarray) -> dict:
     return out
 
 
+def furthest_out_of_bounds(checks: dict, bad: list[str]) -> str:
+    """The family of ``bad`` whose worst quantity is furthest beyond its limit (``checks``
+    from :func:`plausibility`)."""
+    return max(bad, key=lambda n: max(c["ratio"] for c in checks[n]["checks"]))
+
+
 def rescue(problem: selection.Problem, kept: list[str], bad: list[str],
            others: list[str]) -> str | None:
     """The candidate among ``others`` with which every family of ``bad`` fits plausibly and the
@@ -97,3 +103,75 @@ def rescue(problem: selection.Problem, kept: list[str], bad: list[str],
         if sse < best_sse:
             best, best_sse = name, sse
     return best
+
+
+#: A family is named only when the held-out squared error it removes is at least this share
+#: of the white noise's over the whole log (six axes): one axis's worth. Less would not make
+#: the leftover of any axis structured by the leftover verdict's own test, so nothing could
+#: tell the family's cause from the noise or from a neighbouring, unknown effect.
+NOISE_SHARE = 1.0 / 6.0
+
+
+def noise_floor_sse(problem: selection.Problem) -> float:
+    """Squared error white noise alone leaves over the log (FS-normalised, six axes)."""
+    return 6.0 * float(problem.bounds[-1]) * problem.noise_var
+
+
+def above_noise(sse_removed: float, floor: float) -> bool:
+    return floor <= 0 or sse_removed >= NOISE_SHARE * floor
+
+
+def drop_faint(problem: selection.Problem, names: list[str]) -> tuple[list[str], list[dict]]:
+    """Drop, weakest first, every family whose own share (what taking it out of the model
+    costs) is below the noise criterion; returns the rest and the dropped ones with their
+    share of the gap and of the noise floor at the time they were dropped."""
+    names = list(names)
+    floor = noise_floor_sse(problem)
+    base = selection.heldout_block_sse(problem, []).sum()
+    dropped = []
+    while names:
+        full = selection.heldout_block_sse(problem, names).sum()
+        costs = {n: selection.heldout_block_sse(problem, [m for m in names if m != n]).sum()
+                 - full for n in names}
+        weakest = min(costs, key=costs.get)
+        if above_noise(costs[weakest], floor):
+            break
+        names.remove(weakest)
+        dropped.append({"name": weakest, "share_of_gap": float(costs[weakest] / base),
+                        "share_of_noise_floor": float(costs[weakest] / floor)})
+    return names, dropped
+
+
+def significant_joints(problem: selection.Problem, names, coef: np.ndarray,
+                       name: str) -> set:
+    """Joints (1..6) on which a per-joint family's fitted coefficients stand out by more than
+    three standard errors (all of them for a family that is not per joint)."""
+    se = standard_errors(problem, names, coef)
+    at = 0
+    for n in names:
+        width = len(problem.terms[n].param_names)
+        if n == name:
+            c, s = coef[at:at + width], se[at:at + width]
+            if width % 6:
+                return set(range(1, 7))
+            big = (np.abs(c) > 3.0 * s).reshape(6, -1).any(axis=1)
+            return {j + 1 for j in range(6) if big[j]}
+        at += width
+    return set()
+
+
+def order_refinements(problem: selection.Problem, present: list[str], chosen: list[str],
+                      coef: np.ndarray) -> list[str]:
+    """A family that refines another (``Term.refines``: a stiffening spring's straight-line
+    part is a spring-rate error) comes first when both are named on common joints: the
+    refinement explains the shape, the other its straight part."""
+    out = list(present)
+    for name in present:
+        base = problem.terms[name].refines
+        if base is None or base not in out or out.index(base) > out.index(name):
+            continue
+        if significant_joints(problem, chosen, coef, name) \
+                & significant_joints(problem, chosen, coef, base):
+            out.remove(name)
+            out.insert(out.index(base), name)
+    return out

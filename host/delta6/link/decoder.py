@@ -14,10 +14,9 @@ import numpy as np
 
 from delta6.link import cobs
 from delta6.link.protocol import (
+    ENCODED_LENGTHS,
     ENCODED_SIZES,
     MAX_RECORD_SIZE,
-    MIN_RECORD_SIZES,
-    RECORD_SIZES,
     ProtocolError,
     checked_payload,
     parse_payload,
@@ -26,10 +25,7 @@ from delta6.link.protocol import (
 
 #: Frames longer than this are discarded without decoding (largest record + slack).
 MAX_FRAME = MAX_RECORD_SIZE + 64
-#: Encoded lengths of the records of each type: this version's and the shortest accepted (the
-#: record of an older minor version).
-_LENGTHS = {t: {n, MIN_RECORD_SIZES[t] + n - RECORD_SIZES[t]} for t, n in ENCODED_SIZES.items()}
-_TAIL_LENGTHS = sorted(set().union(*_LENGTHS.values()))
+_TAIL_LENGTHS = sorted(set().union(*ENCODED_LENGTHS.values()))
 
 
 @dataclass
@@ -110,7 +106,7 @@ def _recover_tail(encoded: bytes):
         if length >= len(encoded):
             break
         payload = unframe(encoded[-length:])
-        if payload is None or length not in _LENGTHS.get(payload[0], ()):
+        if payload is None or length not in ENCODED_LENGTHS.get(payload[0], ()):
             continue
         return parse_payload(payload), length
     return None, 0

@@ -383,7 +383,8 @@ class Device:
         self.info(refresh=True)
 
     def save_config(self) -> None:
-        """Write rate, mode, tare and zero counts to the device's EEPROM."""
+        """Write rate, mode, tare, zero counts, filter, tool frame and limits to the device's
+        EEPROM (a 1.0 device: the first four)."""
         self._request(P.Command.SAVE_CONFIG, timeout=max(self.timeout, 1.0))
         self.info(refresh=True)
 
@@ -391,6 +392,39 @@ class Device:
         """Factory configuration in RAM (save_config makes it permanent)."""
         self._request(P.Command.LOAD_DEFAULTS)
         self.info(refresh=True)
+
+    def set_filter(self, cutoff_hz: float | None) -> float:
+        """Low-pass the wrench on the device (second-order Butterworth at ``cutoff_hz``; None
+        or 0: off). The cutoff must lie within 0.001 .. 0.45 x the sample rate. Returns the
+        cutoff in use."""
+        cutoff = 0.0 if cutoff_hz is None else float(cutoff_hz)
+        if not np.isfinite(cutoff) or cutoff < 0:
+            raise DeviceError(f"filter cutoff must be a positive number of Hz or 0 (off), "
+                              f"got {cutoff_hz}")
+        self._request_since(P.Command.SET_FILTER, cutoff)
+        return self.info(refresh=True).filter_hz
+
+    def set_tool(self, translation=(0.0, 0.0, 0.0), rpy=(0.0, 0.0, 0.0)) -> None:
+        """Report the wrench at the tool point ``translation`` (x, y, z in {E}, m) in axes
+        rotated by ``rpy`` (roll, pitch, yaw about {E}, rad). No arguments: the identity.
+        An active tare keeps its physical meaning (the device re-expresses it)."""
+        values = np.asarray([*translation, *rpy], dtype=float)
+        if values.shape != (6,) or not np.isfinite(values).all():
+            raise DeviceError("the tool frame is three translations (m) and three angles (rad)")
+        if np.abs(values[:3]).max() > 1.0 or np.abs(values[3:]).max() > 2 * np.pi:
+            raise DeviceError("the tool point must lie within 1 m of the sensor frame's origin "
+                              "per axis, the angles within +-2 pi rad")
+        self._request_since(P.Command.SET_TOOL, *values)
+        self.info(refresh=True)
+
+    def set_limits(self, limits) -> np.ndarray:
+        """Overload thresholds per axis in N and N*m (Fx Fy Fz Mx My Mz; None, 0 or NaN: no
+        limit): a sample whose value on an axis exceeds its limit is flagged OVERRANGE. The
+        device compares in counts of each axis's LSB; returns the limits as set, in N and
+        N*m (NaN: none)."""
+        counts = limit_counts(limits, self._require_info().lsb)
+        self._request_since(P.Command.SET_LIMITS, *counts)
+        return self.info(refresh=True).limit_values
 
     def telemetry(self) -> P.Telemetry:
         return self._request(P.Command.GET_TELEMETRY)
@@ -482,6 +516,18 @@ class Device:
         self._info = info
         if info.max_rate_hz:      # bounds how many records a gap can hide
             self._tracker.max_rate_hz = info.max_rate_hz
+
+    def _request_since(self, command: P.Command, *args):
+        """A command a device has only from a protocol minor version on: refused here, in one
+        line, when the device is older (it would answer UNKNOWN_COMMAND)."""
+        info = self.info()
+        since = P.COMMAND_SINCE.get(command, (1, 0))
+        if tuple(info.protocol) < since:
+            raise DeviceError(
+                f"{command.name.lower().replace('_', ' ')}: the device on {self.port} speaks "
+                f"protocol {info.protocol_version}, the command needs "
+                f"{'.'.join(map(str, since))}: update the firmware")
+        return self._request(command, *args)
 
     def _next_request_id(self) -> int:
         self._request_id = self._request_id % 255 + 1    # 1..255; 0 means unsolicited
@@ -670,6 +716,23 @@ class Device:
         # t_us / 1e6, not * 1e-6: the double nearest the decimal (0.014, not 0.01399...).
         return Sample(t=t_us / 1e6, host_t=host_t, seq=seq, status=status, wrench=wrench,
                       counts=raw, theta=theta, session=session)
+
+
+def limit_counts(limits, lsb) -> list[int]:
+    """Overload limits in N and N*m (None, 0 or NaN: none) -> the device's counts of each
+    axis's LSB, rounded to the nearest count (at least 1 for a positive limit)."""
+    values = np.array([np.nan if v is None else float(v) for v in limits], dtype=float)
+    if values.shape != (6,):
+        raise DeviceError(f"six overload limits (Fx Fy Fz Mx My Mz), got {len(values)}")
+    none = np.isnan(values) | (values == 0)
+    if (values[~none] < 0).any() or np.isinf(values).any():
+        raise DeviceError("overload limits are positive numbers (N, N*m), or 0 for none")
+    counts = np.where(none, 0, np.maximum(1, np.round(np.where(none, 0, values) / lsb)))
+    if (counts > P.MAX_VALUE).any():
+        axis = int(np.argmax(counts > P.MAX_VALUE))
+        raise DeviceError(f"overload limit {values[axis]:g} on axis {axis + 1} is beyond the "
+                          f"wire's range ({P.MAX_VALUE * lsb[axis]:g})")
+    return [int(c) for c in counts]
 
 
 def _reason(exc: BaseException) -> str:

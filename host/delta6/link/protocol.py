@@ -1,4 +1,4 @@
-"""The Delta6 wire protocol, version 1.1: every number and layout of ``docs/protocol.md``.
+"""The Delta6 wire protocol, version 1.3: every number and layout of ``docs/protocol.md``.
 
 The tables here (record types, commands, modes, status bits, NACK reasons, event codes,
 configuration problems, the field layouts of every record, command and the EEPROM blob) are
@@ -22,7 +22,7 @@ from delta6.link import cobs
 from delta6.link.crc import crc16
 from delta6.link.layout import Field, Layout
 
-VERSION = (1, 2)
+VERSION = (1, 3)
 
 #: The recommended UART rate (docs/protocol.md section 1, "Link"): exact on 16 MHz AVRs, carries
 #: 1 kHz of wrench records at half load.
@@ -48,6 +48,7 @@ FIRST_COMMAND_TYPE = 0x80
 COMMAND_BUFFER = 32
 
 
+@enum.unique
 class RecordType(enum.IntEnum):
     WRENCH = 0x01
     WRENCH_RAW = 0x02
@@ -58,6 +59,9 @@ class RecordType(enum.IntEnum):
     EVENT = 0x07
 
 
+# Every table is @enum.unique: two branches taking the same code or bit fail at import,
+# never alias silently.
+@enum.unique
 class Command(enum.IntEnum):
     GET_INFO = 0x80
     PING = 0x81
@@ -72,13 +76,24 @@ class Command(enum.IntEnum):
     ZERO_HERE = 0x8A
     GET_TELEMETRY = 0x8B
     ABORT = 0x8C           # 1.1
+    SET_FILTER = 0x8D      # 1.3
+    SET_TOOL = 0x8E        # 1.3
+    SET_LIMITS = 0x8F      # 1.3
 
 
+#: The protocol minor version that introduced each command newer than 1.0: a host sends it
+#: only to a device of that minor version or later.
+COMMAND_SINCE = {Command.ABORT: (1, 1), Command.SET_FILTER: (1, 3), Command.SET_TOOL: (1, 3),
+                 Command.SET_LIMITS: (1, 3)}
+
+
+@enum.unique
 class Mode(enum.IntEnum):
     WRENCH = 1
     WRENCH_RAW = 2
 
 
+@enum.unique
 class Status(enum.IntFlag):
     ENCODER1 = 1 << 0
     ENCODER2 = 1 << 1
@@ -86,6 +101,8 @@ class Status(enum.IntFlag):
     ENCODER4 = 1 << 3
     ENCODER5 = 1 << 4
     ENCODER6 = 1 << 5
+    # An axis is outside its overload limit (SET_LIMITS, 1.3) or outside the wire's range
+    # (clipped): the two share this bit, no other is free.
     OVERRANGE = 1 << 6
     JOINT_LIMIT = 1 << 7
     SOLVER_ERROR = 1 << 8
@@ -101,6 +118,7 @@ class Status(enum.IntFlag):
 ENCODER_MASK = 0x3F
 
 
+@enum.unique
 class NackReason(enum.IntEnum):
     UNKNOWN_COMMAND = 1
     BAD_LENGTH = 2
@@ -111,6 +129,7 @@ class NackReason(enum.IntEnum):
     FAULT_DURING_AVERAGING = 7
     EEPROM_FAILED = 8
     ABORTED = 9            # 1.1
+    FILTER_RANGE = 10      # 1.3
 
 
 NACK_TEXT = {
@@ -125,14 +144,18 @@ NACK_TEXT = {
                                        "(status {detail:#06x}); nothing was changed",
     NackReason.EEPROM_FAILED: "the EEPROM did not read back what was written (byte {detail})",
     NackReason.ABORTED: "aborted (an ABORT command stopped the averaging); nothing was changed",
+    NackReason.FILTER_RANGE: "the low-pass cutoff must lie within 0.001 .. 0.45 x the sample "
+                             "rate of {detail} Hz (0 turns the filter off)",
 }
 
 
+@enum.unique
 class EventCode(enum.IntEnum):
     BOOT = 1
     CONFIG_DEFAULTS = 2
 
 
+@enum.unique
 class ConfigProblem(enum.IntEnum):
     """Why a stored configuration was rejected at boot (the CONFIG_DEFAULTS event's argument)."""
 
@@ -183,7 +206,11 @@ RECORD_LAYOUTS = {
         Field("calibration_hash", "I"), Field("calibration_name", "s", 24),
         Field("boot_id", "H"),
         # 1.2: the on-chip residual model the firmware runs (hash 0 and no name: none).
-        Field("model_hash", "I"), Field("model_name", "s", 24)]),
+        Field("model_hash", "I"), Field("model_name", "s", 24),
+        # 1.3: the wrench pipeline's configuration (SET_FILTER, SET_TOOL, SET_LIMITS).
+        Field("filter_hz", "f"), Field("tool_translation", "f", 3),
+        Field("tool_rpy", "f", 3), Field("limits", "H", 6),
+        Field("max_rate_pipeline_hz", "H")]),
     RecordType.ACK: Layout("ACK", [_TYPE, _REQUEST, Field("command", "B"), Field("value", "I")]),
     RecordType.NACK: Layout("NACK", [_TYPE, _REQUEST, Field("command", "B"),
                                      Field("reason", "B"), Field("detail", "I")]),
@@ -198,18 +225,41 @@ RECORD_LAYOUTS = {
 }
 RECORD_SIZES = {t: layout.size for t, layout in RECORD_LAYOUTS.items()}
 #: Fields a minor version appended: a host reads the shorter records of an older device, each
-#: missing field as the value here (1.1: the calibration and the boot id; 1.2: the model).
+#: missing field as the value here (1.1: the calibration and the boot id; 1.2: the model;
+#: 1.3: the wrench pipeline).
 APPENDED_FIELDS = {
     RecordType.INFO: {"calibration_hash": 0, "calibration_name": "", "boot_id": None,
-                      "model_hash": 0, "model_name": ""},
+                      "model_hash": 0, "model_name": "",
+                      # no filter, the identity tool frame, no overload limits
+                      "filter_hz": 0.0, "tool_translation": (0.0,) * 3,
+                      "tool_rpy": (0.0,) * 3, "limits": (0,) * 6,
+                      "max_rate_pipeline_hz": 0},
     RecordType.TELEMETRY: {"boot_id": None},
 }
+#: The first field each minor version appended to a record (its fields run to the next's).
+APPENDED_SINCE = {
+    RecordType.INFO: {1: "calibration_hash", 2: "model_hash", 3: "filter_hz"},
+    RecordType.TELEMETRY: {1: "boot_id"},
+}
+
+
+def record_size(kind: RecordType, minor: int) -> int:
+    """The payload size of a record of ``kind`` as minor version ``minor`` sent it."""
+    layout = RECORD_LAYOUTS[kind]
+    return min((layout.offsets[name] for since, name in APPENDED_SINCE.get(kind, {}).items()
+                if since > minor), default=layout.size)
+
+
+#: Every payload size a record of each type may have (one per minor version, oldest first).
+RECORD_SIZES_BY_MINOR = {t: sorted({record_size(t, m) for m in range(VERSION[1] + 1)})
+                         for t in RECORD_LAYOUTS}
 #: The shortest payload of each type a host accepts: the record as version 1.0 defined it.
 MIN_RECORD_SIZES = {t: min((layout.offsets[n] for n in APPENDED_FIELDS.get(t, ())),
                            default=layout.size) for t, layout in RECORD_LAYOUTS.items()}
 INFO_SIZE_1_0 = MIN_RECORD_SIZES[RecordType.INFO]
-#: INFO as version 1.1 sent it (without the model).
-INFO_SIZE_1_1 = RECORD_LAYOUTS[RecordType.INFO].offsets["model_hash"]
+#: INFO as version 1.1 sent it (without the model), and 1.2 (without the pipeline).
+INFO_SIZE_1_1 = record_size(RecordType.INFO, 1)
+INFO_SIZE_1_2 = record_size(RecordType.INFO, 2)
 _WRENCH = RECORD_LAYOUTS[RecordType.WRENCH].struct
 _WRENCH_RAW = RECORD_LAYOUTS[RecordType.WRENCH_RAW].struct
 
@@ -226,6 +276,9 @@ COMMAND_LAYOUTS = {c: Layout(c.name, [_TYPE, _REQUEST, *args]) for c, args in {
     Command.LOAD_DEFAULTS: [], Command.SET_ZERO: [Field("zero_counts", "H", 6)],
     Command.ZERO_HERE: [Field("samples", "H")], Command.GET_TELEMETRY: [],
     Command.ABORT: [],
+    Command.SET_FILTER: [Field("cutoff_hz", "f")],
+    Command.SET_TOOL: [Field("translation", "f", 3), Field("rpy", "f", 3)],
+    Command.SET_LIMITS: [Field("limits", "H", 6)],
 }.items()}
 #: Argument format of each command (``struct``, after type and request id).
 COMMAND_ARGS = {c: "".join(f.fmt for f in layout.fields[2:])
@@ -235,15 +288,29 @@ MAX_RECORD_SIZE = max(RECORD_SIZES.values())
 
 #: The configuration blob in the device's EEPROM (docs/protocol.md section 9), followed by
 #: its CRC (most significant byte first, like frames).
-CONFIG_LAYOUT = Layout("CONFIG", [
+_CONFIG_1 = [
     Field("magic", "H"), Field("layout", "B"), Field("size", "B"), Field("design_hash", "I"),
     Field("rate_hz", "H"), Field("mode", "B"), Field("tare_active", "B"), Field("tare", "f", 6),
-    Field("zero_counts", "H", 6)])
+    Field("zero_counts", "H", 6)]
+#: Every layout a device loads, by layout version: each is the previous one with fields
+#: appended (checked below), so the fields they share sit at one offset and the device
+#: decodes an older blob with the newest offsets, its missing fields at their defaults.
+CONFIG_LAYOUTS = {
+    1: Layout("CONFIG", _CONFIG_1),
+    2: Layout("CONFIG", _CONFIG_1 + [Field("filter_hz", "f"), Field("tool_translation", "f", 3),
+                                     Field("tool_rpy", "f", 3), Field("limits", "H", 6)]),
+}
+CONFIG_LAYOUT_VERSION = max(CONFIG_LAYOUTS)
+CONFIG_LAYOUT = CONFIG_LAYOUTS[CONFIG_LAYOUT_VERSION]
 CONFIG_MAGIC = 0x3644           # "D6" little-endian
-CONFIG_LAYOUT_VERSION = 1
 CONFIG_BLOB_SIZE = CONFIG_LAYOUT.size + CRC_SIZE
+CONFIG_BLOB_SIZES = {v: layout.size + CRC_SIZE for v, layout in CONFIG_LAYOUTS.items()}
+if any(not CONFIG_LAYOUTS[v + 1].starts_with(CONFIG_LAYOUTS[v]) for v in range(1, CONFIG_LAYOUT_VERSION)):
+    raise AssertionError("each EEPROM layout is the previous one with fields appended")
 #: Encoded length (no delimiter) of each record type: payload + CRC + one COBS code byte.
 ENCODED_SIZES = {t: s + 3 for t, s in RECORD_SIZES.items()}
+#: Every encoded length a record of each type may have (this version's, or an older minor's).
+ENCODED_LENGTHS = {t: frozenset(s + 3 for s in sizes) for t, sizes in RECORD_SIZES_BY_MINOR.items()}
 
 
 def wire_bytes(record_type: RecordType) -> int:
@@ -305,6 +372,19 @@ class Info(NamedTuple):
     boot_id: int | None = None      # 1.1: identifies the device's boot session
     model_hash: int = 0            # 1.2; 0: no on-chip residual model
     model_name: str = ""
+    # 1.3: the wrench pipeline (defaults: what an older device does)
+    filter_hz: float = 0.0          # low-pass cutoff, Hz; 0: off
+    tool_translation: tuple = (0.0, 0.0, 0.0)   # tool point in {E}, m
+    tool_rpy: tuple = (0.0, 0.0, 0.0)           # tool axes: roll, pitch, yaw about {E}, rad
+    limits: tuple = (0,) * 6        # overload thresholds, counts of each axis's LSB; 0: none
+    max_rate_pipeline_hz: int = 0   # the board's highest rate with the filter or tool frame
+                                    # on (0: from a 1.0 device, which has neither)
+
+    @property
+    def limit_values(self) -> np.ndarray:
+        """The overload thresholds in N and N*m (NaN where an axis has none)."""
+        counts = np.asarray(self.limits, dtype=float)
+        return np.where(counts > 0, counts * self.lsb, np.nan)
 
     @property
     def lsb(self) -> np.ndarray:
@@ -410,8 +490,12 @@ def parse_payload(payload: bytes):
         return WrenchRecord(v[1], v[2], v[3], v[4:10], v[10:16])
     layout = RECORD_LAYOUTS[kind]
     if len(payload) < layout.size:       # an older minor version's record
+        older = _older_layout(kind, len(payload))
+        if older.size != len(payload):   # no version ends there: a record cut short
+            raise ProtocolError(f"record type 0x{kind:02x} has {len(payload)} bytes: it ends "
+                                f"inside a field ({older.size} or {layout.size} expected)")
         fields = dict(APPENDED_FIELDS[kind])
-        fields.update(_older_layout(kind, len(payload)).unpack(payload))
+        fields.update(older.unpack(payload))
     else:
         fields = layout.unpack(payload)
     del fields["type"]
@@ -466,13 +550,12 @@ def encode_wrench(seq: int, time_us: int, status: int, wrench, counts=None) -> b
 def encode_record(record, minor: int | None = None) -> bytes:
     """The frame of an INFO, ACK, NACK, TELEMETRY or EVENT record (the tuples above), as this
     version sends it, or as minor version ``minor`` did (0: 1.0, without the appended fields;
-    1: 1.1, without the model).
+    1: 1.1, without the model; 2: 1.2, without the pipeline).
     An appended field the record does not have (None) is left off, with those after it."""
     kind = next(t for t, cls in _RECORD_TUPLES.items() if isinstance(record, cls))
     fields = record._asdict()
     layout = RECORD_LAYOUTS[kind]
-    size = (MIN_RECORD_SIZES[kind] if minor == 0 else
-            INFO_SIZE_1_1 if minor == 1 and kind == RecordType.INFO else layout.size)
+    size = record_size(kind, VERSION[1] if minor is None else minor)
     for name in APPENDED_FIELDS.get(kind, ()):
         if fields[name] is None:
             size = min(size, layout.offsets[name])

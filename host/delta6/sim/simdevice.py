@@ -67,6 +67,7 @@ def native_library() -> ctypes.CDLL:
         "d6sim_break_eeprom": (None, [c.c_void_p, c.c_int]),
         "d6sim_link_limit": (c.c_uint16, [c.c_void_p, c.c_uint8]),
         "d6sim_sizeof_device": (c.c_uint32, []),
+        "d6sim_set_max_rate_pipeline": (None, [c.c_void_p, c.c_uint16]),
         "d6_crc16": (c.c_uint16, [c.c_char_p, c.c_uint32]),
         "d6_cobs_encode_in_place": (c.c_uint32, [c.c_void_p, c.c_uint32]),
         "d6_cobs_decode_in_place": (c.c_int32, [c.c_void_p, c.c_uint32]),
@@ -77,8 +78,8 @@ def native_library() -> ctypes.CDLL:
         "d6_scale": (None, [c.c_float, c.c_void_p, c.c_void_p]),
         "d6_quantize": (c.c_int16, [c.c_float, c.c_float, c.c_void_p]),
         "d6_parse_commands": (c.c_uint32, [c.c_char_p, c.c_uint32, c.c_void_p, c.c_uint32]),
-        "d6_encode_config": (None, [c.c_void_p, c.c_void_p, c.c_void_p, c.c_uint32,
-                                    c.c_void_p]),
+        "d6_encode_config": (None, [c.c_void_p, c.c_void_p, c.c_void_p, c.c_void_p,
+                                    c.c_void_p, c.c_uint32, c.c_void_p]),
     }
     for name, (restype, argtypes) in sig.items():
         fn = getattr(lib, name)
@@ -192,6 +193,10 @@ class NativeCore:
 
     def break_eeprom(self, broken: bool = True) -> None:
         self._lib.d6sim_break_eeprom(self._h, int(broken))
+
+    def set_max_rate_pipeline(self, hz: int) -> None:
+        """The board's highest rate with the filter or tool frame on (0: its maximum)."""
+        self._lib.d6sim_set_max_rate_pipeline(self._h, hz)
 
     def link_limit(self, mode: Mode) -> int:
         return self._lib.d6sim_link_limit(self._h, int(mode))

@@ -2,6 +2,7 @@
 
 #include <string.h>
 
+#include "delta6_cobs.h"
 #include "delta6_crc16.h"
 #include "delta6_fastmath.h"
 #include "delta6_solver.h"
@@ -14,12 +15,35 @@ namespace {
 
 using fastmath::is_finite;
 
+// Whether the low-pass cutoff (0: off) can be designed at rate_hz.
+bool filterFits(float cutoff_hz, uint16_t rate_hz) {
+  return cutoff_hz == 0.0f || lowPassFits(cutoff_hz, static_cast<float>(rate_hz));
+}
+
+// |v| <= bound for a finite positive bound, NaN and infinities excluded: the magnitude's bits
+// order like the values (an integer compare, no float library calls).
+bool withinMagnitude(float v, float bound) {
+  return (fastmath::bits_of(v) & 0x7FFFFFFFul) <= fastmath::bits_of(bound);
+}
+
+// The index (0..5) of the first translation or angle the device does not accept, or 6.
+uint8_t badToolValue(const float translation[3], const float rpy[3]) {
+  for (uint8_t i = 0; i < 3; ++i) {
+    if (!withinMagnitude(translation[i], kMaxToolTranslation)) return i;
+  }
+  for (uint8_t i = 0; i < 3; ++i) {
+    if (!withinMagnitude(rpy[i], kMaxToolAngle)) return static_cast<uint8_t>(3 + i);
+  }
+  return 6;
+}
+
 }  // namespace
 
 Device::Device(Hardware& hardware, const Identity& identity, const Config& defaults)
     : hw_(hardware),
       id_(identity),
       defaults_(defaults),
+      filter_on_(false),
       queue_head_(0),
       queue_count_(0),
       streaming_(false),
@@ -35,14 +59,16 @@ Device::Device(Hardware& hardware, const Identity& identity, const Config& defau
       averaging_request_(0),
       averaging_target_(0),
       averaging_count_(0) {
+  serial_number_ = ident(id_.serial_number);
   memset(&counters_, 0, sizeof(counters_));
   memset(&last_answer_, 0, sizeof(last_answer_));
   memset(&sums_, 0, sizeof(sums_));
-  config_ = defaults;
+  loadDefaults(&config_);
   for (uint8_t i = 0; i < 6; ++i) {
-    scale_[i] = scaleForFullScale(id_.full_scale[i]);
+    scale_[i] = scaleForFullScale(ident(id_.full_scale[i]));
     inverse_lsb_[i] = 1.0f / scaleValue(scale_[i]);
   }
+  configurePipeline();
 }
 
 // --- configuration ------------------------------------------------------------------------
@@ -59,6 +85,12 @@ void Device::encodeConfig(const Config& c, uint32_t design_hash, uint8_t* blob) 
   for (uint8_t i = 0; i < 6; ++i) {
     putF32(blob + kConfigOffTare + 4 * i, c.tare[i]);
     putU16(blob + kConfigOffZeroCounts + 2 * i, c.zero_counts[i]);
+    putU16(blob + kConfigOffLimits + 2 * i, c.limits[i]);
+  }
+  putF32(blob + kConfigOffFilterHz, c.filter_hz);
+  for (uint8_t i = 0; i < 3; ++i) {
+    putF32(blob + kConfigOffToolTranslation + 4 * i, c.tool_translation[i]);
+    putF32(blob + kConfigOffToolRpy + 4 * i, c.tool_rpy[i]);
   }
   const uint16_t crc = crc16(blob, kConfigBlobSize - 2);
   blob[kConfigBlobSize - 2] = static_cast<uint8_t>(crc >> 8);
@@ -67,29 +99,48 @@ void Device::encodeConfig(const Config& c, uint32_t design_hash, uint8_t* blob) 
 
 uint8_t Device::decodeConfig(const uint8_t* blob, Config* out) const {
   if (getU16(blob + kConfigOffMagic) != kConfigMagic) return kConfigErased;
-  if (blob[kConfigOffLayout] != kConfigLayoutVersion || blob[kConfigOffSize] != kConfigBlobSize) {
+  // The previous layout is a prefix of this one (same offsets), without the pipeline fields.
+  const bool v1 = blob[kConfigOffLayout] == kConfigLayoutV1 && blob[kConfigOffSize] == kConfigBlobSizeV1;
+  if (!v1 && (blob[kConfigOffLayout] != kConfigLayoutVersion ||
+              blob[kConfigOffSize] != kConfigBlobSize)) {
     return kConfigBadVersion;
   }
-  if (crc16(blob, kConfigBlobSize) != 0) return kConfigBadCrc;
+  if (crc16(blob, blob[kConfigOffSize]) != 0) return kConfigBadCrc;
   Config c;
+  memset(&c, 0, sizeof(c));  // a layout-1 blob: no filter, identity tool, no limits
+  if (!v1) {
+    c.filter_hz = getF32(blob + kConfigOffFilterHz);
+    for (uint8_t i = 0; i < 3; ++i) {
+      c.tool_translation[i] = getF32(blob + kConfigOffToolTranslation + 4 * i);
+      c.tool_rpy[i] = getF32(blob + kConfigOffToolRpy + 4 * i);
+    }
+    for (uint8_t i = 0; i < 6; ++i) {
+      c.limits[i] = getU16(blob + kConfigOffLimits + 2 * i);
+      if (c.limits[i] > static_cast<uint16_t>(kMaxValue)) return kConfigOutOfRange;
+    }
+    if (badToolValue(c.tool_translation, c.tool_rpy) < 6) return kConfigOutOfRange;
+  }
   c.rate_hz = getU16(blob + kConfigOffRateHz);
   c.mode = blob[kConfigOffMode];
   c.tare_active = blob[kConfigOffTareActive] == 1;
-  if (c.rate_hz == 0 || c.rate_hz > id_.max_rate_hz) return kConfigOutOfRange;
+  const bool pipeline = c.filter_hz != 0.0f || !toolIsIdentity(c.tool_translation, c.tool_rpy);
+  if (c.rate_hz == 0 || c.rate_hz > maxRate(pipeline)) return kConfigOutOfRange;
   if (c.mode != kModeWrench && c.mode != kModeWrenchRaw) return kConfigOutOfRange;
   if (blob[kConfigOffTareActive] > 1) return kConfigOutOfRange;
+  if (!filterFits(c.filter_hz, c.rate_hz)) return kConfigOutOfRange;
   for (uint8_t i = 0; i < 6; ++i) {
-    const uint32_t bits = getU32(blob + kConfigOffTare + 4 * i);
-    memcpy(&c.tare[i], &bits, 4);
+    c.tare[i] = getF32(blob + kConfigOffTare + 4 * i);
     // Any finite offset: the loader accepts every configuration the device can hold.
     if (!is_finite(c.tare[i])) return kConfigOutOfRange;
     c.zero_counts[i] = getU16(blob + kConfigOffZeroCounts + 2 * i);
     if (c.zero_counts[i] >= kCountsPerTurn) return kConfigOutOfRange;
   }
-  // Offsets belong to the model they were measured with; zero counts are mechanical.
-  if (getU32(blob + kConfigOffDesignHash) != id_.design_hash) {
+  // Offsets belong to the model they were measured with, limits to its wire scaling; zero
+  // counts, the filter and the tool frame are mechanical.
+  if (getU32(blob + kConfigOffDesignHash) != ident(id_.design_hash)) {
     c.tare_active = false;
     for (uint8_t i = 0; i < 6; ++i) c.tare[i] = 0.0f;
+    for (uint8_t i = 0; i < 6; ++i) c.limits[i] = 0;
   }
   *out = c;
   return 0;
@@ -98,23 +149,43 @@ uint8_t Device::decodeConfig(const uint8_t* blob, Config* out) const {
 void Device::setRate(uint16_t rate_hz) {
   if (rate_hz == config_.rate_hz) return;
   config_.rate_hz = rate_hz;
+  configurePipeline();  // the filter's coefficients depend on the rate
   hw_.sampleRateChanged(rate_hz);
 }
 
 void Device::applyConfig(const Config& c) {
   const uint16_t old_rate = config_.rate_hz;
   config_ = c;
+  configurePipeline();
   if (c.rate_hz != old_rate) hw_.sampleRateChanged(c.rate_hz);
+}
+
+void Device::configurePipeline() {
+  LowPassCoefficients k;
+  filter_on_ = config_.filter_hz != 0.0f &&
+               designLowPass(config_.filter_hz, static_cast<float>(config_.rate_hz), &k);
+  if (filter_on_) filter_.configure(k);
+  filter_.reset();
+  // Checked where it is set or loaded: a frame that does not make is the identity.
+  const float zero[3] = {0.0f, 0.0f, 0.0f};
+  if (!makeToolFrame(config_.tool_translation, config_.tool_rpy, &tool_)) {
+    makeToolFrame(zero, zero, &tool_);
+  }
 }
 
 void Device::begin(uint8_t reset_cause, uint16_t boot_id) {
   boot_id_ = boot_id;
   uint8_t blob[kConfigBlobSize];
-  hw_.eepromRead(id_.eeprom_address, blob, kConfigBlobSize);
+  hw_.eepromRead(ident(id_.eeprom_address), blob, kConfigBlobSize);
   Config loaded;
   const uint8_t problem = decodeConfig(blob, &loaded);
   config_problem_ = problem;
-  config_ = problem ? defaults_ : loaded;
+  if (problem) {
+    loadDefaults(&config_);
+  } else {
+    config_ = loaded;
+  }
+  configurePipeline();
   hw_.sampleRateChanged(config_.rate_hz);
   answer(kEvent, 0, kEventBoot, 0, reset_cause);
   if (problem) answer(kEvent, 0, kEventConfigDefaults, 0, problem);
@@ -124,12 +195,13 @@ void Device::begin(uint8_t reset_cause, uint16_t boot_id) {
 
 void Device::saveConfig(const Command& c) {
   uint8_t blob[kConfigBlobSize];
-  encodeConfig(config_, id_.design_hash, blob);
-  hw_.eepromWrite(id_.eeprom_address, blob, kConfigBlobSize);
+  encodeConfig(config_, ident(id_.design_hash), blob);
+  const uint16_t address = ident(id_.eeprom_address);
+  hw_.eepromWrite(address, blob, kConfigBlobSize);
   // Read back byte by byte: a worn or write-protected EEPROM must not be reported as saved.
   for (uint16_t i = 0; i < kConfigBlobSize; ++i) {
     uint8_t b;
-    hw_.eepromRead(static_cast<uint16_t>(id_.eeprom_address + i), &b, 1);
+    hw_.eepromRead(static_cast<uint16_t>(address + i), &b, 1);
     if (b != blob[i]) {
       nack(c, kNackEepromFailed, i);
       return;
@@ -171,17 +243,25 @@ void Device::onByte(uint8_t byte) {
 }
 
 uint16_t Device::linkRateLimit(uint8_t mode) const {
-  if (id_.baud == 0) return 0xFFFF;
+  const uint32_t baud = ident(id_.baud);
+  if (baud == 0) return 0xFFFF;
   const uint32_t frame = recordSize(mode == kModeWrenchRaw ? kWrenchRaw : kWrench) + kFrameOverhead;
   // 10 bits per byte (start, 8 data, stop); data records may fill 90 % of the link.
-  const uint32_t limit = id_.baud / kLinkBudgetDivisor * kLinkBudgetNumerator / frame;
+  const uint32_t limit = baud / kLinkBudgetDivisor * kLinkBudgetNumerator / frame;
   return limit > 0xFFFF ? 0xFFFF : static_cast<uint16_t>(limit);
 }
 
-uint16_t Device::checkRate(uint16_t rate_hz, uint8_t mode, uint8_t* reason) const {
-  if (rate_hz > id_.max_rate_hz) {
+uint16_t Device::maxRate(bool pipeline) const {
+  const uint16_t slower = ident(id_.max_rate_pipeline_hz);
+  const uint16_t board = ident(id_.max_rate_hz);
+  return pipeline && slower != 0 && slower < board ? slower : board;
+}
+
+uint16_t Device::checkRate(uint16_t rate_hz, uint8_t mode, bool pipeline, uint8_t* reason) const {
+  const uint16_t board = maxRate(pipeline);
+  if (rate_hz > board) {
     *reason = kNackRateTooHigh;
-    return id_.max_rate_hz;
+    return board;
   }
   const uint16_t link = linkRateLimit(mode);
   if (rate_hz > link) {
@@ -237,9 +317,13 @@ void Device::execute(const Command& c) {
       uint16_t rate = getU16(c.args);
       if (rate == 0) rate = config_.rate_hz;
       uint8_t reason;
-      const uint16_t limit = checkRate(rate, config_.mode, &reason);
+      const uint16_t limit = checkRate(rate, config_.mode, pipelineOn(), &reason);
       if (reason) {
         nack(c, reason, limit);
+        break;
+      }
+      if (!filterFits(config_.filter_hz, rate)) {
+        nack(c, kNackFilterRange, rate);
         break;
       }
       setRate(rate);
@@ -260,7 +344,7 @@ void Device::execute(const Command& c) {
         break;
       }
       uint8_t reason;
-      const uint16_t limit = checkRate(config_.rate_hz, mode, &reason);
+      const uint16_t limit = checkRate(config_.rate_hz, mode, pipelineOn(), &reason);
       if (streaming_ && reason) {
         nack(c, reason, limit);
         break;
@@ -313,6 +397,7 @@ void Device::execute(const Command& c) {
         config_.zero_counts[i] = counts[i];
         config_.tare[i] = 0.0f;
       }
+      filter_.reset();  // the wrench jumps: start from the new level, no step response
       stream_changed_ = true;
       ack(c, 0);
       break;
@@ -329,9 +414,26 @@ void Device::execute(const Command& c) {
         nack(c, kNackBusy);
         break;
       }
-      applyConfig(defaults_);
+      {
+        Config defaults;
+        loadDefaults(&defaults);
+        applyConfig(defaults);
+      }
       stream_changed_ = true;
       ack(c, 0);
+      break;
+    case kCmdSetFilter:
+    case kCmdSetTool:
+      if (busy) {
+        nack(c, kNackBusy);  // a tare averages the pipeline's output: keep it fixed meanwhile
+      } else if (c.type == kCmdSetFilter) {
+        setFilter(c);
+      } else {
+        setTool(c);
+      }
+      break;
+    case kCmdSetLimits:
+      setLimits(c);
       break;
     case kCmdAbort:
       // Ends a tare or zero capture that would keep the device busy (65535 samples take
@@ -351,6 +453,63 @@ void Device::execute(const Command& c) {
   }
 }
 
+void Device::setFilter(const Command& c) {
+  const float cutoff = getF32(c.args);
+  if (!filterFits(cutoff, config_.rate_hz)) {
+    nack(c, kNackFilterRange, config_.rate_hz);
+    return;
+  }
+  if (cutoff != 0.0f && config_.rate_hz > maxRate(true)) {
+    nack(c, kNackRateTooHigh, maxRate(true));  // the board cannot filter at this rate
+    return;
+  }
+  config_.filter_hz = cutoff;
+  configurePipeline();
+  stream_changed_ = true;
+  ack(c, 0);
+}
+
+void Device::setTool(const Command& c) {
+  float translation[3], rpy[3];
+  for (uint8_t i = 0; i < 3; ++i) {
+    translation[i] = getF32(c.args + 4 * i);
+    rpy[i] = getF32(c.args + 12 + 4 * i);
+  }
+  const uint8_t bad = badToolValue(translation, rpy);
+  if (bad < 6) {
+    nack(c, kNackBadArgument, bad);
+    return;
+  }
+  if (!toolIsIdentity(translation, rpy) && config_.rate_hz > maxRate(true)) {
+    nack(c, kNackRateTooHigh, maxRate(true));  // the board cannot transform at this rate
+    return;
+  }
+  // The tare is a wrench in the reporting frame: the same physical offset, re-expressed
+  // (back to {E} with the old frame, into the new one). No second ToolFrame on the stack.
+  if (config_.tare_active) unapplyToolFrame(tool_, config_.tare);
+  makeToolFrame(translation, rpy, &tool_);
+  if (config_.tare_active) applyToolFrame(tool_, config_.tare);
+  for (uint8_t i = 0; i < 3; ++i) {
+    config_.tool_translation[i] = translation[i];
+    config_.tool_rpy[i] = rpy[i];
+  }
+  stream_changed_ = true;
+  ack(c, 0);
+}
+
+void Device::setLimits(const Command& c) {
+  uint16_t limits[6];
+  for (uint8_t i = 0; i < 6; ++i) {
+    limits[i] = getU16(c.args + 2 * i);
+    if (limits[i] > static_cast<uint16_t>(kMaxValue)) {
+      nack(c, kNackBadArgument, limits[i]);
+      return;
+    }
+  }
+  for (uint8_t i = 0; i < 6; ++i) config_.limits[i] = limits[i];
+  ack(c, 0);
+}
+
 void Device::startAveraging(const Command& c, uint16_t samples) {
   averaging_ = c.type;
   averaging_request_ = c.request_id;
@@ -359,7 +518,7 @@ void Device::startAveraging(const Command& c, uint16_t samples) {
   memset(&sums_, 0, sizeof(sums_));
 }
 
-void Device::accumulate(const Sample& s, uint16_t status) {
+void Device::accumulate(const float* wrench, const Sample& s, uint16_t status) {
   const uint16_t bad = averaging_ == kCmdTare ? kStatusWrenchInvalid : kStatusEncoderMask;
   if (status & bad) {
     // An average over flagged samples would be a made-up offset: give up and say why.
@@ -370,7 +529,7 @@ void Device::accumulate(const Sample& s, uint16_t status) {
   }
   for (uint8_t i = 0; i < 6; ++i) {
     if (averaging_ == kCmdTare) {
-      sums_.wrench[i] += s.wrench[i];
+      sums_.wrench[i] += wrench[i];
     } else {
       sums_.counts[i] += wrap_count_delta(s.counts[i], config_.zero_counts[i]);
     }
@@ -430,8 +589,11 @@ void Device::service() {
     const Response& r = queue_[queue_head_];
     const uint16_t size = recordSize(r.kind) + kFrameOverhead;
     if (hw_.txSpace() < size) return;
-    const uint16_t n = buildResponse(r);
-    hw_.txWrite(tx_, n);
+    if (r.kind == kInfo) {
+      sendInfo(r.request_id);
+    } else {
+      hw_.txWrite(tx_, buildResponse(r));
+    }
     queue_head_ = static_cast<uint8_t>((queue_head_ + 1) % kQueueLength);
     --queue_count_;
   }
@@ -440,8 +602,6 @@ void Device::service() {
 uint16_t Device::buildResponse(const Response& r) {
   uint8_t* p = tx_ + 1;
   switch (r.kind) {
-    case kInfo:
-      return buildInfo(r.request_id);
     case kTelemetry:
       return buildTelemetry(r.request_id);
     case kEvent:
@@ -465,48 +625,120 @@ uint16_t Device::buildResponse(const Response& r) {
   }
 }
 
-uint16_t Device::buildInfo(uint8_t request_id) {
-  uint8_t* p = tx_ + 1;
-  memset(p, 0, kInfoSize);
-  p[kInfoOffType] = kInfo;
-  p[kInfoOffRequestId] = request_id;
-  p[kInfoOffProtocol] = kVersionMajor;
-  p[kInfoOffProtocol + 1] = kVersionMinor;
-  p[kInfoOffFirmware] = id_.firmware_version[0];
-  p[kInfoOffFirmware + 1] = id_.firmware_version[1];
-  p[kInfoOffFirmware + 2] = id_.firmware_version[2];
-  p[kInfoOffMode] = config_.mode;
-  putU32(p + kInfoOffDesignHash, id_.design_hash);
-  // At most kInfoDesignNameBytes - 1 characters: the field always ends in a NUL.
-  for (uint8_t i = 0; i < kInfoDesignNameBytes - 1 && id_.design_name && id_.design_name[i]; ++i) {
-    p[kInfoOffDesignName + i] = static_cast<uint8_t>(id_.design_name[i]);
+// INFO goes out in pieces that end just before the last byte of a name field, which is always
+// a NUL (a name has at most k...NameBytes - 1 characters). COBS never carries a block across
+// a zero byte, so each piece COBS-encodes alone to exactly its part of the whole frame, the
+// NUL between two pieces being the boundary of their encodings. The largest piece, not the
+// record, is on the stack while INFO is sent.
+namespace {
+const uint8_t kInfoEnd0 = kInfoOffDesignName + kInfoDesignNameBytes - 1;
+const uint8_t kInfoEnd1 = kInfoOffCalibrationName + kInfoCalibrationNameBytes - 1;
+const uint8_t kInfoEnd2 = kInfoOffModelName + kInfoModelNameBytes - 1;
+const uint8_t kInfoPieces = 4;
+uint8_t infoPieceEnd(uint8_t piece) {
+  return piece == 0 ? kInfoEnd0 : piece == 1 ? kInfoEnd1 : piece == 2 ? kInfoEnd2 : kInfoSize;
+}
+// The fields each piece writes lie within it (buildInfoPiece): the layout's order.
+static_assert(kInfoOffDesignName + kInfoDesignNameBytes == kInfoOffFullScale &&
+                  kInfoOffCalibrationName + kInfoCalibrationNameBytes == kInfoOffBootId &&
+                  kInfoOffModelName + kInfoModelNameBytes == kInfoOffFilterHz,
+              "INFO's pieces end at its name fields");
+static_assert(kInfoOffType < kInfoOffDesignName && kInfoOffMode < kInfoOffDesignName &&
+                  kInfoOffDesignHash < kInfoOffDesignName && kInfoOffFirmware < kInfoOffDesignName &&
+                  kInfoOffJointLimitRad < kInfoOffCalibrationName &&
+                  kInfoOffCalibrationHash < kInfoOffCalibrationName &&
+                  kInfoOffTare < kInfoOffCalibrationName && kInfoOffModelHash < kInfoOffModelName &&
+                  kInfoOffMaxRatePipelineHz > kInfoOffLimits,
+              "each INFO field lies in the piece that writes it");
+const uint8_t kInfoLargestPiece = kInfoEnd1 - kInfoEnd0 - 1;
+static_assert(kInfoEnd0 <= kInfoLargestPiece && kInfoEnd2 - kInfoEnd1 - 1 <= kInfoLargestPiece &&
+                  kInfoSize - kInfoEnd2 - 1 + 2 <= kInfoLargestPiece,
+              "the buffer holds every piece (the last with the CRC)");
+
+// At most field_bytes - 1 characters of s (null: none), from p on.
+void putName(uint8_t* p, const char* s, uint8_t field_bytes) {
+  for (uint8_t i = 0; s && i + 1 < field_bytes && s[i]; ++i) p[i] = static_cast<uint8_t>(s[i]);
+}
+}  // namespace
+
+void Device::sendInfo(uint8_t request_id) {
+  uint8_t buf[1 + kInfoLargestPiece];  // a COBS code byte, then the piece
+  uint16_t crc = kCrc16Init;
+  uint8_t start = 0;
+  for (uint8_t piece = 0; piece < kInfoPieces; ++piece) {
+    const uint8_t end = infoPieceEnd(piece);
+    uint8_t* p = buf + 1;
+    uint8_t n = static_cast<uint8_t>(end - start);
+    memset(p, 0, n);
+    buildInfoPiece(request_id, piece, p);
+    crc = crc16(p, n, crc);
+    if (piece + 1 < kInfoPieces) {
+      crc = crc16Update(crc, 0);  // the name's NUL between this piece and the next
+    } else {
+      p[n++] = static_cast<uint8_t>(crc >> 8);
+      p[n++] = static_cast<uint8_t>(crc);
+    }
+    hw_.txWrite(buf, cobsEncodeInPlace(buf, n));
+    start = static_cast<uint8_t>(end + 1);
   }
-  for (uint8_t i = 0; i < 6; ++i) {
-    putF32(p + kInfoOffFullScale + 4 * i, id_.full_scale[i]);
-    p[kInfoOffLsbMantissa + i] = scale_[i].mantissa;
-    p[kInfoOffLsbExponent + i] = static_cast<uint8_t>(scale_[i].exponent);
-    putU16(p + kInfoOffZeroCounts + 2 * i, config_.zero_counts[i]);
-    putF32(p + kInfoOffTare + 4 * i, config_.tare[i]);
+  const uint8_t delimiter = 0;
+  hw_.txWrite(&delimiter, 1);
+}
+
+void Device::buildInfoPiece(uint8_t request_id, uint8_t piece, uint8_t* p) const {
+  // p holds the piece from its first byte on: a field at offset o lands at p + o - base.
+  // Identity fields one by one from flash (a copy of the whole would deepen the stack).
+  switch (piece) {
+    case 0:
+      p[kInfoOffType] = kInfo;
+      p[kInfoOffRequestId] = request_id;
+      p[kInfoOffProtocol] = kVersionMajor;
+      p[kInfoOffProtocol + 1] = kVersionMinor;
+      for (uint8_t i = 0; i < 3; ++i) p[kInfoOffFirmware + i] = ident(id_.firmware_version[i]);
+      p[kInfoOffMode] = config_.mode;
+      putU32(p + kInfoOffDesignHash, ident(id_.design_hash));
+      putName(p + kInfoOffDesignName, ident(id_.design_name), kInfoDesignNameBytes);
+      break;
+    case 1: {
+      uint8_t* b = p - kInfoOffFullScale;
+      for (uint8_t i = 0; i < 6; ++i) {
+        putF32(b + kInfoOffFullScale + 4 * i, ident(id_.full_scale[i]));
+        b[kInfoOffLsbMantissa + i] = scale_[i].mantissa;
+        b[kInfoOffLsbExponent + i] = static_cast<uint8_t>(scale_[i].exponent);
+        putU16(b + kInfoOffZeroCounts + 2 * i, config_.zero_counts[i]);
+        putF32(b + kInfoOffTare + 4 * i, config_.tare[i]);
+      }
+      putU16(b + kInfoOffRateHz, config_.rate_hz);
+      putU16(b + kInfoOffMaxRateHz, ident(id_.max_rate_hz));
+      putU16(b + kInfoOffStatus, persistentStatus());
+      b[kInfoOffStreaming] = streaming_ ? 1 : 0;
+      b[kInfoOffConfigProblem] = config_problem_;
+      putU32(b + kInfoOffBaud, ident(id_.baud));
+      putU32(b + kInfoOffSerialNumber, serial_number_);
+      putF32(b + kInfoOffJointLimitRad, ident(id_.joint_limit_rad));
+      putU32(b + kInfoOffCalibrationHash, ident(id_.calibration_hash));
+      putName(b + kInfoOffCalibrationName, ident(id_.calibration_name), kInfoCalibrationNameBytes);
+      break;
+    }
+    case 2: {
+      uint8_t* b = p - kInfoOffBootId;
+      putU16(b + kInfoOffBootId, boot_id_);
+      putU32(b + kInfoOffModelHash, ident(id_.model_hash));
+      putName(b + kInfoOffModelName, ident(id_.model_name), kInfoModelNameBytes);
+      break;
+    }
+    default: {
+      uint8_t* b = p - kInfoOffFilterHz;
+      putF32(b + kInfoOffFilterHz, filter_on_ ? config_.filter_hz : 0.0f);
+      for (uint8_t i = 0; i < 3; ++i) {
+        putF32(b + kInfoOffToolTranslation + 4 * i, config_.tool_translation[i]);
+        putF32(b + kInfoOffToolRpy + 4 * i, config_.tool_rpy[i]);
+      }
+      for (uint8_t i = 0; i < 6; ++i) putU16(b + kInfoOffLimits + 2 * i, config_.limits[i]);
+      putU16(b + kInfoOffMaxRatePipelineHz, maxRate(true));
+      break;
+    }
   }
-  putU16(p + kInfoOffRateHz, config_.rate_hz);
-  putU16(p + kInfoOffMaxRateHz, id_.max_rate_hz);
-  putU16(p + kInfoOffStatus, persistentStatus());
-  p[kInfoOffStreaming] = streaming_ ? 1 : 0;
-  p[kInfoOffConfigProblem] = config_problem_;
-  putU32(p + kInfoOffBaud, id_.baud);
-  putU32(p + kInfoOffSerialNumber, id_.serial_number);
-  putF32(p + kInfoOffJointLimitRad, id_.joint_limit_rad);
-  putU32(p + kInfoOffCalibrationHash, id_.calibration_hash);
-  for (uint8_t i = 0; i < kInfoCalibrationNameBytes - 1 && id_.calibration_name &&
-                      id_.calibration_name[i]; ++i) {
-    p[kInfoOffCalibrationName + i] = static_cast<uint8_t>(id_.calibration_name[i]);
-  }
-  putU16(p + kInfoOffBootId, boot_id_);
-  putU32(p + kInfoOffModelHash, id_.model_hash);
-  for (uint8_t i = 0; i < kInfoModelNameBytes - 1 && id_.model_name && id_.model_name[i]; ++i) {
-    p[kInfoOffModelName + i] = static_cast<uint8_t>(id_.model_name[i]);
-  }
-  return finishFrame(tx_, kInfoSize);
 }
 
 uint16_t Device::buildTelemetry(uint8_t request_id) {
@@ -551,12 +783,13 @@ void Device::onSample(const Sample& s) {
   ++k.loop_time_samples;
 
   uint16_t status = s.encoder_errors & kStatusEncoderMask;
+  const int16_t joint_limit = ident(id_.joint_limit_counts);
   for (uint8_t j = 0; j < 6; ++j) {
     if (status & (1u << j)) {
       ++k.encoder_errors[j];
-    } else if (id_.joint_limit_counts > 0) {
+    } else if (joint_limit > 0) {
       const int16_t d = wrap_count_delta(s.counts[j], config_.zero_counts[j]);
-      if (d > id_.joint_limit_counts || d < -id_.joint_limit_counts) status |= kStatusJointLimit;
+      if (d > joint_limit || d < -joint_limit) status |= kStatusJointLimit;
     }
   }
   if (s.overrun) {
@@ -575,19 +808,39 @@ void Device::onSample(const Sample& s) {
   }
   if (!valid) status |= kStatusWrenchInvalid;
 
-  if (averaging_) accumulate(s, status);
+  // The pipeline: low-pass, tool frame (tare and quantisation below). Every valid sample
+  // goes through the filter, streaming or not, so its state is current when a stream or a
+  // tare starts; a sample without a wrench leaves the filter as it was.
+  float w[6];
+  for (uint8_t i = 0; i < 6; ++i) w[i] = s.wrench[i];
+  if (valid) {
+    if (filter_on_) filter_.apply(w);
+    applyToolFrame(tool_, w);
+  }
+  if (averaging_) accumulate(w, s, status);
   last_status_ = status;
 
   service();
   if (streaming_) {
     // Quantised only when sent: about 400 AVR cycles per axis saved while stopped.
     int16_t wrench[6];
-    bool clipped = false;
+    // OVERRANGE: an axis clipped at the wire's range or outside its overload limit.
+    bool over = false;
     for (uint8_t i = 0; i < 6; ++i) {
-      const float w = config_.tare_active ? s.wrench[i] - config_.tare[i] : s.wrench[i];
-      wrench[i] = valid ? quantize(w, inverse_lsb_[i], &clipped) : kInvalidValue;
+      if (!valid) {
+        wrench[i] = kInvalidValue;
+        continue;
+      }
+      const float v = config_.tare_active ? w[i] - config_.tare[i] : w[i];
+      const int16_t q = quantize(v, inverse_lsb_[i], &over);
+      wrench[i] = q;
+      // Over the threshold: |q| > limit, in counts, so exact at the threshold.
+      const uint16_t limit = config_.limits[i];
+      if (limit != 0 && (q > static_cast<int16_t>(limit) || q < -static_cast<int16_t>(limit))) {
+        over = true;
+      }
     }
-    if (clipped) status |= kStatusOverrange;
+    if (over) status |= kStatusOverrange;
     last_status_ = status;
     sendData(s, static_cast<uint16_t>(status | persistentStatus()), wrench);
     if (s.time_us - last_telemetry_us_ >= kTelemetryPeriodUs) {

@@ -15,7 +15,10 @@
 
 #include <stdint.h>
 
+#include "delta6_filter.h"
+#include "delta6_flash.h"
 #include "delta6_protocol.h"
+#include "delta6_toolframe.h"
 
 namespace delta6 {
 
@@ -25,7 +28,8 @@ class Hardware {
   // Bytes the transmit queue accepts right now. The queue must be able to hold
   // Device::kMinTxBuffer bytes when empty, or the largest records never go out.
   virtual uint16_t txSpace() = 0;
-  // Queue n <= txSpace() bytes for transmission; must not block for long.
+  // Queue n <= txSpace() bytes for transmission; must not block for long. Records come whole
+  // (ending in the 0x00 delimiter), except INFO, which comes in several writes in a row.
   virtual void txWrite(const uint8_t* data, uint16_t n) = 0;
   // Read / write n bytes of non-volatile memory (Device::kConfigBlobSize at most).
   virtual void eepromRead(uint16_t address, uint8_t* data, uint16_t n) = 0;
@@ -57,16 +61,28 @@ struct Identity {
   uint32_t calibration_hash;     // nullptr and 0: the analytical model (INFO, protocol 1.1)
   const char* model_name;  // the on-chip residual model compiled in (ASCII, <= 23
   uint32_t model_hash;     // characters), or nullptr and 0: none (INFO, protocol 1.2)
+  uint16_t max_rate_pipeline_hz;  // the fastest loop with the filter or the tool frame on
+                                  // (they cost cycles per sample); 0: max_rate_hz
 };
 
-// The persistent configuration (saved to EEPROM only by the save command).
+// The persistent configuration (saved to EEPROM only by the save command). The wrench
+// pipeline per sample: low-pass (filter_hz) -> tool frame -> tare -> quantise -> limits.
 struct Config {
   uint16_t rate_hz;
   uint8_t mode;              // proto::kModeWrench or proto::kModeWrenchRaw
   bool tare_active;
-  float tare[6];             // subtracted from the solver's wrench when tare_active
+  float tare[6];             // subtracted from the tool-frame wrench when tare_active
   uint16_t zero_counts[6];   // encoder count at zero deflection, joints 1..6 (0..16383)
+  float filter_hz;           // low-pass cutoff, 0: off (kMinCutoffRatio..kMaxCutoffRatio x rate)
+  float tool_translation[3]; // the tool point in {E}, m (|value| <= kMaxToolTranslation)
+  float tool_rpy[3];         // the tool's axes: roll, pitch, yaw about {E}, rad (<= kMaxToolAngle)
+  uint16_t limits[6];        // overload thresholds, counts of each axis's LSB; 0: none
 };
+
+// The tool frames the device accepts: a tool point within 1 m of {E}'s origin per axis (a
+// longer lever has no use on this sensor), angles within one turn either way.
+const float kMaxToolTranslation = 1.0f;
+const float kMaxToolAngle = 6.2831853f;
 
 // One sample from the application.
 struct Sample {
@@ -102,9 +118,13 @@ class Device {
  public:
   static const uint16_t kConfigBlobSize = proto::kConfigBlobSize;
   static const uint16_t kMinTxBuffer = proto::kMaxFrameBytes;
+  // The frame buffer holds every record but INFO, which goes out in pieces (sendInfo).
+  static const uint8_t kTxBuffer = proto::kTelemetrySize + proto::kFrameOverhead;
   static const uint32_t kTelemetryPeriodUs = 1000000;
   static const uint8_t kQueueLength = 4;
 
+  // identity and defaults: declared DELTA6_FLASH (program memory on the AVR; delta6_flash.h),
+  // read only through flash::copy. The names identity points to are in RAM.
   Device(Hardware& hardware, const Identity& identity, const Config& defaults);
 
   // Load the configuration from EEPROM (defaults if it is invalid, flagged), announce the boot
@@ -120,6 +140,7 @@ class Device {
   void service();
 
   const uint16_t* zeroCounts() const { return config_.zero_counts; }
+  bool filterOn() const { return filter_on_; }
   uint16_t sampleRateHz() const { return config_.rate_hz; }
   bool streaming() const { return streaming_; }
   uint8_t mode() const { return config_.mode; }
@@ -127,6 +148,8 @@ class Device {
   const Counters& counters() const { return counters_; }
   const Config& config() const { return config_; }
   proto::Scale scale(uint8_t axis) const { return scale_[axis]; }
+  // The board's serial number when only the running board knows it (Identity's is then 0).
+  void setSerialNumber(uint32_t serial_number) { serial_number_ = serial_number; }
   // Highest rate the link carries in a mode (90 % of the baud rate), or 0xFFFF without a baud.
   uint16_t linkRateLimit(uint8_t mode) const;
 
@@ -152,15 +175,32 @@ class Device {
     answer(proto::kNack, c.request_id, c.type, reason, detail);
   }
   uint16_t buildResponse(const Response& r);
-  uint16_t buildInfo(uint8_t request_id);
+  void sendInfo(uint8_t request_id);
+  void buildInfoPiece(uint8_t request_id, uint8_t piece, uint8_t* p) const;
+  void loadDefaults(Config* out) const { flash::copy(out, &defaults_, sizeof(Config)); }
+  // A field of the identity, from flash.
+  template <typename T>
+  static T ident(const T& field) {
+    T value;
+    flash::copy(&value, &field, sizeof(T));
+    return value;
+  }
   uint16_t buildTelemetry(uint8_t request_id);
   void startAveraging(const proto::Command& c, uint16_t samples);
-  void accumulate(const Sample& sample, uint16_t status);
+  void accumulate(const float* wrench, const Sample& sample, uint16_t status);
   void finishAveraging();
   void saveConfig(const proto::Command& c);
   void applyConfig(const Config& config);
   void setRate(uint16_t rate_hz);
-  uint16_t checkRate(uint16_t rate_hz, uint8_t mode, uint8_t* reason) const;
+  uint16_t checkRate(uint16_t rate_hz, uint8_t mode, bool pipeline, uint8_t* reason) const;
+  // The highest rate the board sustains with or without the filter / tool frame on.
+  uint16_t maxRate(bool pipeline) const;
+  bool pipelineOn() const { return filter_on_ || !tool_.identity; }
+  // The filter's coefficients and the tool transform from config_ (the filter restarts).
+  void configurePipeline();
+  void setFilter(const proto::Command& c);
+  void setTool(const proto::Command& c);
+  void setLimits(const proto::Command& c);
   void sendData(const Sample& sample, uint16_t status, const int16_t* wrench);
 
   Hardware& hw_;
@@ -169,6 +209,9 @@ class Device {
   Config config_;
   proto::Scale scale_[6];
   float inverse_lsb_[6];
+  LowPass6 filter_;
+  bool filter_on_;
+  ToolFrame tool_;
 
   proto::CommandParser parser_;
   Response queue_[kQueueLength];
@@ -181,6 +224,7 @@ class Device {
   bool tx_overflow_;           // a data record was dropped since the last one sent
   bool stream_changed_;        // a command changed what records mean; none sent since
   uint16_t boot_id_;
+  uint32_t serial_number_;
   uint16_t seq_;
   uint16_t last_status_;
   int16_t temperature_centi_;
@@ -197,7 +241,7 @@ class Device {
     int32_t counts[6];
   } sums_;
 
-  uint8_t tx_[proto::kMaxFrameBytes];
+  uint8_t tx_[kTxBuffer];
 };
 
 }  // namespace delta6

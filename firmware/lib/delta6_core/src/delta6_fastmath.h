@@ -8,24 +8,13 @@
 #include <stdint.h>
 #include <string.h>
 
-#if defined(__AVR__)
-#include <avr/pgmspace.h>
-#define DELTA6_FLASH PROGMEM
-#else
-#define DELTA6_FLASH
-#endif
+#include "delta6_flash.h"
 
 namespace delta6 {
 namespace fastmath {
 
 // Read a float stored with DELTA6_FLASH (program memory on the AVR, plain memory elsewhere).
-inline float flash_float(const float* p) {
-#if defined(__AVR__)
-    return pgm_read_float(p);
-#else
-    return *p;
-#endif
-}
+inline float flash_float(const float* p) { return flash::f32(p); }
 
 inline uint32_t bits_of(float x) {
     uint32_t u;

@@ -9,35 +9,13 @@ namespace delta6 {
 namespace proto {
 
 uint8_t recordSize(uint8_t type) {
-  switch (type) {
-    case kWrench: return kWrenchSize;
-    case kWrenchRaw: return kWrenchRawSize;
-    case kInfo: return kInfoSize;
-    case kAck: return kAckSize;
-    case kNack: return kNackSize;
-    case kTelemetry: return kTelemetrySize;
-    case kEvent: return kEventSize;
-    default: return 0;
-  }
+  const uint8_t i = static_cast<uint8_t>(type - kFirstRecordType);  // wraps below: too large
+  return i < kRecordTypeCount ? flash::byte(&kRecordSizeByType[i]) : 0;
 }
 
 uint8_t commandSize(uint8_t type) {
-  switch (type) {
-    case kCmdGetInfo: return kCmdGetInfoSize;
-    case kCmdPing: return kCmdPingSize;
-    case kCmdStart: return kCmdStartSize;
-    case kCmdStop: return kCmdStopSize;
-    case kCmdSetMode: return kCmdSetModeSize;
-    case kCmdTare: return kCmdTareSize;
-    case kCmdClearTare: return kCmdClearTareSize;
-    case kCmdSaveConfig: return kCmdSaveConfigSize;
-    case kCmdLoadDefaults: return kCmdLoadDefaultsSize;
-    case kCmdSetZero: return kCmdSetZeroSize;
-    case kCmdZeroHere: return kCmdZeroHereSize;
-    case kCmdGetTelemetry: return kCmdGetTelemetrySize;
-    case kCmdAbort: return kCmdAbortSize;
-    default: return 0;
-  }
+  const uint8_t i = static_cast<uint8_t>(type - kFirstCommandType);
+  return i < kCommandTypeCount ? flash::byte(&kCommandSizeByType[i]) : 0;
 }
 
 // The host mirrors the products below in float32, so both ends pick the same step.
@@ -47,20 +25,21 @@ Scale scaleForFullScale(float full_scale) {
   const float needed = full_scale * kHeadroomPerCount;
   for (int8_t e = kMinExponent; e <= kMaxExponent; ++e) {
     for (uint8_t m = 0; m < kMantissaCount; ++m) {
-      const float step = static_cast<float>(kMantissas[m]) * kDecades[e - kMinExponent];
+      const uint8_t mantissa = flash::byte(&kMantissas[m]);
+      const float step = static_cast<float>(mantissa) * flash::f32(&kDecades[e - kMinExponent]);
       if (step >= needed) {
-        Scale s = {kMantissas[m], e};
+        Scale s = {mantissa, e};
         return s;
       }
     }
   }
   // Not finite, or beyond the coarsest step's range: that step (never reached by a design).
-  Scale s = {kMantissas[kMantissaCount - 1], kMaxExponent};
+  Scale s = {flash::byte(&kMantissas[kMantissaCount - 1]), kMaxExponent};
   return s;
 }
 
 float scaleValue(Scale s) {
-  return static_cast<float>(s.mantissa) * kDecades[s.exponent - kMinExponent];
+  return static_cast<float>(s.mantissa) * flash::f32(&kDecades[s.exponent - kMinExponent]);
 }
 
 int16_t quantize(float value, float inverse_lsb, bool* clipped) {
@@ -116,6 +95,13 @@ uint16_t getU16(const uint8_t* p) {
 uint32_t getU32(const uint8_t* p) {
   return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8) |
          (static_cast<uint32_t>(p[2]) << 16) | (static_cast<uint32_t>(p[3]) << 24);
+}
+
+float getF32(const uint8_t* p) {
+  const uint32_t bits = getU32(p);
+  float v;
+  memcpy(&v, &bits, 4);
+  return v;
 }
 
 uint16_t finishFrame(uint8_t* buf, uint16_t n) {

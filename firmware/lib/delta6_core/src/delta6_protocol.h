@@ -45,6 +45,7 @@ void putU32(uint8_t* p, uint32_t v);
 void putF32(uint8_t* p, float v);
 uint16_t getU16(const uint8_t* p);
 uint32_t getU32(const uint8_t* p);
+float getF32(const uint8_t* p);
 
 // Close a frame built in buf: the payload sits at buf[1..n] (buf[0] is scratch), buf has room
 // for n + 4 bytes. Appends the CRC, COBS-encodes in place and adds the delimiter. Returns the

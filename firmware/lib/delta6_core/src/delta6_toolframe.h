@@ -19,10 +19,16 @@ struct ToolFrame {
   bool identity;     // no translation and no rotation: nothing to do per sample
 };
 
+// No translation and no rotation (every value +-0).
+bool toolIsIdentity(const float translation[3], const float rpy[3]);
 // From the translation (m) and roll, pitch, yaw (rad); false for non-finite values.
 bool makeToolFrame(const float translation[3], const float rpy[3], ToolFrame* out);
 // The wrench w (Fx Fy Fz Mx My Mz) moved into the tool frame, in place.
 void applyToolFrame(const ToolFrame& t, float w[6]);
+// The inverse: a wrench given in the tool frame back at {E}'s origin in {E}'s axes
+// (F = R F_tool, M = R M_tool + p x F). The device re-expresses its tare with it when the
+// tool frame changes.
+void unapplyToolFrame(const ToolFrame& t, float w[6]);
 
 }  // namespace delta6
 

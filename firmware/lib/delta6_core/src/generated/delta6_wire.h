@@ -7,11 +7,13 @@
 
 #include <stdint.h>
 
+#include "delta6_flash.h"
+
 namespace delta6 {
 namespace proto {
 
 const uint8_t kVersionMajor = 1;
-const uint8_t kVersionMinor = 2;
+const uint8_t kVersionMinor = 3;
 
 // --- records (device -> host): type, payload size (type byte included, CRC
 // excluded) and the offset of every field (docs/protocol.md section 3) ---
@@ -34,7 +36,7 @@ const uint8_t kWrenchRawOffWrench = 9;  // 6 x i16
 const uint8_t kWrenchRawOffCounts = 21;  // 6 x u16
 
 const uint8_t kInfo = 0x03;
-const uint8_t kInfoSize = 186;
+const uint8_t kInfoSize = 228;
 const uint8_t kInfoOffType = 0;  // u8
 const uint8_t kInfoOffRequestId = 1;  // u8
 const uint8_t kInfoOffProtocol = 2;  // 2 x u8
@@ -63,6 +65,11 @@ const uint8_t kInfoOffBootId = 156;  // u16
 const uint8_t kInfoOffModelHash = 158;  // u32
 const uint8_t kInfoOffModelName = 162;  // 24 x char
 const uint8_t kInfoModelNameBytes = 24;  // NUL-padded
+const uint8_t kInfoOffFilterHz = 186;  // f32
+const uint8_t kInfoOffToolTranslation = 190;  // 3 x f32
+const uint8_t kInfoOffToolRpy = 202;  // 3 x f32
+const uint8_t kInfoOffLimits = 214;  // 6 x u16
+const uint8_t kInfoOffMaxRatePipelineHz = 226;  // u16
 
 const uint8_t kAck = 0x04;
 const uint8_t kAckSize = 7;
@@ -107,10 +114,15 @@ const uint8_t kEventOffType = 0;  // u8
 const uint8_t kEventOffCode = 1;  // u8
 const uint8_t kEventOffArg = 2;  // u32
 
-const uint8_t kMaxRecordSize = 186;
+const uint8_t kMaxRecordSize = 228;
 // Bytes on the wire beyond the payload: CRC, one COBS code byte, the delimiter.
 const uint8_t kFrameOverhead = 4;
-const uint8_t kMaxFrameBytes = 190;
+const uint8_t kMaxFrameBytes = 232;
+
+// Payload size of each record type from kFirstRecordType on (0: none).
+const uint8_t kFirstRecordType = 0x01;
+const uint8_t kRecordTypeCount = 7;
+const uint8_t kRecordSizeByType[kRecordTypeCount] DELTA6_FLASH = {21, 33, 228, 7, 8, 50, 6};
 
 // --- commands (host -> device): type, request id, arguments; each command's
 // exact payload size (docs/protocol.md section 4) ---
@@ -140,19 +152,30 @@ const uint8_t kCmdGetTelemetry = 0x8B;
 const uint8_t kCmdGetTelemetrySize = 2;
 const uint8_t kCmdAbort = 0x8C;
 const uint8_t kCmdAbortSize = 2;
+const uint8_t kCmdSetFilter = 0x8D;
+const uint8_t kCmdSetFilterSize = 6;  // f32 cutoff_hz
+const uint8_t kCmdSetTool = 0x8E;
+const uint8_t kCmdSetToolSize = 26;  // 3 x f32 translation, 3 x f32 rpy
+const uint8_t kCmdSetLimits = 0x8F;
+const uint8_t kCmdSetLimitsSize = 14;  // 6 x u16 limits
 // Types below this are records: a device never answers them (its own output looped
 // back must not start an endless exchange).
 const uint8_t kFirstCommand = 0x80;
-const uint8_t kLastCommand = 0x8C;
-const uint8_t kMaxCommandSize = 14;
+const uint8_t kLastCommand = 0x8F;
+const uint8_t kMaxCommandSize = 26;
 // Receive buffer (encoded bytes): longer command frames are discarded and counted.
 const uint8_t kCommandBuffer = 32;
+
+// Payload size of each command type from kFirstCommandType on (0: none).
+const uint8_t kFirstCommandType = 0x80;
+const uint8_t kCommandTypeCount = 16;
+const uint8_t kCommandSizeByType[kCommandTypeCount] DELTA6_FLASH = {2, 2, 4, 2, 3, 4, 2, 2, 2, 14, 4, 2, 2, 6, 26, 14};
 
 // --- stream modes (SET_MODE argument, INFO) ---
 const uint8_t kModeWrench = 1;
 const uint8_t kModeWrenchRaw = 2;
 
-// --- status word bits (docs/protocol.md section 5); bit 15 is reserved ---
+// --- status word bits (docs/protocol.md section 5) ---
 const uint16_t kStatusEncoder1 = 1u << 0;
 const uint16_t kStatusEncoder2 = 1u << 1;
 const uint16_t kStatusEncoder3 = 1u << 2;
@@ -181,6 +204,7 @@ const uint8_t kNackBusy = 6;
 const uint8_t kNackFaultDuringAveraging = 7;
 const uint8_t kNackEepromFailed = 8;
 const uint8_t kNackAborted = 9;
+const uint8_t kNackFilterRange = 10;
 
 // --- event codes (EVENT record) ---
 const uint8_t kEventBoot = 1;
@@ -195,8 +219,12 @@ const uint8_t kConfigOutOfRange = 4;
 // --- the configuration blob in EEPROM (docs/protocol.md section 9), followed by its CRC,
 // most significant byte first ---
 const uint16_t kConfigMagic = 0x3644;
-const uint8_t kConfigLayoutVersion = 1;
-const uint16_t kConfigBlobSize = 50;
+const uint8_t kConfigLayoutVersion = 2;
+const uint16_t kConfigBlobSize = 90;
+// Older layouts the device still loads: each is a prefix of the newest (same
+// offsets), its blob shorter; the fields it lacks take the defaults.
+const uint8_t kConfigLayoutV1 = 1;
+const uint16_t kConfigBlobSizeV1 = 50;
 const uint8_t kConfigOffMagic = 0;  // u16
 const uint8_t kConfigOffLayout = 2;  // u8
 const uint8_t kConfigOffSize = 3;  // u8
@@ -206,6 +234,10 @@ const uint8_t kConfigOffMode = 10;  // u8
 const uint8_t kConfigOffTareActive = 11;  // u8
 const uint8_t kConfigOffTare = 12;  // 6 x f32
 const uint8_t kConfigOffZeroCounts = 36;  // 6 x u16
+const uint8_t kConfigOffFilterHz = 48;  // f32
+const uint8_t kConfigOffToolTranslation = 52;  // 3 x f32
+const uint8_t kConfigOffToolRpy = 64;  // 3 x f32
+const uint8_t kConfigOffLimits = 76;  // 6 x u16
 
 // --- telemetry ---
 const int16_t kTemperatureUnknown = 0x7FFF;  // no temperature sensor
@@ -215,10 +247,11 @@ const int16_t kTemperatureUnknown = 0x7FFF;  // no temperature sensor
 const int8_t kMinExponent = -6;
 const int8_t kMaxExponent = 3;
 const uint8_t kMantissaCount = 3;
-const uint8_t kMantissas[kMantissaCount] = {1, 2, 5};
+// In flash on the AVR (DELTA6_FLASH): read them with flash::byte and flash::f32.
+const uint8_t kMantissas[kMantissaCount] DELTA6_FLASH = {1, 2, 5};
 // Decades as float literals: the host (delta6.link.wirescale) rounds the same decimals
 // to float32, so both ends pick the same step even at exact boundaries.
-const float kDecades[kMaxExponent - kMinExponent + 1] = {
+const float kDecades[kMaxExponent - kMinExponent + 1] DELTA6_FLASH = {
     1e-6f, 1e-5f, 1e-4f, 1e-3f, 1e-2f, 1e-1f, 1e0f, 1e1f, 1e2f, 1e3f};
 const float kHeadroom = 1.25f;
 // A wrench value: counts of the LSB; kInvalidValue when the sample has none.
