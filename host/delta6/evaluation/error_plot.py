@@ -9,8 +9,8 @@ import numpy as np
 
 from delta6.core.accuracy import error_pct_fs
 from delta6.core.errors import UserError
-from delta6.core.outputs import check_output_file
 from delta6.core.model import AXES
+from delta6.core.outputs import check_output_file
 
 
 def check_plot_path(path: str | Path, option: str = "--plot") -> Path:
