@@ -196,11 +196,11 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true",
                         help="600 s calibration runs, 120 s evaluation, 60 s on the board")
     parser.add_argument("--sections", default="paper,board,sizes,effects")
-    parser.add_argument("--board-rate", type=int, default=200,
-                        help="the calibrated board's stream rate (default 200 Hz, its highest)")
+    parser.add_argument("--board-rate", type=int, default=250,
+                        help="the calibrated board's stream rate (default 250 Hz, its highest)")
     parser.add_argument("--board-seconds", type=float, default=None,
                         help="seconds of the evaluation run streamed by the board (default all)")
-    parser.add_argument("--sweep", default="200,225,250",
+    parser.add_argument("--sweep", default="250,275,300",
                         help="rates (Hz) of the short overrun check")
     parser.add_argument("--json", metavar="OUT.json")
     args = parser.parse_args(argv)

@@ -343,3 +343,33 @@ def wait_for_command(proc: subprocess.Popen, sent: Path, command, timeout: float
 def finish_out(proc: subprocess.Popen, timeout: float = 30.0) -> tuple[int, str]:
     out, _ = proc.communicate(timeout=timeout)
     return proc.returncode, out
+
+
+def test_a_truncated_mcap_log_keeps_its_samples_before_the_cut(tmp_path):
+    """What SIGKILL can leave of an MCAP log: a .partial file cut anywhere reads as the
+    samples of its whole chunks, equal to the complete log's first rows, or is refused in one
+    line; a cut file under its final name is refused (it did not end as a log ends)."""
+    assert main(["log", "--port", "delta6sim://?rate=1000", "-o", str(tmp_path / "w.mcap"),
+                 "--raw", "--duration", "0.5"]) == 0
+    whole = read_log(tmp_path / "w.mcap")
+    data = (tmp_path / "w.mcap").read_bytes()
+    rnd = random.Random(3)
+    kept = []
+    for cut in sorted(rnd.sample(range(len(data)), 30)):
+        partial = tmp_path / "cut.mcap.partial"
+        partial.write_bytes(data[:cut])
+        try:
+            log = read_log(partial)
+        except LogError as exc:
+            assert "\n" not in str(exc)
+            continue
+        n = len(log.t)
+        kept.append(n)
+        np.testing.assert_array_equal(log.wrench, whole.wrench[:n])
+        np.testing.assert_array_equal(log.theta, whole.theta[:n])
+        np.testing.assert_array_equal(log.seq, whole.seq[:n])
+    assert len(kept) > 20 and kept == sorted(kept) and kept[-1] > 0.9 * len(whole.t)
+    (tmp_path / "cut.mcap").write_bytes(data[:len(data) // 2])
+    with pytest.raises(LogError, match="ends inside a record") as err:
+        read_log(tmp_path / "cut.mcap")
+    assert "\n" not in str(err.value)

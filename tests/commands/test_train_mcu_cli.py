@@ -96,3 +96,35 @@ def test_bad_inputs_are_one_line_errors(trained, tmp_path, capsys):
         assert main(argv) == 2, argv
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and needle in err, (argv, err)
+
+
+def test_a_log_of_another_design_is_refused_before_training(tmp_path, capsys):
+    # The board runs the model on one design: training it on another design's log would
+    # write a model that silently corrects the wrong mechanism.
+    log = tmp_path / "stiff.csv"
+    assert main(["simulate", "--design", "designs/stiff.toml", "--duration", "20",
+                 "-o", str(log)]) == 0
+    capsys.readouterr()
+    assert main(["train", str(log), "--target", "mcu", "--epochs", "1", "--quiet",
+                 "-o", str(tmp_path / "m.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "recorded with design stiff" in err, err
+    assert not (tmp_path / "m.json").exists()
+
+
+def test_an_output_that_cannot_be_written_is_refused_before_training(tmp_path, capsys):
+    log = tmp_path / "cal.csv"
+    assert main(["simulate", "--duration", "40", "-o", str(log)]) == 0
+    cases = [
+        (["--target", "mcu", "-o", str(tmp_path / "none" / "m.json")], "does not exist"),
+        (["--target", "mcu", "-o", str(tmp_path / "m.json")], "is a folder"),  # m.onnx below
+        (["--model", "mlp", "-o", str(tmp_path)], "is a folder"),
+        (["--model", "mlp", "-o", str(tmp_path / "none" / "m.onnx")], "does not exist"),
+    ]
+    (tmp_path / "m.onnx").mkdir()
+    for options, words in cases:
+        capsys.readouterr()
+        assert main(["train", str(log), "--epochs", "1", *options]) == 2, options
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and words in err and "epoch" not in err, (options, err)
+    assert not (tmp_path / "m.json").exists()

@@ -99,3 +99,21 @@ def test_command_runs_as_a_program(tmp_path):
                         capture_output=True, text=True, cwd=ROOT)
     assert ok.returncode == 0, ok.stderr
     assert np.isfinite(read_log(tmp_path / "b.csv").wrench).all()
+
+
+def test_a_damaged_truth_file_for_unit_gets_one_line(tmp_path, capsys):
+    # A hand-edited truth file: every field the unit needs, removed or given the wrong type.
+    assert simulate(tmp_path, "--scenario", "paper") == 0
+    truth = json.loads((tmp_path / "run.truth.json").read_text())
+    needed = ("seed", "duration_s", "rate_hz", "trajectory", "temperature", "measurement",
+              "oversample", "scenario", "effects", "design")
+    damaged = [{k: v for k, v in truth.items() if k != key} for key in needed]
+    damaged += [{**truth, key: 5} for key in ("trajectory", "temperature", "effects", "design")]
+    for i, record in enumerate(damaged):
+        path = tmp_path / f"bad{i}.truth.json"
+        path.write_text(json.dumps(record))
+        capsys.readouterr()
+        assert main(["simulate", "--unit", str(path), "--duration", "2",
+                     "-o", str(tmp_path / "again.csv")]) == 2, sorted(set(truth) - set(record))
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and path.name in err, err

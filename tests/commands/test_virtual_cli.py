@@ -71,6 +71,17 @@ def test_wrench_only_log_cannot_drive_the_encoders(tmp_path, capsys):
     assert "no complete row of theta_e1..6" in capsys.readouterr().err
 
 
+def test_a_log_of_another_design_cannot_drive_this_firmware(tmp_path, capsys):
+    # Its angles come from another mechanism: the streamed wrench would be wrong.
+    log = tmp_path / "stiff.csv"
+    with LogWriter(log, {"design": "stiff", "design_hash": "0x487c4e16"}) as w:
+        import numpy as np
+        w.write_block(np.arange(3) * 0.01, np.zeros((3, 6)), np.zeros((3, 6)))
+    assert main(["virtual", "--replay", str(log)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "recorded with design stiff" in err and "--design" in err
+
+
 @pytest.mark.parametrize("args, words", [
     (["--fault", "9:weak:0:1"], "encoder 9"),
     (["--fault", "1:loud:0:1"], "kind"),

@@ -45,3 +45,33 @@ def test_bad_models_get_one_line_and_exit_2(tmp_path, tiny_models, unit_logs, ca
         assert main(["evaluate", str(unit_logs[1]), *argv]) == 2
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and words in err, err
+
+
+def test_a_plot_that_cannot_be_written_is_refused_in_one_line(tmp_path, capsys):
+    log = tmp_path / "run.csv"
+    assert main(["simulate", "--duration", "10", "-o", str(log)]) == 0
+    for plot, words in ((tmp_path / "errors.txt", "not an image format"),
+                        (tmp_path / "none" / "errors.png", "does not exist"),
+                        (tmp_path, "is a folder")):
+        capsys.readouterr()
+        assert main(["evaluate", str(log), "--plot", str(plot)]) == 2, plot
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and words in err, err
+    assert main(["evaluate", str(log), "--plot", str(tmp_path / "errors.svg")]) == 0
+    assert (tmp_path / "errors.svg").read_text().lstrip().startswith("<?xml")
+
+
+def test_a_device_log_is_refused_where_a_reference_is_needed(tmp_path, capsys):
+    # A device log's wrench is the board's own output: Table V against it, or a model trained
+    # to reproduce it, would compare the model with itself.
+    from delta6.link.logfile import LogWriter
+    log = tmp_path / "device.csv"
+    with LogWriter(log, {"design": "delta6", "wrench_source": "device"}) as w:
+        w.write_block(np.arange(10) * 0.004, np.zeros((10, 6)), np.zeros((10, 6)))
+    for argv in (["evaluate", str(log)],
+                 ["train", str(log), "--model", "mlp", "-o", str(tmp_path / "m.onnx")],
+                 ["train", str(log), "--target", "mcu", "-o", str(tmp_path / "m.json")]):
+        capsys.readouterr()
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and "device's own model output" in err, (argv, err)

@@ -31,7 +31,7 @@ def test_bad_requests_get_one_line(tmp_path, unit_logs, capsys):
         (["train", log, "--model", "mlp", "--design", "designs/half-scale.toml", "-o", "x.onnx"],
          "recorded with design delta6"),
         (["train", log, "--model", "gru", "-o", str(tmp_path / "no" / "dir.onnx"), "--epochs",
-          "1"], "cannot write"),
+          "1"], "does not exist"),
     ]
     for argv, words in cases:
         assert main(argv) == 2, argv

@@ -100,6 +100,8 @@ def good_text(rows=3):
     (lambda s: s.replace("0.02,0.1", "0.02,nan", 1), "NaN theta_e value on line 4"),
     (lambda s: s.replace("0.04,", "0.01,"), "not strictly increasing at line 5"),
     (lambda s: s.replace("0.02,0.1", "0.02,abc", 1), "'abc' is not a number"),
+    (lambda s: s.replace("0.02,0.1", "0.02,0.#1", 1), "line 4: '0.#1' is not a number"),
+    (lambda s: s.replace("\n0.02,", "\n#0.02,", 1), "line 4: '#0.02' is not a number"),
     (lambda s: s.replace("schema=1", "schema=9"), "schema 9"),
     (lambda s: "\n".join(s.splitlines()[:2]), "no samples"),
 ])

@@ -40,17 +40,18 @@ def unit(baseline, tmp_path_factory):
 def test_the_board_streams_the_python_calibrated_wrench(baseline, unit):
     truth, cal, path = unit
     image = design_firmware(DESIGN, path)
-    check = twin.simulate(duration_s=4, rate_hz=200, **twin.same_unit(truth, 22))
-    run = stream_log(image, check, rate_hz=200, hold_s=2.0)
+    check = twin.simulate(duration_s=4, rate_hz=250, **twin.same_unit(truth, 22))
+    run = stream_log(image, check, rate_hz=250, hold_s=2.0)
     # The board says which calibration it applies, and the rates it sustains with it (the
-    # calibrated solve takes most of a 250 Hz period): a fresh board streams at its highest.
+    # calibrated solve takes most of a 250 Hz period, and this stream runs at 250 Hz with no
+    # missed period): a fresh board streams at 250 Hz.
     assert run.info.calibration_hash == cal.hash32() and run.info.calibration_name == "e2e-unit"
-    assert (run.info.max_rate_hz, run.info.max_rate_pipeline_hz) == (200, 150)
-    assert run.info.rate_hz == 200
+    assert (run.info.max_rate_hz, run.info.max_rate_pipeline_hz) == (250, 150)
+    assert run.info.rate_hz == 250
     assert run.matched == 1.0 and run.stats["timing"]["missed_ticks"] == 0
     assert np.all(run.status & 0x00FF == 0)
     fs = full_scale(baseline)
-    python, _ = CalibratedModel(baseline, cal).run(run.delta, 1.0 / 200)
+    python, _ = CalibratedModel(baseline, cal).run(run.delta, 1.0 / 250)
     # Same numbers: float32 on the AVR and the wire's quantum against float64 on the host.
     assert np.max(np.abs(run.wrench - python) / fs * 100) < 0.01
     moving = run.rows >= 0

@@ -15,9 +15,10 @@ from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.spec import full_scale
 from delta6.core.workspace import load_checked
 from delta6.evaluation import tablev
-from delta6.evaluation.error_plot import plot_errors
+from delta6.evaluation.error_plot import check_plot_path, plot_errors
 from delta6.learning import LearnedEstimator
 from delta6.learning.mcu import McuEstimator
+from delta6.link.logdata import require_reference_wrench
 from delta6.link.logfile import read_log
 
 NAME = "evaluate"
@@ -77,10 +78,14 @@ class Computed:
 def run(args: argparse.Namespace) -> int:
     if args.json:
         check_output_file(args.json, "--json")
+    if args.plot:
+        check_plot_path(args.plot)
     design = load_checked(args.design)
     log = read_log(args.log)
     if len(log) == 0:
         raise UserError(f"{args.log}: no samples")
+    require_reference_wrench(log.meta, args.log, "Table V compares the estimators with a "
+                             "reference (docs/calibration.md)")
     rows = [Computed(e.name, e.predict(log)) for e in estimators(args, design, log)]
     result = tablev.table(rows, log, design)
     if args.json:

@@ -123,7 +123,11 @@ def _unit(args, seed: int, magnitude: float | None) -> dict:
                                    ("--magnitude", magnitude is not None)) if on]
     if given:
         raise UserError(f"--unit takes the effects of the recorded run; drop {given[0]}")
-    kwargs = same_unit(read_truth(args.unit), seed)
+    truth = read_truth(args.unit)
+    try:
+        kwargs = same_unit(truth, seed)
+    except UserError as exc:    # a hand-edited truth file: name it
+        raise UserError(f"{args.unit}: {exc}") from None
     if args.design:
         design = load_checked(args.design)
         if design.hash32() != kwargs["design"].hash32():

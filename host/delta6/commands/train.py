@@ -10,12 +10,15 @@ from delta6.commands._port import Progress, number
 from delta6.core import calibration as calibration_mod
 from delta6.core.accuracy import format_table
 from delta6.core.errors import UserError
+from delta6.core.outputs import check_output_file
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
 from delta6.learning.presets import KINDS, PRESETS, preset
+from delta6.link.logdata import require_reference_wrench
 from delta6.link.logfile import read_log
 
 NAME = "train"
+TRAINS_ON_A_REFERENCE = "a model learns the reference sensor's wrench (docs/learning.md)"
 HELP = ("train a learned wrench estimator on a calibration log and export it to ONNX; "
         "--target mcu: a quantized residual model the microcontroller runs (JSON, for "
         "delta6 codegen --model), with its float network as ONNX next to it")
@@ -74,11 +77,10 @@ def run(args: argparse.Namespace) -> int:
                             "(CAL.toml)")
         calibration = calibration_mod.load(base)
         base = "calibration"
-    folder = Path(args.output).resolve().parent
-    if not folder.is_dir():     # before the minutes of training, not after
-        raise UserError(f"cannot write {args.output}: no folder {folder}")
+    check_output_file(args.output, "-o")    # before the minutes of training, not after
     design = load_checked(args.design)
     log = read_log(args.log)
+    require_reference_wrench(log.meta, args.log, TRAINS_ON_A_REFERENCE)
     chosen = preset(args.preset, args.model)
     changes = {k: v for k, v in (("max_epochs", args.epochs), ("max_minutes", args.max_minutes))
                if v is not None}
@@ -160,9 +162,15 @@ def run_mcu(args: argparse.Namespace) -> int:
         raise UserError("--name: 1..23 printable ASCII characters")
     if output.suffix.lower() != ".json":
         raise UserError("-o: the model file is JSON (MODEL.json); the ONNX goes next to it")
+    check_output_file(output, "-o")
+    check_output_file(output.with_suffix(".onnx"), "-o")
     design = load_checked(args.design)
     base = _mcu_base(args, design)
     log = read_log(args.log)
+    require_reference_wrench(log.meta, args.log, TRAINS_ON_A_REFERENCE)
+    # the board runs this model on one design (and calibration): a log of another is refused
+    calibration_mod.check_log_meta(log.meta, design, getattr(base, "calibration", None),
+                                   source=str(args.log))
     try:
         import torch  # noqa: F401
     except ImportError:

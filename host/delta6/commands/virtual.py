@@ -109,6 +109,10 @@ def run(args: argparse.Namespace) -> int:
                                 args.model)
     else:
         image = vb.firmware()
+    replay_design = None
+    if args.replay is not None:     # its log must come from the design the firmware is for
+        from delta6.core.workspace import load_checked
+        replay_design = load_checked(args.design or DEFAULT_DESIGN)
     with tempfile.TemporaryDirectory(prefix="delta6-virtual-") as tmp:
         replay, loop, what = args.replay, args.loop, None
         if replay is not None:
@@ -123,7 +127,8 @@ def run(args: argparse.Namespace) -> int:
         live = args.live if args.live is not None else run_of_twin is not None
         board = vb.VirtualBoard(image=image, replay=replay, loop=loop, zero=zero, live=live,
                                 faults=faults, eeprom=args.eeprom, speed=args.speed,
-                                duration=args.duration)
+                                duration=args.duration,
+                                replay_design=replay_design)
         return _serve(board, args, what, run_of_twin)
 
 

@@ -10,19 +10,39 @@ import numpy as np
 from delta6.core.accuracy import error_pct_fs
 from delta6.core.errors import UserError
 from delta6.core.model import AXES
+from delta6.core.outputs import check_output_file
 
 
-def plot_errors(estimates: dict[str, np.ndarray], reference: np.ndarray, full_scale,
-                path: str | Path, title: str = "") -> Path:
-    """``estimates``: {row name: (n, 6) wrench}; writes a PNG to ``path``."""
+def check_plot_path(path: str | Path, option: str = "--plot") -> Path:
+    """Refuse, before any work, a plot file that cannot be written: matplotlib missing, a
+    folder that does not exist, or a name whose suffix is not an image format."""
+    _matplotlib()
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    path = check_output_file(path, option)
+    formats = FigureCanvasBase.get_supported_filetypes()
+    suffix = path.suffix.lower().lstrip(".")
+    if suffix and suffix not in formats:
+        raise UserError(f"{option} {path}: '.{suffix}' is not an image format matplotlib writes"
+                        f" (one of {', '.join(sorted(formats))})")
+    return path
+
+
+def _matplotlib():
     try:
         import matplotlib
     except ImportError:
         raise UserError("--plot needs matplotlib: pip install 'delta6[plots]'") from None
     matplotlib.use("Agg")
+    return matplotlib
+
+
+def plot_errors(estimates: dict[str, np.ndarray], reference: np.ndarray, full_scale,
+                path: str | Path, title: str = "") -> Path:
+    """``estimates``: {row name: (n, 6) wrench}; writes a PNG to ``path``."""
+    path = check_plot_path(path)
     import matplotlib.pyplot as plt
 
-    path = Path(path)
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5), sharey=True)
     n = len(reference)
     share = 1.0 - np.arange(n) / n          # share of samples at or above each sorted error

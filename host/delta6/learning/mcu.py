@@ -95,6 +95,7 @@ class CalibratedBase:
     def __init__(self, design: Design, calibration):
         from delta6.core.calibrated import CalibratedModel
         self.model = CalibratedModel(design, calibration)
+        self.calibration = calibration
         self.calibration_name = calibration.name
         self.calibration_hash = calibration.hash32()
 

@@ -2,7 +2,7 @@
 
     with Device("/dev/ttyACM0") as dev:        # or "delta6sim://", "socket://host:port"
         print(dev.info().design_name)
-        dev.start(250)                           # Hz (a board takes up to 350)
+        dev.start(200)                           # Hz (up to 350; 200 with an on-chip model)
         dev.tare(200)
         for sample in dev:                       # or dev.on_sample(callback), dev.latest()
             print(sample.t, sample.wrench)

@@ -52,6 +52,14 @@ def wrench_from_device(meta: dict) -> bool:
     return source == "device" or (source is None and "firmware" in meta)
 
 
+def require_reference_wrench(meta: dict, name, purpose: str) -> None:
+    """Refuse a device log where a reference wrench is needed: ``purpose`` says why (e.g.
+    "an evaluation compares estimators with a reference")."""
+    if wrench_from_device(meta):
+        raise UserError(f"{name}: the wrench in this log is the device's own model output "
+                        f"(a device log), not a reference sensor's: {purpose}")
+
+
 def six_columns(values, n: int) -> np.ndarray:
     """``values`` as an (n, 6) float array; None is a block of missing values (NaN)."""
     if values is None:

@@ -401,14 +401,14 @@ def _parse_rows(path: Path, rows: list[str], ncols: int, line_numbers: list[int]
             raise LogError(f"{path}: line {line_numbers[i]} has {row.count(',') + 1} fields, "
                            f"expected {ncols}")
     text = "\n".join(rows)
+    # comments=None: a '#' in a data row is damage to report, not a comment that hides fields
     try:  # fast path: every field present
-        return np.loadtxt(io.StringIO(text), delimiter=",", dtype=float, ndmin=2)
+        return np.loadtxt(io.StringIO(text), delimiter=",", dtype=float, ndmin=2,
+                          comments=None)
     except ValueError:
         pass
     # Empty fields (wrench-only streams, flagged samples) read as NaN; text that is not a
     # number is an error that names its line.
-    table = np.genfromtxt(io.StringIO(text), delimiter=",", dtype=float, ndmin=2,
-                          missing_values="", filling_values=np.nan)
     for i, row in enumerate(rows):
         for cell in row.split(","):
             cell = cell.strip()
@@ -418,6 +418,7 @@ def _parse_rows(path: Path, rows: list[str], ncols: int, line_numbers: list[int]
                 except ValueError:
                     raise LogError(f"{path}: line {line_numbers[i]}: {cell[:20]!r} is not a "
                                    "number") from None
-    return table
+    return np.genfromtxt(io.StringIO(text), delimiter=",", dtype=float, ndmin=2,
+                         missing_values="", filling_values=np.nan, comments=None)
 
 

@@ -19,9 +19,11 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+import struct
 from pathlib import Path
 
 import numpy as np
+from mcap.exceptions import EndOfFile, RecordLengthLimitExceeded
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
@@ -220,7 +222,7 @@ def read_mcap(path: str | Path, *, require_complete_rows: bool = True) -> LogDat
         raise LogError(f"{path}: no such file") from None
     except OSError as exc:
         raise LogError(f"{path}: cannot be read ({exc.strerror})") from None
-    meta, topics = _records(path, data)
+    meta, topics = _records(path, data, cut_ok=path.name.endswith(PARTIAL_SUFFIX))
     if meta.get("schema", str(SCHEMA_VERSION)) != str(SCHEMA_VERSION):
         raise LogError(f"{path}: log schema {meta['schema']} is not supported "
                        f"(this version reads schema {SCHEMA_VERSION})")
@@ -265,6 +267,16 @@ def read_mcap(path: str | Path, *, require_complete_rows: bool = True) -> LogDat
         raise LogError(f"{path}: no {R.TOPIC_SAMPLE} messages for the columns "
                        f"{', '.join(optional_names)}")
 
+    if meta.get("cut_row_dropped") and n:
+        # A killed writer's last sample may have lost its other topics' messages to the cut.
+        whole = ~(np.isnan(theta).any(axis=1) | np.isnan(wrench).any(axis=1))
+        for values in extra.values():
+            whole &= ~np.isnan(values)
+        keep = n - int(np.argmax(whole[::-1])) if whole.any() else 0
+        if keep == 0:
+            raise LogError(f"{path}: no whole sample before the cut")
+        t, theta, wrench = t[:keep], theta[:keep], wrench[:keep]
+        extra = {name: values[:keep] for name, values in extra.items()}
     if require_complete_rows:
         for name, values in (("theta_e", theta), ("wrench", wrench)):
             bad = np.isnan(values).any(axis=1)
@@ -281,9 +293,12 @@ def read_mcap(path: str | Path, *, require_complete_rows: bool = True) -> LogDat
                    temp_c=extra.get("temp_c"), meta=meta)
 
 
-def _records(path: Path, data: bytes):
-    """The metadata and, per topic, (schema, [messages]) of a whole file."""
+def _records(path: Path, data: bytes, cut_ok: bool = False):
+    """The metadata and, per topic, (schema, [messages]) of a whole file. ``cut_ok``: the file
+    is what a killed writer left (``.partial``): it may end inside a record, and the records
+    before the cut are kept (a chunk is read whole or not at all, and each carries a CRC)."""
     schemas, channels, messages, meta = {}, {}, {}, {}
+    cut = False
     try:
         for record in StreamReader(io.BytesIO(data), validate_crcs=True,
                                    record_size_limit=len(data)).records:
@@ -295,9 +310,18 @@ def _records(path: Path, data: bytes):
                 schemas[record.id] = record
             elif isinstance(record, Metadata) and record.name == METADATA_NAME:
                 meta = dict(record.metadata)
+    # A record, its header, or a length longer than what is left of the file: cut short.
+    except (EndOfFile, struct.error, RecordLengthLimitExceeded) as exc:
+        if not (cut_ok and (channels or messages)):
+            raise LogError(f"{path}: not a readable MCAP file (it ends inside a record"
+                           f"{'' if cut_ok else '; a log cut by a crash keeps its .partial name'}"
+                           f": {str(exc)[:60]})") from None
+        cut = True
     except Exception as exc:   # the mcap reader's many ways to say "damaged": one line
         raise LogError(f"{path}: not a readable MCAP file ({type(exc).__name__}: "
                        f"{str(exc)[:80]})") from None
+    if cut:
+        meta["cut_row_dropped"] = "1"
     topics = {}
     for cid, channel in channels.items():
         schema = schemas.get(channel.schema_id)

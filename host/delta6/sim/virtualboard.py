@@ -31,6 +31,7 @@ from typing import Iterable
 import numpy as np
 
 from delta6.build import appbuild, avrbuild
+from delta6.core.calibration import check_log_meta
 from delta6.core.errors import UserError
 from delta6.link.logfile import LogError, read_log
 from delta6.link.protocol import DEFAULT_BAUD, theta_to_counts, valid_counts
@@ -123,14 +124,20 @@ def write_replay(path: Path, t, counts) -> Path:
     return path
 
 
-def replay_from_log(log_path: Path, out: Path, zero=0) -> tuple[Path, int]:
+def replay_from_log(log_path: Path, out: Path, zero=0, design=None) -> tuple[Path, int]:
     """Convert a log (``t``, ``theta_e1..6``; ``docs/log-format.md``) into a replay file whose
     times start at 0. Rows with a missing angle hold the previous row's counts. Returns the
-    path and the number of samples."""
+    path and the number of samples. With ``design`` (the firmware's), a log whose header names
+    another design is refused: its angles come from another mechanism."""
     try:   # a log has samples and strictly increasing time, or read_log says why not
         data = read_log(log_path, require_complete_rows=False)
     except LogError as exc:
         raise VirtualBoardError(f"replay file: {exc}") from None
+    if design is not None:
+        try:
+            check_log_meta(data.meta, design, source=f"replay file {log_path}")
+        except UserError as exc:
+            raise VirtualBoardError(f"{exc}; give its design with --design") from None
     t, theta = np.asarray(data.t, dtype=float), np.asarray(data.theta, dtype=float)
     missing = ~np.isfinite(theta).all(axis=1)
     if missing.all():
@@ -181,9 +188,11 @@ class VirtualBoard:
                  eeprom: Path | None = None, speed: float = 1.0,
                  duration: float | None = None, read_log: Path | None = None,
                  wait_for_client: bool = True, bus_timing_ns: tuple[int, int, int] | None = None,
-                 baud: int = DEFAULT_BAUD, ram_dump: Path | None = None):
+                 baud: int = DEFAULT_BAUD, ram_dump: Path | None = None,
+                 replay_design=None):
         self.image = image or firmware()
         self.replay = Path(replay) if replay else None
+        self.replay_design = replay_design   # the firmware's design: a replay log must match
         self.loop = loop
         self.zero = np.broadcast_to(np.asarray(zero, dtype=np.int64), (6,)).copy()
         if not valid_counts(self.zero):
@@ -266,7 +275,8 @@ class VirtualBoard:
         with open(self.replay, "rb") as f:
             if f.read(4) == REPLAY_MAGIC:
                 return self.replay
-        out, _ = replay_from_log(self.replay, tmp / "replay.d6rp", self.zero)
+        out, _ = replay_from_log(self.replay, tmp / "replay.d6rp", self.zero,
+                                 design=self.replay_design)
         return out
 
     def _drain_stderr(self) -> None:

@@ -85,7 +85,17 @@ def effects_from_truth(truth: dict) -> list[Effect]:
 
 def replay_arguments(truth: dict) -> dict:
     """Keyword arguments of ``simulate`` that reproduce the recorded run exactly (runs on the
-    random trajectory only; a custom path is not recorded)."""
+    random trajectory only; a custom path is not recorded). A field missing or of the wrong
+    type (a hand-edited file) is one line naming it, not a traceback."""
+    try:
+        return _replay_arguments(truth)
+    except KeyError as exc:
+        raise UserError(f"field {exc.args[0]!r} is missing (not a complete truth file)") from None
+    except (TypeError, ValueError, AttributeError) as exc:
+        raise UserError(f"a field has the wrong type or value ({exc})") from None
+
+
+def _replay_arguments(truth: dict) -> dict:
     if "custom" in truth["trajectory"]:
         raise UserError("the run used a custom path, which a truth file does not record")
     temp = {k: v for k, v in truth["temperature"].items() if k != "recorded"}
