@@ -70,6 +70,30 @@ def test_effects_beyond_the_first_vocabulary_are_named(baseline, name, formulati
     assert final.mean() < 0.6 * np.mean(verdict["baseline_heldout_p99_pct"])
 
 
+def test_a_slack_cable_is_followed_by_the_one_sided_terms(baseline):
+    """A cable that only pulls once taut: the harness family's one-sided terms (a hinge in the
+    plate's displacement along a set of directions) follow it; its affine part alone does
+    not."""
+    import dataclasses
+
+    from delta6.diagnosis import terms as family
+    effect = twin.make_effect("harness", seed=36, formulation="cable", magnitude=0.9)
+    harness = next(t for t in family.TERMS if t.name == "harness")
+    width = len(harness.param_names) - len(family._ONE_SIDED) * len(family.HARNESS_DIRECTIONS)
+    affine = dataclasses.replace(harness, name="harness_affine",
+                                 param_names=harness.param_names[:width],
+                                 build=lambda d: family._harness(d)[..., :width],
+                                 prior_sd=harness.prior_sd[:width], plausible=None)
+    r = twin.simulate(baseline, [effect], duration_s=DURATION_S, rate_hz=50.0, seed=36,
+                      record_temp=True)
+    verdict = diagnose(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c),
+                       baseline, seed=0, terms=list(family.TERMS) + [affine])
+    assert verdict["present"][:1] == ["harness"], verdict["present"]
+    score = {c["name"]: c["score"] for c in verdict["candidates"]}
+    assert score["harness"] > 0.85
+    assert score["harness"] > score["harness_affine"] + 0.1
+
+
 def test_no_effect_on_ideal_data(baseline):
     _, verdict = run(baseline, [], seed=32)
     assert verdict["present"] == []

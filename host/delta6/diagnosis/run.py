@@ -23,12 +23,20 @@ from delta6.diagnosis.terms import TERMS
 from delta6.link.logfile import LogData
 
 #: A structured leftover holding at least this share of the analytical model's held-out
-#: squared error means the vocabulary misses something sizeable; families carrying less than
+#: squared error beyond the white noise means the vocabulary misses something sizeable; families carrying less than
 #: ``PARTIAL_SHARE`` of the gap are then reported as partial, not named.
 MISSING_SHARE = 0.25
 PARTIAL_SHARE = 0.30
 #: Logs up to this many samples keep their columns in memory (no second pass).
 KEEP_COLUMNS_SAMPLES = 30_000
+
+
+def missing_share(problem: selection.Problem, left_sse: float, base_sse: float) -> float:
+    """The share of the analytical model's held-out squared error that the final model leaves
+    beyond the white noise: what the vocabulary misses."""
+    if base_sse <= 0:
+        return 0.0
+    return max(left_sse - verdicts.noise_floor_sse(problem), 0.0) / base_sse
 
 
 def diagnose(log: LogData, design: Design, **kwargs) -> dict:
@@ -154,7 +162,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     candidates = []
     for term in terms:
         sse = alone[term.name]
-        boot = selection.bootstrap_gain(base_sse, sse, rng)
+        boot = selection.stratified_gain(base_sse, sse, rng)
         candidates.append({
             "name": term.name,
             "heldout_p99_pct": held["p99"][("alone", term.name)].tolist(),
@@ -212,11 +220,14 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     left_verdict = leftover.analyse(data, leftover_fs)
     # When a sizeable structured leftover shows the vocabulary misses something, a family that
     # carries only a small share of the gap is as likely absorbing part of the missing effect
-    # as being there: it stays in the ladder (the correction works) but is not named.
+    # as being there: it stays in the ladder (the correction works) but is not named. What is
+    # missing is the leftover beyond the white noise (noise is no missing effect), and a family
+    # its own signature confirms (backlash's dwell) shows what no absorber shows.
     partial = []
-    if left_verdict["structured"] and base_total > 0 and left / base_total >= MISSING_SHARE:
+    if left_verdict["structured"] and missing_share(problem, left, base_total) >= MISSING_SHARE:
+        own = {n for n, v in info["signature"].items() if v["confirmed"]}
         partial = [{"name": s["added"], "share_of_gap": s["share_of_gap"]} for s in steps
-                   if s["share_of_gap"] < PARTIAL_SHARE]
+                   if s["share_of_gap"] < PARTIAL_SHARE and s["added"] not in own]
     unnamed = {p["name"] for p in partial}
     for step in steps:
         step["named"] = step["added"] not in unnamed

@@ -19,7 +19,7 @@ import numpy as np
 
 from delta6.diagnosis.data import GapData
 
-#: Samples per piece: the columns of ~220 parameters for 10,000 samples take 110 MB, and the
+#: Samples per piece: the columns of ~270 parameters for 10,000 samples take 130 MB, and the
 #: families' intermediate arrays about as much again.
 PIECE_SAMPLES = 10_000
 #: Margin on either side of a piece, s: longer than any backlash dwell and its look-ahead.

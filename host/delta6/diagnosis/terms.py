@@ -25,7 +25,8 @@ nonlinear_spring    torque      a spring rate that changes with the deflection (
 encoder_periodic_   angle       an encoder error periodic in the shaft angle (harmonics
 error                           1..4 of a turn, any phase)
 harness             torque      a parallel elastic path (a cable to the plate): a force on
-                                the plate affine in the plate's position, through the
+                                the plate affine in the plate's pose, plus one-sided terms
+                                (a slack cable that only pulls once taut), through the
                                 mechanism to the joints
 ==================  ==========  =======================================================
 
@@ -323,6 +324,22 @@ def plate_jacobian(data: GapData) -> np.ndarray:
     return out
 
 
+#: Directions (in {B}) a slack cable may pull along: the 13 axes of a cube (faces, edges,
+#: corners), so that any direction is within 28 degrees of one and a blend of neighbours
+#: follows the rest.
+HARNESS_DIRECTIONS = tuple(
+    tuple(float(c) / float(np.linalg.norm(d)) for c in d) for d in
+    ((1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, -1, 0), (1, 0, 1), (1, 0, -1), (0, 1, 1),
+     (0, 1, -1), (1, 1, 1), (1, 1, -1), (1, -1, 1), (-1, 1, 1)))
+#: The displacement (mm) the one-sided terms are stated at: a force c * x|x| / ref is c N per
+#: mm there, like a stiffness.
+HARNESS_REF_MM = 10.0
+#: The one-sided terms per direction: |x| (with the affine part, a hinge at rest: a cable
+#: that pulls one way only), x|x| and x^2 (with |x|, a hinge whose pull grows with the
+#: stretch, and any slack up to the reference displacement, approximately).
+_ONE_SIDED = ("abs", "abs_signed", "square")
+
+
 def _harness(data: GapData) -> np.ndarray:
     # A cable or harness pulls on the plate with a force that depends on where the plate is:
     # affine in its pose's displacement from rest, the plate centre's (dp, mm) and the
@@ -330,6 +347,8 @@ def _harness(data: GapData) -> np.ndarray:
     # reaches joints 1..3 as J^T f (virtual work) and the wrench as G J^T f. (The moment such
     # a clamp puts on the gimbal is left out: on joints 4..6 it looks like their own spring
     # rates and zeros, and in mixes it took those effects' shares.)
+    # A slack cable only pulls once taut, and ever harder as it stretches: along each
+    # direction d of a fixed set, a force along d that is one-sided in x = d . dp.
     from delta6.core.model import forward_kinematics
     jac = plate_jacobian(data)                                         # (n, 3, 3)
     rest = forward_kinematics(data.params, np.zeros((1, 3)))[0]
@@ -339,6 +358,12 @@ def _harness(data: GapData) -> np.ndarray:
     cols = [force]                                                     # preload, N
     for m in range(6):                                                 # per mm or rad
         cols.append(force * pose[:, None, m:m + 1])
+    dirs = np.asarray(HARNESS_DIRECTIONS)                              # (D, 3)
+    along = force @ dirs.T                                             # (n, 6, D) per N
+    x = pose[:, :3] @ dirs.T                                           # (n, D) mm
+    ax = np.abs(x)
+    for feat in (ax, x * ax / HARNESS_REF_MM, x * x / HARNESS_REF_MM):
+        cols.append(along * feat[:, None, :])
     return np.concatenate(cols, axis=-1)
 
 
@@ -403,14 +428,20 @@ _POSE_UNITS = ("_n", "_per_x_mm", "_per_y_mm", "_per_z_mm", "_per_q4_rad", "_per
 #: Prior scales: a cable's preload of a few tenths of a newton, a stiffness of a few
 #: hundredths of a N/mm (0.5 N over 10 mm), a clamp up to about 20 mm off the centre (the
 #: tilt terms are the stiffness times that offset).
-HARNESS_PRIORS = (0.3,) * 3 + (0.05,) * 9 + (0.05 * 20.0,) * 9
+#: The one-sided terms: a few hundredths of a N/mm too.
+HARNESS_PRIORS = ((0.3,) * 3 + (0.05,) * 9 + (0.05 * 20.0,) * 9
+                  + (0.05,) * (len(_ONE_SIDED) * len(HARNESS_DIRECTIONS)))
+_HARNESS_AFFINE = 7 * 3
 
 
 def _harness_plausible(coef):
-    # Limits: 3 N of preload, 0.5 N/mm, a clamp at most 100 mm off the centre.
-    f = coef.reshape(7, 3)                          # pose, component
+    # Limits: 3 N of preload, 0.5 N/mm, a clamp at most 100 mm off the centre; the one-sided
+    # pull at most 0.5 N/mm along any direction, at the reference displacement.
+    f = coef[:_HARNESS_AFFINE].reshape(7, 3)        # pose, component
+    one_sided = np.abs(coef[_HARNESS_AFFINE:].reshape(len(_ONE_SIDED), -1)).sum(axis=0)
     return [("preload_n", f[0], 3.0), ("stiffness_n_per_mm", f[1:4], 0.5),
-            ("stiffness_n_per_rad", f[4:], 0.5 * 100.0)]
+            ("stiffness_n_per_rad", f[4:], 0.5 * 100.0),
+            ("one_sided_n_per_mm", one_sided, 0.5)]
 
 
 def _thermal_plausible(coef):
@@ -478,7 +509,9 @@ TERMS: tuple[Term, ...] = (
          prior_sd=_per_joint(3e-3, 2 * len(ENCODER_HARMONICS)),
          plausible=_encoder_plausible),
     Term("harness", "torque",
-         tuple(f"force_{a}{unit}" for unit in _POSE_UNITS for a in "xyz"),
+         tuple(f"force_{a}{unit}" for unit in _POSE_UNITS for a in "xyz")
+         + tuple(f"one_sided_{kind}_d{i}_n_per_mm" for kind in _ONE_SIDED
+                 for i in range(len(HARNESS_DIRECTIONS))),
          "N, N/mm, N/rad", _harness, prior_sd=HARNESS_PRIORS, plausible=_harness_plausible),
 )
 EFFECT_NAMES = tuple(t.name for t in TERMS)
