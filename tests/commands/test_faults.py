@@ -373,3 +373,22 @@ def test_a_truncated_mcap_log_keeps_its_samples_before_the_cut(tmp_path):
     with pytest.raises(LogError, match="ends inside a record") as err:
         read_log(tmp_path / "cut.mcap")
     assert "\n" not in str(err.value)
+
+
+def test_a_truncated_mcap_log_keeps_rows_whose_optional_values_are_nan(tmp_path):
+    """NaN in an optional column is data (no temperature sensor), not a cut: the rows before
+    the cut are all kept."""
+    from delta6.link.mcaplog import McapLogWriter
+    path = tmp_path / "nan.mcap"
+    writer = McapLogWriter(path, optional=("temp_c",))
+    n = 40
+    for block in range(4):
+        t = (block * n + np.arange(n) + 1) * 0.004
+        writer.write_block(t, np.full((n, 6), 0.01), np.ones((n, 6)), temp_c=np.full(n, np.nan))
+    writer.flush()
+    data = writer.partial.read_bytes()        # what a crash now would leave (no footer yet)
+    writer.close()
+    cut = tmp_path / "cut.mcap.partial"
+    cut.write_bytes(data)
+    log = read_log(cut, require_complete_rows=False)
+    assert len(log.t) == 4 * n and np.isnan(log.temp_c).all()

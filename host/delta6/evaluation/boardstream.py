@@ -105,8 +105,11 @@ def _stream_once(image, log, *, rate_hz, zero, hold_s, seconds, speed,
     counts = np.array([s.counts for s in samples], dtype=np.int64)
     wrench = np.array([s.wrench for s in samples], dtype=float)
     status = np.array([s.status for s in samples], dtype=np.int64)
-    if t_dev[0] > hold_s - 0.5 or not np.all(counts[0] == served[0]):
+    if t_dev[0] > hold_s - 0.5:
         return None
+    if not np.all(counts[0] == served[0]):
+        raise UserError("the board's first counts are not the replay's first pose: "
+                        f"{counts[0].tolist()} against {served[0].tolist()} (zero offset?)")
     rows, _ = _pair(t_dev, counts, t_replay, served)
     moving = rows > 0
     matched = float(np.mean(np.all(served[rows[moving]] == counts[moving], axis=1)))

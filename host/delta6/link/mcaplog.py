@@ -244,11 +244,14 @@ def read_mcap(path: str | Path, *, require_complete_rows: bool = True) -> LogDat
     t = keys / 1e9
 
     theta = np.full((n, 6), np.nan)
+    present = []           # per other topic: which rows have its message
     if topics.get(R.TOPIC_JOINTS, (None, []))[1]:
         rows = _decode(path, topics[R.TOPIC_JOINTS], R.joint_state(frame_id),
                        lambda m: (m.header.stamp.sec, m.header.stamp.nanosec,
                                   _named_positions(path, m)))
-        theta[_match(path, keys, _ns(rows), R.TOPIC_JOINTS)] = rows["position"]
+        at = _match(path, keys, _ns(rows), R.TOPIC_JOINTS)
+        theta[at] = rows["position"]
+        present.append(np.isin(np.arange(n), at))
 
     columns = meta.get("columns", ",".join(CORE_COLUMNS)).split(",")
     optional_names = [c for c in OPTIONAL_COLUMNS if c in columns]
@@ -261,6 +264,7 @@ def read_mcap(path: str | Path, *, require_complete_rows: bool = True) -> LogDat
         at = _match(path, keys, np.round(values[:, 0] * 1e9).astype(np.int64), R.TOPIC_SAMPLE)
         table = np.full((n, len(labels)), np.nan)
         table[at] = values
+        present.append(np.isin(np.arange(n), at))
         t = np.where(np.isnan(table[:, 0]), t, table[:, 0])
         extra = {name: table[:, i + 1] for i, name in enumerate(optional_names)}
     elif optional_names:
@@ -268,10 +272,10 @@ def read_mcap(path: str | Path, *, require_complete_rows: bool = True) -> LogDat
                        f"{', '.join(optional_names)}")
 
     if meta.get("cut_row_dropped") and n:
-        # A killed writer's last sample may have lost its other topics' messages to the cut.
-        whole = ~(np.isnan(theta).any(axis=1) | np.isnan(wrench).any(axis=1))
-        for values in extra.values():
-            whole &= ~np.isnan(values)
+        # A killed writer's last samples may have lost their other topics' messages to the
+        # cut: the rows after the last one with every topic's message go (NaN values are
+        # data, not a cut).
+        whole = np.logical_and.reduce(present) if present else np.ones(n, bool)
         keep = n - int(np.argmax(whole[::-1])) if whole.any() else 0
         if keep == 0:
             raise LogError(f"{path}: no whole sample before the cut")
