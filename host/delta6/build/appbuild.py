@@ -17,8 +17,7 @@ SIZE_PROBE = avrbuild.FIRMWARE / "native" / "app_size_probe.cpp"
 #: Register saves through shared prologue/epilogue routines instead of inline pushes: about
 #: 800 bytes less flash for a few cycles per call (under 1 % of a solve), which the
 #: ATmega328P's 32 KB need for the calibrated image with a residual model and the wrench
-#: pipeline; and no switch statements turned into lookup tables (avr-gcc puts those in RAM).
-#: Compile and link flags (LTO generates the code at link time).
+#: pipeline. Compile and link flags (LTO generates the code at link time).
 APP_FLAGS = ("-mcall-prologues",)
 
 
