@@ -112,3 +112,27 @@ def test_evaluate_row_is_the_integer_reference_over_the_calibration(over_cal, ba
     from delta6.core.spec import full_scale
     p = accuracy.percentiles(got, log.wrench, full_scale(baseline), (99,))
     assert np.allclose(rows["onchip"]["p99_pct"], p["p99"])
+
+
+def test_a_model_too_costly_for_the_rated_rate_is_refused(over_cal, unit_logs, tmp_path,
+                                                          capsys):
+    """Over a calibration the board keeps 200 Hz with at most MAX_MODEL_MACS['calibrated']
+    multiply-accumulates: a bigger network is refused in one line, a smaller one taken."""
+    from delta6.commands.codegen import MAX_MODEL_MACS
+    _, cal_path, _, _ = over_cal
+    header = tmp_path / "generated" / "delta6_design.h"
+    for hidden, ok in (("16", False), ("4", True)):
+        model = tmp_path / f"h{hidden}.json"
+        assert main(["train", str(unit_logs[0]), "--target", "mcu", "--residual-over",
+                     str(cal_path), "--epochs", "1", "--hidden", hidden, "--quiet",
+                     "-o", str(model)]) == 0
+        macs = residualmodel.load(model).net.macs
+        assert (macs <= MAX_MODEL_MACS["calibrated"]) == ok, macs
+        capsys.readouterr()
+        status = main(["codegen", "designs/delta6.toml", "--calibration", str(cal_path),
+                       "--model", str(model), "-o", str(header)])
+        err = capsys.readouterr().err.strip()
+        if ok:
+            assert status == 0, err
+        else:
+            assert status == 2 and len(err.splitlines()) == 1 and "at most 144" in err, err

@@ -77,30 +77,32 @@ def test_a_residual_over_the_calibration_runs_on_the_board_and_info_names_both(b
     calibration and the model, and the board's wrench is the Python calibrated wrench plus the
     integer reference's correction on the counts the board latched."""
     truth, cal, path = unit
-    # The analytical default network (it reads the base wrench, so the application's float
-    # quantization is exercised) at 100 Hz: with the calibrated solve it takes about 100,000
-    # cycles a sample, more than a 200 Hz period (the default over a calibration, a linear map
-    # of the counts, sustains 200 Hz: docs/ondevice-model.md).
-    check = twin.simulate(duration_s=4, rate_hz=100, **twin.same_unit(truth, 23))
+    # The largest network codegen takes over a calibration (144 multiply-accumulates): it
+    # reads the base wrench (so the application's float quantization is exercised) and two
+    # plays (state), at the model image's rated 200 Hz.
+    features = (int8quant.FeatureSpec("wrench"), int8quant.FeatureSpec("counts"),
+                int8quant.FeatureSpec("play", 4), int8quant.FeatureSpec("play", 16))
+    check = twin.simulate(duration_s=4, rate_hz=200, **twin.same_unit(truth, 23))
     counts = np.round(check.theta / ENCODER_COUNT_RAD).astype(np.int64)
-    base = CalibratedModel(baseline, cal).run(counts, 1.0 / 100)[0]
+    base = CalibratedModel(baseline, cal).run(counts, 1.0 / 200)[0]
     scale = mcu.input_scale_for(baseline)
-    v = int8net.feature_values(mcu.DEFAULT_FEATURES, int8net.quantize_input(base, scale), counts)
-    float_net, _ = trained_like(np.random.default_rng(5), mcu.DEFAULT_FEATURES,
-                                v.astype(float), rate_hz=100.0)
+    v = int8net.feature_values(features, int8net.quantize_input(base, scale), counts)
+    float_net, _ = trained_like(np.random.default_rng(5), features, v.astype(float),
+                                hidden=(), rate_hz=200.0)
     net = int8quant.quantize(dataclasses.replace(float_net, input_scale=scale), v.astype(float))
     model = residualmodel.ResidualModel(
         name="board-residual", design_name=baseline.name, design_hash=baseline.hash32(),
         base="calibrated", net=net, calibration_name=cal.name, calibration_hash=cal.hash32())
     model_path = residualmodel.save(model, tmp_path / "board-residual.json")
     image = design_firmware(DESIGN, path, model_path)
-    run = stream_log(image, check, rate_hz=100, hold_s=2.0)
+    run = stream_log(image, check, rate_hz=200, hold_s=2.0)
     assert (run.info.model_hash, run.info.model_name) == (model.hash32(), "board-residual")
+    assert run.stats["timing"]["missed_ticks"] == 0
     assert run.info.calibration_hash == cal.hash32()
     assert run.matched == 1.0 and np.all(run.status & 0x00FF == 0)
-    python, _ = CalibratedModel(baseline, cal).run(run.delta, 1.0 / 100)
+    python, _ = CalibratedModel(baseline, cal).run(run.delta, 1.0 / 200)
     u = int8net.quantize_input(python, net.input_scale)
-    correction, _ = int8net.run(net, u, run.delta, stride=int8net.stride_for(net, 100))
+    correction, _ = int8net.run(net, u, run.delta, stride=int8net.stride_for(net, 200))
     expected = int8net.apply_output(python, correction, net.output_step)
     fs = full_scale(baseline)
     err = np.abs(run.wrench - expected) / fs * 100

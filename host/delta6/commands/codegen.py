@@ -85,14 +85,27 @@ def calibration_text(design: design_mod.Design, design_path: Path, cal_path: Pat
     return cal, render_calibration(design, cal, source_label(design_path), source_label(cal_path))
 
 
+#: The largest on-chip model (multiply-accumulates per sample) measured to hold the model
+#: image's rated 200 Hz on the ATmega328P at 16 MHz, over each base (docs/ondevice-model.md:
+#: the analytical default, 672, at 74,300 cycles of work per 80,000-cycle period; over a
+#: calibration, whose solve takes 51,000, the 144-MAC network at 75,400).
+MAX_MODEL_MACS = {"analytical": 672, "calibrated": 144}
+
+
 def model_text(design: design_mod.Design, design_path: Path, model_path: Path | None, cal=None):
     """The model header for ``model_path`` (None: no model, no header); refuses a model
-    trained for another design or over another base than the one this firmware computes."""
+    trained for another design or over another base than the one this firmware computes, and
+    one too costly for the board's rated rate."""
     if model_path is None:
         return None, None
     from delta6_codegen import render_model
     model = residualmodel.load(model_path)
     residualmodel.check_base(model, design, cal)
+    base = "analytical" if cal is None else "calibrated"
+    if model.net.macs > MAX_MODEL_MACS[base]:
+        raise UserError(f"{model_path}: {model.net.macs} multiply-accumulates per sample; over "
+                        f"the {base} model the board keeps its 200 Hz with at most "
+                        f"{MAX_MODEL_MACS[base]} (train a smaller one: --hidden)")
     return model, render_model(model, source_label(design_path), source_label(model_path))
 
 
