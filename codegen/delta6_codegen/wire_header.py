@@ -171,7 +171,8 @@ def render_wire() -> str:
         *_enum(P.NackReason, "kNack", "NACK reasons (docs/protocol.md section 3)"),
         *_enum(P.EventCode, "kEvent", "event codes (EVENT record)"),
         *_enum(P.ConfigProblem, "kConfig",
-               "why a stored configuration was rejected (CONFIG_DEFAULTS argument)"),
+               "why a stored configuration was rejected (CONFIG_DEFAULTS argument), or "
+               "how it was adjusted (INFO only)"),
         *_config_blob(),
         "// --- telemetry ---",
         f"const int16_t kTemperatureUnknown = 0x{P.TEMPERATURE_UNKNOWN:04X};"

@@ -9,6 +9,7 @@ import pytest
 from delta6.cli import COMMAND_MODULES, main
 from delta6.core.model import wrench as model_wrench
 from delta6.link import protocol as P
+from delta6.link.crc import crc16
 from delta6.link.device import Device
 from delta6.link.logfile import read_log
 from delta6.sim.simdevice import SimulatedDevice
@@ -191,6 +192,22 @@ def test_info_says_why_the_configuration_fell_back_to_defaults(capsys, tmp_path)
     assert (out["config_problem"], out["config_problem_text"]) == (P.ConfigProblem.BAD_CRC,
                                                                   "CRC mismatch")
     assert out["status"] & P.Status.CONFIG_DEFAULTS
+
+
+def test_info_says_when_the_saved_rate_was_lowered(capsys, tmp_path):
+    eeprom = tmp_path / "e.bin"
+    url = f"delta6sim://?eeprom={eeprom}"
+    with Device(url) as dev:
+        dev.save_config()
+        highest = dev.info().max_rate_hz
+    blob = P.CONFIG_LAYOUT.unpack(eeprom.read_bytes()[:P.CONFIG_BLOB_SIZE])
+    blob["rate_hz"] = highest + 1                  # as a faster firmware image saved it
+    body = P.CONFIG_LAYOUT.pack(**blob)
+    eeprom.write_bytes(body + crc16(body).to_bytes(2, "big"))
+    assert main(["info", "--port", url]) == 0
+    out = capsys.readouterr().out
+    assert f"rate {highest} Hz" in out and "no valid configuration" not in out
+    assert "note: the EEPROM configuration was saved at a rate above" in out
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -29,16 +29,20 @@ RATE = 500
 class Core:
     """The firmware's Device behind the simulated board, fed with wrenches chosen here."""
 
-    def __init__(self, eeprom: bytes | None = None, design_hash: int = HASH):
+    def __init__(self, eeprom: bytes | None = None, design_hash: int = HASH,
+                 max_rate_hz: int = 2000, max_rate_pipeline_hz: int = 0):
         self.core = NativeCore(design_name="pipeline", design_hash=design_hash,
                                full_scale=FULL_SCALE, joint_limit_rad=0.5,
-                               joint_limit_counts=0, baud=2_000_000, max_rate_hz=2000,
-                               default_rate_hz=RATE, zero_counts=[0] * 6, tx_capacity=60000)
+                               joint_limit_counts=0, baud=2_000_000, max_rate_hz=max_rate_hz,
+                               default_rate_hz=min(RATE, max_rate_hz), zero_counts=[0] * 6,
+                               tx_capacity=60000)
+        self.core.set_max_rate_pipeline(max_rate_pipeline_hz)
         if eeprom is not None:
             self.core.eeprom = eeprom
         self.decoder = StreamDecoder()
         self.t_us = 0
         self.request = 0
+        self.other = []        # what samples() received besides data records (late answers)
         self.core.begin(0)
         self.boot = self.decoder.feed(self.core.read())
 
@@ -69,7 +73,9 @@ class Core:
         self.t_us = int(times[-1])
         self.core.samples(times, np.zeros((n, 6), np.uint16), invalid.astype(np.uint8),
                           ~invalid, wrench, np.zeros(n, np.uint8), np.full(n, 100, np.uint16))
-        return [r for r in self.decoder.feed(self.core.read()) if isinstance(r, P.WrenchRecord)]
+        records = self.decoder.feed(self.core.read())
+        self.other += [r for r in records if not isinstance(r, P.WrenchRecord)]
+        return [r for r in records if isinstance(r, P.WrenchRecord)]
 
 
 @pytest.fixture
@@ -192,6 +198,60 @@ def test_pipeline_matches_the_references_and_flags_overload_by_its_counts(
     flagged = (status(records[tare_samples:]) & P.Status.OVERRANGE) != 0
     assert flagged[~edge].tolist() == (over_limit | clipped)[~edge].tolist()
     assert flagged[over_limit].all()
+
+
+@pytest.mark.parametrize("new_zero", ["SET_ZERO", "ZERO_HERE"])
+def test_new_zero_counts_restart_the_filter_at_the_new_level(new_zero):
+    """Loaded for long at 1 N with a slow filter, then new zero counts that make the solver's
+    wrench 0: the first record is 0, as if the filter had always seen it (no step response
+    from the old level), whichever command set the zero."""
+    c = Core()
+    try:
+        c.command(C.SET_FILTER, 5.0)
+        c.command(C.START, 0)
+        c.samples(np.ones((300, 6)))
+        if new_zero == "SET_ZERO":
+            c.command(C.SET_ZERO, *[0] * 6)
+        else:
+            c.core.feed(P.encode_command(C.ZERO_HERE, 77, 10))    # averages the next 10
+            c.samples(np.ones((10, 6)))
+            assert P.Ack(77, C.ZERO_HERE, 10) in c.other
+        after = counts(c.samples(np.zeros((5, 6))))
+    finally:
+        c.close()
+    assert (after == 0).all(), after
+
+
+@pytest.mark.parametrize("cutoff, translation, rpy, glitch", [
+    (20.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (3e38, 0, 0, 0, 0, 0)),      # overflows the filter
+    (20.0, (0.0, 0.0, 0.05), (0.0, 0.0, 1.5), (3e38, 0, 0, 0, 0, 0)),
+    (0.0, (0.0, 0.0, 1.0), (0.3, 0.0, 0.0), (3e38, 0, 0, 0, -3e38, 0))])  # the tool frame
+def test_a_huge_finite_wrench_is_flagged_and_does_not_poison_the_pipeline(cutoff, translation,
+                                                                           rpy, glitch):
+    """One solver value near float32's largest (an encoder glitch through a singular pose):
+    whatever overflows on its way through the filter or the tool frame is sent flagged
+    (SOLVER_ERROR, WRENCH_INVALID, no values), never as a value, and the filter starts again:
+    the stream is back at the load's level a few samples later."""
+    c = Core()
+    try:
+        c.command(C.SET_FILTER, cutoff)
+        c.command(C.SET_TOOL, *translation, *rpy)
+        c.command(C.START, 0)
+        load = np.full((1, 6), 0.01)
+        before = counts(c.samples(np.repeat(load, 50, axis=0)))
+        records = c.samples(np.array([glitch], np.float32))
+        records += c.samples(np.repeat(load, 100, axis=0))
+        solver_errors = c.command(C.GET_TELEMETRY).solver_errors
+    finally:
+        c.close()
+    got, flags = counts(records), status(records)
+    invalid = (flags & P.Status.WRENCH_INVALID) != 0
+    assert invalid.any() and solver_errors == invalid.sum()
+    assert (flags[invalid] & P.Status.SOLVER_ERROR).all()
+    assert (got[invalid] == P.INVALID_VALUE).all()
+    assert (got[~invalid] != P.INVALID_VALUE).all()          # no unflagged NaN
+    assert np.flatnonzero(invalid).max() < 5
+    assert (got[5:] == before[-1]).all() and not (flags[5:] & P.Status.OVERRANGE).any()
 
 
 def test_overload_is_exact_at_the_threshold(core):
@@ -351,6 +411,63 @@ def test_out_of_range_pipeline_values_in_a_blob_are_rejected_and_another_design_
         other.close()
     assert info.filter_hz == 100.0 and np.allclose(info.tool_translation, (0, 0, 0.05))
     assert info.limits == (0,) * 6 and not info.status & P.Status.CONFIG_DEFAULTS
+
+
+def layout2_blob(rate, filter_hz=0.0, translation=(0.0,) * 3, rpy=(0.0,) * 3) -> bytes:
+    """A blob saved by a faster image (another model, or none), written from the table."""
+    body = P.CONFIG_LAYOUT.pack(
+        magic=P.CONFIG_MAGIC, layout=P.CONFIG_LAYOUT_VERSION, size=P.CONFIG_BLOB_SIZE,
+        design_hash=HASH, rate_hz=rate, mode=P.Mode.WRENCH_RAW, tare_active=1,
+        tare=(0.5, -0.25, 1.0, 0.01, 0.0, -0.02), zero_counts=(1, 2, 3, 16383, 5, 6),
+        filter_hz=filter_hz, tool_translation=translation, tool_rpy=rpy,
+        limits=(10, 0, 30, 0, 0, 500))
+    return body + crc16(body).to_bytes(2, "big")
+
+
+TOOL = ((0.0, 0.0, 0.05), (0.0, 0.0, 1.5))
+
+
+@pytest.mark.parametrize("blob, rate, filter_hz, tool", [
+    (layout1_blob(rate=250), 200, 0.0, False),              # saved by the plain image
+    (layout2_blob(250), 200, 0.0, False),
+    (layout2_blob(250, filter_hz=20.0), 150, 20.0, False),  # the pipeline's lower limit
+    (layout2_blob(250, 0.0, *TOOL), 150, 0.0, True),
+    (layout2_blob(350, 20.0, *TOOL), 150, 20.0, True),
+    # A cutoff that fits 250 Hz but not 150 Hz goes: then the rate without the filter.
+    (layout2_blob(250, filter_hz=100.0), 200, 0.0, False),
+    (layout2_blob(250, 100.0, *TOOL), 150, 0.0, True),
+], ids=["layout1", "plain", "filter", "tool", "pipeline", "cutoff-too-high", "cutoff-tool"])
+def test_a_configuration_saved_by_a_faster_image_keeps_all_but_its_rate(blob, rate, filter_hz,
+                                                                         tool):
+    """Reflashed with a slower image (an on-chip model: 200 Hz, 150 Hz with the filter or a
+    tool frame): the saved rate is lowered to what this image runs, the zero counts, tare,
+    mode, tool frame and limits stay, and INFO says RATE_LOWERED (not CONFIG_DEFAULTS) until
+    SAVE_CONFIG stores the configuration as it now is."""
+    c = Core(eeprom=blob, max_rate_hz=200, max_rate_pipeline_hz=150)
+    try:
+        assert not [r for r in c.boot if isinstance(r, P.Event)
+                    and r.code == P.EventCode.CONFIG_DEFAULTS]
+        info = c.info()
+        assert info.config_problem == P.ConfigProblem.RATE_LOWERED
+        assert not info.status & P.Status.CONFIG_DEFAULTS and info.status & P.Status.TARE_ACTIVE
+        assert (info.rate_hz, info.filter_hz) == (rate, filter_hz)
+        assert (info.mode, info.zero_counts) == (P.Mode.WRENCH_RAW, (1, 2, 3, 16383, 5, 6))
+        assert np.allclose(info.tare, (0.5, -0.25, 1.0, 0.01, 0.0, -0.02))
+        assert np.allclose(info.tool_rpy, TOOL[1] if tool else (0.0,) * 3)
+        assert c.command(C.START, 0).value == rate                 # and it streams at it
+        c.command(C.STOP)
+        assert c.command(C.SAVE_CONFIG).value == P.CONFIG_BLOB_SIZE
+        assert c.info().config_problem == 0
+        saved = c.core.eeprom[:P.CONFIG_BLOB_SIZE]
+    finally:
+        c.close()
+    reborn = Core(eeprom=saved, max_rate_hz=200, max_rate_pipeline_hz=150)
+    try:
+        again = reborn.info()
+    finally:
+        reborn.close()
+    assert again.config_problem == 0 and (again.rate_hz, again.filter_hz) == (rate, filter_hz)
+    assert again.zero_counts == info.zero_counts and again.tare == info.tare
 
 
 def test_the_pipeline_is_refused_at_rates_the_board_cannot_run_it_at(core):

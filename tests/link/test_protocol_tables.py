@@ -115,7 +115,11 @@ def test_event_codes_in_the_docs_are_the_enums():
     assert dict((n, int(v)) for v, n in re.findall(r"(\d) ([A-Z_]+)", rows[1])) == {
         e.name: int(e) for e in P.EventCode}
     reasons = re.search(r"rejected \((.*?)\)", rows[2]).group(1)
-    assert [int(n) for n in re.findall(r"(\d) ", reasons)] == [int(p) for p in P.ConfigProblem]
+    rejections = [int(p) for p in P.ConfigProblem if p != P.ConfigProblem.RATE_LOWERED]
+    assert [int(n) for n in re.findall(r"(\d) ", reasons)] == rejections
+    info = {int(r[0]): r[2] for r in table_rows(section("0x03 INFO"))}
+    offset = P.RECORD_LAYOUTS[P.RecordType.INFO].offsets["config_problem"]
+    assert f"{int(P.ConfigProblem.RATE_LOWERED)} RATE_LOWERED" in info[offset]
 
 
 def test_eeprom_table_in_the_docs_is_the_config_layout():

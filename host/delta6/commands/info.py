@@ -6,7 +6,7 @@ import json
 
 from delta6.commands._port import AXES, add_port_arguments, flag_names, open_device
 from delta6.commands.config import pipeline_lines
-from delta6.link.protocol import Mode, Status, config_problem_text, link_rate_limit
+from delta6.link.protocol import ConfigProblem, Mode, Status, config_problem_text, link_rate_limit
 
 NAME = "info"
 HELP = "print the device's identity, scaling, configuration and health"
@@ -22,9 +22,12 @@ def run(args: argparse.Namespace) -> int:
         info = dev.info()
         rtt, _ = dev.ping()
         telemetry = dev.telemetry()
-    # Why the EEPROM configuration was rejected at boot (a protocol 1.0 board says 0: unknown).
+    # Why the EEPROM configuration was rejected at boot (a protocol 1.0 board says 0: unknown),
+    # or that it loaded with its rate lowered.
+    lowered = info.config_problem == ConfigProblem.RATE_LOWERED
     problem = (config_problem_text(info.config_problem)
-               if info.status & Status.CONFIG_DEFAULTS and info.config_problem else None)
+               if (info.status & Status.CONFIG_DEFAULTS and info.config_problem) or lowered
+               else None)
     if args.json:
         # No sentinels in JSON: an unknown temperature is null, not 32767; no limit is null.
         health = {**telemetry._asdict(), "temperature_c": telemetry.temperature_c}
@@ -70,5 +73,7 @@ def run(args: argparse.Namespace) -> int:
         why = f" ({problem})" if problem else ""
         lines.append(f"  note: the EEPROM holds no valid configuration{why}; defaults are in use "
                      "(delta6 tare --save, or Device.save_config(), stores one)")
+    elif lowered:
+        lines.append(f"  note: the EEPROM configuration was {problem}")
     print("\n".join(lines))
     return 0

@@ -157,12 +157,14 @@ class EventCode(enum.IntEnum):
 
 @enum.unique
 class ConfigProblem(enum.IntEnum):
-    """Why a stored configuration was rejected at boot (the CONFIG_DEFAULTS event's argument)."""
+    """Why a stored configuration was rejected at boot (the CONFIG_DEFAULTS event's argument),
+    or (RATE_LOWERED, INFO only, CONFIG_DEFAULTS clear) how it was adjusted to load."""
 
     ERASED = 1
     BAD_CRC = 2
     BAD_VERSION = 3
     OUT_OF_RANGE = 4
+    RATE_LOWERED = 5       # 1.3
 
 
 CONFIG_PROBLEM_TEXT = {
@@ -170,6 +172,9 @@ CONFIG_PROBLEM_TEXT = {
     ConfigProblem.BAD_CRC: "CRC mismatch",
     ConfigProblem.BAD_VERSION: "unknown layout version",
     ConfigProblem.OUT_OF_RANGE: "value out of range",
+    ConfigProblem.RATE_LOWERED: "saved at a rate above this firmware's highest: loaded at its "
+                                "highest (a low-pass cutoff that no longer fits is off), "
+                                "everything else kept; SAVE_CONFIG stores it",
 }
 
 
@@ -361,7 +366,8 @@ class Info(NamedTuple):
     max_rate_hz: int
     status: int
     streaming: bool
-    config_problem: int    # a ConfigProblem while CONFIG_DEFAULTS is set (0: none)
+    config_problem: int    # a ConfigProblem: a rejection while CONFIG_DEFAULTS is set,
+                           # or (1.3) RATE_LOWERED without it (0: none)
     baud: int
     serial_number: int
     zero_counts: tuple

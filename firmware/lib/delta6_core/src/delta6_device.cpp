@@ -120,14 +120,26 @@ uint8_t Device::decodeConfig(const uint8_t* blob, Config* out) const {
     }
     if (badToolValue(c.tool_translation, c.tool_rpy) < 6) return kConfigOutOfRange;
   }
-  c.rate_hz = getU16(blob + kConfigOffRateHz);
+  const uint16_t saved_rate = getU16(blob + kConfigOffRateHz);
+  c.rate_hz = saved_rate;
   c.mode = blob[kConfigOffMode];
   c.tare_active = blob[kConfigOffTareActive] == 1;
-  const bool pipeline = c.filter_hz != 0.0f || !toolIsIdentity(c.tool_translation, c.tool_rpy);
-  if (c.rate_hz == 0 || c.rate_hz > maxRate(pipeline)) return kConfigOutOfRange;
+  if (saved_rate == 0 || !filterFits(c.filter_hz, saved_rate)) return kConfigOutOfRange;
   if (c.mode != kModeWrench && c.mode != kModeWrenchRaw) return kConfigOutOfRange;
   if (blob[kConfigOffTareActive] > 1) return kConfigOutOfRange;
-  if (!filterFits(c.filter_hz, c.rate_hz)) return kConfigOutOfRange;
+  // Saved by a faster image (no model, another clock): this one's highest rate, the rest kept.
+  // The filter stays on at the lower rate unless its cutoff no longer fits it.
+  uint8_t adjusted = 0;
+  const bool tool = !toolIsIdentity(c.tool_translation, c.tool_rpy);
+  if (saved_rate > maxRate(c.filter_hz != 0.0f || tool)) {
+    adjusted = kConfigRateLowered;
+    c.rate_hz = maxRate(c.filter_hz != 0.0f || tool);
+    if (!filterFits(c.filter_hz, c.rate_hz)) {
+      c.filter_hz = 0.0f;
+      const uint16_t limit = maxRate(tool);
+      c.rate_hz = saved_rate < limit ? saved_rate : limit;
+    }
+  }
   for (uint8_t i = 0; i < 6; ++i) {
     c.tare[i] = getF32(blob + kConfigOffTare + 4 * i);
     // Any finite offset: the loader accepts every configuration the device can hold.
@@ -143,7 +155,7 @@ uint8_t Device::decodeConfig(const uint8_t* blob, Config* out) const {
     for (uint8_t i = 0; i < 6; ++i) c.limits[i] = 0;
   }
   *out = c;
-  return 0;
+  return adjusted;
 }
 
 void Device::setRate(uint16_t rate_hz) {
@@ -180,15 +192,15 @@ void Device::begin(uint8_t reset_cause, uint16_t boot_id) {
   Config loaded;
   const uint8_t problem = decodeConfig(blob, &loaded);
   config_problem_ = problem;
-  if (problem) {
+  if (usingDefaults()) {
     loadDefaults(&config_);
   } else {
-    config_ = loaded;
+    config_ = loaded;  // a lowered rate is said by INFO's config_problem
   }
   configurePipeline();
   hw_.sampleRateChanged(config_.rate_hz);
   answer(kEvent, 0, kEventBoot, 0, reset_cause);
-  if (problem) answer(kEvent, 0, kEventConfigDefaults, 0, problem);
+  if (usingDefaults()) answer(kEvent, 0, kEventConfigDefaults, 0, problem);
   answer(kInfo, 0, 0, 0, 0);
   service();
 }
@@ -215,7 +227,7 @@ uint16_t Device::persistentStatus() const {
   uint16_t s = 0;
   if (config_.tare_active) s |= kStatusTareActive;
   if (averaging_) s |= kStatusTareBusy;
-  if (config_problem_) s |= kStatusConfigDefaults;
+  if (usingDefaults()) s |= kStatusConfigDefaults;
   return s;
 }
 
@@ -563,6 +575,8 @@ void Device::finishAveraging() {
       config_.tare[i] = 0.0f;
     }
   }
+  // New zero counts: the wrench jumps, start from the new level as SET_ZERO does.
+  if (command != kCmdTare) filter_.reset();
   config_.tare_active = command == kCmdTare;
   stream_changed_ = true;
   answer(kAck, averaging_request_, command, 0, averaging_count_);
@@ -686,7 +700,8 @@ void Device::sendInfo(uint8_t request_id) {
 }
 
 void Device::buildInfoPiece(uint8_t request_id, uint8_t piece, uint8_t* p) const {
-  // p holds the piece from its first byte on: a field at offset o lands at p + o - base.
+  // p holds the piece from its first byte on: the field at offset o is at b(o) = p + (o - base),
+  // an index into the piece (p - base would point before the buffer).
   // Identity fields one by one from flash (a copy of the whole would deepen the stack).
   switch (piece) {
     case 0:
@@ -700,42 +715,42 @@ void Device::buildInfoPiece(uint8_t request_id, uint8_t piece, uint8_t* p) const
       putName(p + kInfoOffDesignName, ident(id_.design_name), kInfoDesignNameBytes);
       break;
     case 1: {
-      uint8_t* b = p - kInfoOffFullScale;
+      const auto b = [p](uint8_t offset) { return p + (offset - kInfoOffFullScale); };
       for (uint8_t i = 0; i < 6; ++i) {
-        putF32(b + kInfoOffFullScale + 4 * i, ident(id_.full_scale[i]));
-        b[kInfoOffLsbMantissa + i] = scale_[i].mantissa;
-        b[kInfoOffLsbExponent + i] = static_cast<uint8_t>(scale_[i].exponent);
-        putU16(b + kInfoOffZeroCounts + 2 * i, config_.zero_counts[i]);
-        putF32(b + kInfoOffTare + 4 * i, config_.tare[i]);
+        putF32(b(kInfoOffFullScale + 4 * i), ident(id_.full_scale[i]));
+        *b(kInfoOffLsbMantissa + i) = scale_[i].mantissa;
+        *b(kInfoOffLsbExponent + i) = static_cast<uint8_t>(scale_[i].exponent);
+        putU16(b(kInfoOffZeroCounts + 2 * i), config_.zero_counts[i]);
+        putF32(b(kInfoOffTare + 4 * i), config_.tare[i]);
       }
-      putU16(b + kInfoOffRateHz, config_.rate_hz);
-      putU16(b + kInfoOffMaxRateHz, ident(id_.max_rate_hz));
-      putU16(b + kInfoOffStatus, persistentStatus());
-      b[kInfoOffStreaming] = streaming_ ? 1 : 0;
-      b[kInfoOffConfigProblem] = config_problem_;
-      putU32(b + kInfoOffBaud, ident(id_.baud));
-      putU32(b + kInfoOffSerialNumber, serial_number_);
-      putF32(b + kInfoOffJointLimitRad, ident(id_.joint_limit_rad));
-      putU32(b + kInfoOffCalibrationHash, ident(id_.calibration_hash));
-      putName(b + kInfoOffCalibrationName, ident(id_.calibration_name), kInfoCalibrationNameBytes);
+      putU16(b(kInfoOffRateHz), config_.rate_hz);
+      putU16(b(kInfoOffMaxRateHz), ident(id_.max_rate_hz));
+      putU16(b(kInfoOffStatus), persistentStatus());
+      *b(kInfoOffStreaming) = streaming_ ? 1 : 0;
+      *b(kInfoOffConfigProblem) = config_problem_;
+      putU32(b(kInfoOffBaud), ident(id_.baud));
+      putU32(b(kInfoOffSerialNumber), serial_number_);
+      putF32(b(kInfoOffJointLimitRad), ident(id_.joint_limit_rad));
+      putU32(b(kInfoOffCalibrationHash), ident(id_.calibration_hash));
+      putName(b(kInfoOffCalibrationName), ident(id_.calibration_name), kInfoCalibrationNameBytes);
       break;
     }
     case 2: {
-      uint8_t* b = p - kInfoOffBootId;
-      putU16(b + kInfoOffBootId, boot_id_);
-      putU32(b + kInfoOffModelHash, ident(id_.model_hash));
-      putName(b + kInfoOffModelName, ident(id_.model_name), kInfoModelNameBytes);
+      const auto b = [p](uint8_t offset) { return p + (offset - kInfoOffBootId); };
+      putU16(b(kInfoOffBootId), boot_id_);
+      putU32(b(kInfoOffModelHash), ident(id_.model_hash));
+      putName(b(kInfoOffModelName), ident(id_.model_name), kInfoModelNameBytes);
       break;
     }
     default: {
-      uint8_t* b = p - kInfoOffFilterHz;
-      putF32(b + kInfoOffFilterHz, filter_on_ ? config_.filter_hz : 0.0f);
+      const auto b = [p](uint8_t offset) { return p + (offset - kInfoOffFilterHz); };
+      putF32(b(kInfoOffFilterHz), filter_on_ ? config_.filter_hz : 0.0f);
       for (uint8_t i = 0; i < 3; ++i) {
-        putF32(b + kInfoOffToolTranslation + 4 * i, config_.tool_translation[i]);
-        putF32(b + kInfoOffToolRpy + 4 * i, config_.tool_rpy[i]);
+        putF32(b(kInfoOffToolTranslation + 4 * i), config_.tool_translation[i]);
+        putF32(b(kInfoOffToolRpy + 4 * i), config_.tool_rpy[i]);
       }
-      for (uint8_t i = 0; i < 6; ++i) putU16(b + kInfoOffLimits + 2 * i, config_.limits[i]);
-      putU16(b + kInfoOffMaxRatePipelineHz, maxRate(true));
+      for (uint8_t i = 0; i < 6; ++i) putU16(b(kInfoOffLimits + 2 * i), config_.limits[i]);
+      putU16(b(kInfoOffMaxRatePipelineHz), maxRate(true));
       break;
     }
   }
@@ -796,10 +811,23 @@ void Device::onSample(const Sample& s) {
     status |= kStatusLoopOverrun;
     ++k.overruns;
   }
+  // The pipeline: low-pass, tool frame (tare and quantisation below). Every valid sample
+  // goes through the filter, streaming or not, so its state is current when a stream or a
+  // tare starts; a sample without a wrench leaves the filter as it was.
+  float w[6];
+  for (uint8_t i = 0; i < 6; ++i) w[i] = s.wrench[i];
   bool valid = (status & kStatusEncoderMask) == 0;
   if (valid) {
     bool finite = s.solver_ok;
-    for (uint8_t i = 0; i < 6 && finite; ++i) finite = is_finite(s.wrench[i]);
+    for (uint8_t i = 0; i < 6 && finite; ++i) finite = is_finite(w[i]);
+    if (finite) {
+      if (filter_on_) filter_.apply(w);
+      applyToolFrame(tool_, w);
+      // A huge but finite wrench can overflow on the way: no value, and a filter that
+      // would carry the infinity forever starts again.
+      for (uint8_t i = 0; i < 6 && finite; ++i) finite = is_finite(w[i]);
+      if (!finite) filter_.reset();
+    }
     if (!finite) {
       status |= kStatusSolverError;
       ++k.solver_errors;
@@ -807,16 +835,6 @@ void Device::onSample(const Sample& s) {
     }
   }
   if (!valid) status |= kStatusWrenchInvalid;
-
-  // The pipeline: low-pass, tool frame (tare and quantisation below). Every valid sample
-  // goes through the filter, streaming or not, so its state is current when a stream or a
-  // tare starts; a sample without a wrench leaves the filter as it was.
-  float w[6];
-  for (uint8_t i = 0; i < 6; ++i) w[i] = s.wrench[i];
-  if (valid) {
-    if (filter_on_) filter_.apply(w);
-    applyToolFrame(tool_, w);
-  }
   if (averaging_) accumulate(w, s, status);
   last_status_ = status;
 

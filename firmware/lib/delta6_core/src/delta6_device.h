@@ -153,8 +153,10 @@ class Device {
   // Highest rate the link carries in a mode (90 % of the baud rate), or 0xFFFF without a baud.
   uint16_t linkRateLimit(uint8_t mode) const;
 
-  // The EEPROM blob: serialise, and parse with validation (returns 0 or a proto::kConfig*
-  // reason). A blob written for another design hash keeps everything but the tare.
+  // The EEPROM blob: serialise, and parse with validation (returns 0, a proto::kConfig*
+  // reason it was rejected, or kConfigRateLowered: loaded with a rate above this image's
+  // highest lowered to it). A blob written for another design hash keeps everything but the
+  // tare and the limits.
   static void encodeConfig(const Config& config, uint32_t design_hash, uint8_t* blob);
   uint8_t decodeConfig(const uint8_t* blob, Config* config) const;
 
@@ -196,6 +198,10 @@ class Device {
   // The highest rate the board sustains with or without the filter / tool frame on.
   uint16_t maxRate(bool pipeline) const;
   bool pipelineOn() const { return filter_on_ || !tool_.identity; }
+  // The EEPROM configuration was rejected at boot (a lowered rate is not a rejection).
+  bool usingDefaults() const {
+    return config_problem_ != 0 && config_problem_ != proto::kConfigRateLowered;
+  }
   // The filter's coefficients and the tool transform from config_ (the filter restarts).
   void configurePipeline();
   void setFilter(const proto::Command& c);
@@ -220,7 +226,7 @@ class Device {
   Response last_answer_;       // repeated for a retried request (same id and command)
 
   bool streaming_;
-  uint8_t config_problem_;     // why the EEPROM configuration was rejected (0: it was not)
+  uint8_t config_problem_;     // why the EEPROM configuration was rejected or adjusted (0: neither)
   bool tx_overflow_;           // a data record was dropped since the last one sent
   bool stream_changed_;        // a command changed what records mean; none sent since
   uint16_t boot_id_;

@@ -210,11 +210,12 @@ const uint8_t kNackFilterRange = 10;
 const uint8_t kEventBoot = 1;
 const uint8_t kEventConfigDefaults = 2;
 
-// --- why a stored configuration was rejected (CONFIG_DEFAULTS argument) ---
+// --- why a stored configuration was rejected (CONFIG_DEFAULTS argument), or how it was adjusted (INFO only) ---
 const uint8_t kConfigErased = 1;
 const uint8_t kConfigBadCrc = 2;
 const uint8_t kConfigBadVersion = 3;
 const uint8_t kConfigOutOfRange = 4;
+const uint8_t kConfigRateLowered = 5;
 
 // --- the configuration blob in EEPROM (docs/protocol.md section 9), followed by its CRC,
 // most significant byte first ---
