@@ -3,6 +3,7 @@
 #include "delta6_calibrated.h"
 
 #include "delta6_fastmath.h"
+#include "delta6_flash.h"
 
 #if defined(__AVR__)
 #include <avr/pgmspace.h>
@@ -36,38 +37,6 @@ using fastmath::flash_float;
 
 // One encoder count, rad (2 pi / 2^14).
 constexpr float kCountRad = 3.83495197e-4f;
-
-inline int16_t flash_i16(const int16_t* p) {
-#if defined(__AVR__)
-    return static_cast<int16_t>(pgm_read_word(p));
-#else
-    return *p;
-#endif
-}
-
-inline int32_t flash_i32(const int32_t* p) {
-#if defined(__AVR__)
-    return static_cast<int32_t>(pgm_read_dword(p));
-#else
-    return *p;
-#endif
-}
-
-inline const float* flash_table(const float* const* p) {
-#if defined(__AVR__)
-    return reinterpret_cast<const float*>(pgm_read_word(p));
-#else
-    return *p;
-#endif
-}
-
-inline uint8_t flash_u8(const uint8_t* p) {
-#if defined(__AVR__)
-    return pgm_read_byte(p);
-#else
-    return *p;
-#endif
-}
 
 inline int16_t clamp_play(int16_t y, int16_t x, int16_t r) {
     const int16_t lo = static_cast<int16_t>(x - r), hi = static_cast<int16_t>(x + r);
@@ -104,9 +73,9 @@ inline void rotate_back(float c, float s, float& a, float& b) {
 // the direction of motion in half counts).
 DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationState& st,
                                    const int16_t delta[6], float tau[6], int16_t dir2[6]) {
-    const uint8_t radii = flash_u8(&cc.radii);
-    const uint8_t speeds = flash_u8(&cc.speeds);
-    const int16_t half = flash_i16(&cc.direction_half);
+    const uint8_t radii = flash::byte(&cc.radii);
+    const uint8_t speeds = flash::byte(&cc.speeds);
+    const int16_t half = flash::i16(&cc.direction_half);
     const float speed_a = st.speed_a, speed_g = st.speed_g;
     for (uint8_t j = 0; j < 6; ++j) {
         const int16_t x = delta[j];
@@ -115,14 +84,14 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
         st.direction2[j] = y2;
         const int16_t d2 = static_cast<int16_t>(x2 - y2);
         dir2[j] = d2;
-        int32_t sum = flash_i32(&cc.kx[j]) * x + flash_i32(&cc.kd[j]) * d2
-                      + flash_i32(&cc.k0[j]);
+        int32_t sum = flash::i32(&cc.kx[j]) * x + flash::i32(&cc.kd[j]) * d2
+                      + flash::i32(&cc.k0[j]);
         int16_t* play = st.play[j];
         const int32_t* kw = cc.kw[j];
         for (uint8_t r = 0; r < radii; ++r) {
-            const int16_t y = clamp_play(play[r], x, flash_i16(&cc.radius[r]));
+            const int16_t y = clamp_play(play[r], x, flash::i16(&cc.radius[r]));
             play[r] = y;
-            sum += flash_i32(&kw[r]) * static_cast<int16_t>(x - y);
+            sum += flash::i32(&kw[r]) * static_cast<int16_t>(x - y);
         }
         // A joint standing still (often, at the board's rates) costs one multiply, not three.
         const int16_t step = static_cast<int16_t>(x - st.last[j]);
@@ -135,7 +104,7 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
         const float av = absf(v);
         uint8_t seg = 0;
         while (seg < speeds && fastmath::at_least(av, flash_float(&cc.breakpoint[seg]))) ++seg;
-        const int32_t off = flash_i32(&cc.offset[j][seg]);
+        const int32_t off = flash::i32(&cc.offset[j][seg]);
         sum += negative(v) ? -off : off;
         tau[j] = scale_down(static_cast<float>(sum), kTorqueShift)
                  + flash_float(&cc.slope[j][seg]) * v;
@@ -151,11 +120,11 @@ DELTA6_NOINLINE void joint_trig(const CalibrationConstants& cc, int16_t origin,
                                 const float* fine, const int16_t delta[6],
                                 const int16_t dir2[6], const float tau[6], float cs[6],
                                 float sn[6]) {
-    const int16_t half = flash_i16(&cc.direction_half);
+    const int16_t half = flash::i16(&cc.direction_half);
     for (uint8_t j = 0; j < 6; ++j) {
         const uint16_t biased = static_cast<uint16_t>(delta[j] + origin);
         float c0, s0;
-        fastmath::table_cos_sin(flash_table(&cc.table[j]), fine, biased, &c0, &s0);
+        fastmath::table_cos_sin(flash::table(&cc.table[j]), fine, biased, &c0, &s0);
         // The direction is +-H (the play saturated) but during a reversal: no multiply then.
         const int16_t d2 = dir2[j];
         float e = d2 == half ? flash_float(&cc.eh[j])

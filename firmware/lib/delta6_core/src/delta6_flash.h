@@ -28,6 +28,39 @@ inline uint8_t byte(const uint8_t* p) {
 #endif
 }
 
+inline int8_t i8(const int8_t* p) {
+#if defined(__AVR__)
+  return static_cast<int8_t>(pgm_read_byte(p));
+#else
+  return *p;
+#endif
+}
+
+inline int16_t i16(const int16_t* p) {
+#if defined(__AVR__)
+  return static_cast<int16_t>(pgm_read_word(p));
+#else
+  return *p;
+#endif
+}
+
+inline int32_t i32(const int32_t* p) {
+#if defined(__AVR__)
+  return static_cast<int32_t>(pgm_read_dword(p));
+#else
+  return *p;
+#endif
+}
+
+// A pointer stored in flash (a table of tables): 16 bits on the AVR.
+inline const float* table(const float* const* p) {
+#if defined(__AVR__)
+  return reinterpret_cast<const float*>(pgm_read_word(p));
+#else
+  return *p;
+#endif
+}
+
 inline float f32(const float* p) {
 #if defined(__AVR__)
   return pgm_read_float(p);

@@ -1,5 +1,7 @@
 #include "delta6_residual.h"
 
+#include "delta6_flash.h"
+
 #include <math.h>
 #include <string.h>
 
@@ -7,55 +9,6 @@ namespace delta6 {
 namespace residual {
 
 namespace {
-
-// Flash reads: program memory on the AVR, plain memory elsewhere.
-inline void flashCopy(void* dst, const void* src, size_t n) {
-#if defined(__AVR__)
-    memcpy_P(dst, src, n);
-#else
-    memcpy(dst, src, n);
-#endif
-}
-
-inline int8_t flashI8(const int8_t* p) {
-#if defined(__AVR__)
-    return static_cast<int8_t>(pgm_read_byte(p));
-#else
-    return *p;
-#endif
-}
-
-inline int16_t flashI16(const int16_t* p) {
-#if defined(__AVR__)
-    return static_cast<int16_t>(pgm_read_word(p));
-#else
-    return *p;
-#endif
-}
-
-inline uint8_t flashU8(const uint8_t* p) {
-#if defined(__AVR__)
-    return pgm_read_byte(p);
-#else
-    return *p;
-#endif
-}
-
-inline int32_t flashI32(const int32_t* p) {
-#if defined(__AVR__)
-    return static_cast<int32_t>(pgm_read_dword(p));
-#else
-    return *p;
-#endif
-}
-
-inline float flashF32(const float* p) {
-#if defined(__AVR__)
-    return pgm_read_float(p);
-#else
-    return *p;
-#endif
-}
 
 // int8 x int8 -> int16: one MULS on the AVR (avr-gcc 5.4 otherwise widens to a 16 x 16 call).
 inline int16_t mul8(int8_t a, int8_t b) {
@@ -106,7 +59,7 @@ void features(const Model& model, State& s, const int16_t base[6], const int16_t
     int16_t* play = s.plays;
     for (uint8_t g = 0; g < model.feature_count; ++g) {
         Feature f;
-        flashCopy(&f, &model.features[g], sizeof f);
+        flash::copy(&f, &model.features[g], sizeof f);
         int16_t v[6];
         if (f.kind == kFeatureWrench) {
             memcpy(v, base, sizeof v);
@@ -197,24 +150,24 @@ void step(const Model& model, State& s, const int16_t base[6], const int16_t cou
     int8_t* out = b;
     for (uint8_t l = 0; l < model.layer_count; ++l) {
         Layer layer;
-        flashCopy(&layer, &model.layers[l], sizeof layer);
+        flash::copy(&layer, &model.layers[l], sizeof layer);
         const int8_t* w = layer.weights;
         const uint8_t inputs = layer.inputs;
         for (uint8_t o = 0; o < layer.outputs; ++o) {
-            int32_t acc = flashI32(layer.bias + o);
+            int32_t acc = flash::i32(layer.bias + o);
             const int8_t* x = in;
             // Two products fit an int16 (|w|, |x| <= 127): one 32-bit addition per pair.
             uint8_t j = inputs;
             for (; j >= 2; j = static_cast<uint8_t>(j - 2)) {
-                const int8_t w0 = flashI8(w++);
-                const int8_t w1 = flashI8(w++);
+                const int8_t w0 = flash::i8(w++);
+                const int8_t w1 = flash::i8(w++);
                 const int16_t pair = static_cast<int16_t>(mul8(w0, x[0]) + mul8(w1, x[1]));
                 x += 2;
                 acc += pair;
             }
-            if (j) acc += mul8(flashI8(w++), *x);
-            const int32_t y = requantize32(acc, flashI16(layer.multiplier + o),
-                                           flashU8(layer.shift + o));
+            if (j) acc += mul8(flash::i8(w++), *x);
+            const int32_t y = requantize32(acc, flash::i16(layer.multiplier + o),
+                                           flash::byte(layer.shift + o));
             if (layer.relu) {
                 out[o] = saturate8(y, 0);
             } else {
@@ -229,7 +182,7 @@ void step(const Model& model, State& s, const int16_t base[6], const int16_t cou
 
 void quantizeInput(const Model& model, const float wrench[6], int16_t base[6]) {
     for (uint8_t i = 0; i < 6; ++i) {
-        float v = wrench[i] * flashF32(model.input_scale + i);
+        float v = wrench[i] * flash::f32(model.input_scale + i);
         // Saturate first (also keeps lroundf in range); a NaN never reaches here: the solver
         // gives a wrench only when it is finite.
         if (!(v < 32767.0f)) v = 32767.0f;
@@ -240,7 +193,7 @@ void quantizeInput(const Model& model, const float wrench[6], int16_t base[6]) {
 
 void applyOutput(const Model& model, const int16_t correction[6], float wrench[6]) {
     for (uint8_t i = 0; i < 6; ++i) {
-        wrench[i] += static_cast<float>(correction[i]) * flashF32(model.output_step + i);
+        wrench[i] += static_cast<float>(correction[i]) * flash::f32(model.output_step + i);
     }
 }
 
