@@ -16,6 +16,7 @@ import numpy as np
 
 from delta6.core import model
 from delta6.core.spec import full_scale
+from delta6.twin.trajectory import quintic_moves
 
 
 @dataclass(frozen=True)
@@ -76,17 +77,8 @@ class AxisPushes:
         self.targets = np.array(to)
 
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        t = np.asarray(t, dtype=float)
-        idx = np.clip(np.searchsorted(self.starts, t, side="right") - 1, 0, len(self.starts) - 1)
-        length = self.lengths[idx]
-        u = np.clip((t - self.starts[idx]) / length, 0.0, 1.0)
-        shape = u**3 * (10 - 15 * u + 6 * u**2)
-        rate = 30 * u**2 * (1 - u) ** 2 / length
-        delta = self.targets[idx] - self.origins[idx]
-        q = self.origins[idx] + delta * shape[:, None]
-        qd = delta * rate[:, None]
-        rest = t[:, None] < 0
-        return np.where(rest, 0.0, q), np.where(rest, 0.0, qd)
+        return quintic_moves(np.asarray(t, dtype=float), self.starts, self.lengths,
+                             self.origins, self.targets)
 
 
 __all__ = ["AxisPushes", "PushSettings", "axis_directions"]

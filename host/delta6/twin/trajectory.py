@@ -60,6 +60,24 @@ class TrajectorySettings:
         return asdict(self)
 
 
+def quintic_moves(t: np.ndarray, starts: np.ndarray, durations: np.ndarray,
+                  origins: np.ndarray, targets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pose and rate at times ``t`` of a path of moves, each from ``origins[i]`` to
+    ``targets[i]`` over ``durations[i]`` from ``starts[i]`` along a quintic (zero speed and
+    acceleration at both ends), holding the target after it; at rest (0) before t = 0 (the rig
+    starts unloaded)."""
+    idx = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(starts) - 1)
+    length = durations[idx]
+    u = np.clip((t - starts[idx]) / length, 0.0, 1.0)
+    shape = u**3 * (10 - 15 * u + 6 * u**2)
+    rate = 30 * u**2 * (1 - u) ** 2 / length
+    delta = targets[idx] - origins[idx]
+    q = origins[idx] + delta * shape[:, None]
+    qd = delta * rate[:, None]
+    rest = t[:, None] < 0
+    return np.where(rest, 0.0, q), np.where(rest, 0.0, qd)
+
+
 class RandomTrajectory:
     """Random point-to-point moves with dither over [0, duration_s] (and at rest before 0)."""
 
@@ -104,17 +122,7 @@ class RandomTrajectory:
 
     def evaluate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         t = np.asarray(t, dtype=float)
-        idx = np.clip(np.searchsorted(self.starts, t, side="right") - 1, 0, len(self.starts) - 1)
-        length = self.durations[idx]
-        u = np.clip((t - self.starts[idx]) / length, 0.0, 1.0)
-        shape = u**3 * (10 - 15 * u + 6 * u**2)
-        rate = 30 * u**2 * (1 - u) ** 2 / length
-        delta = self.targets[idx] - self.origins[idx]
-        q = self.origins[idx] + delta * shape[:, None]
-        qd = delta * rate[:, None]
-        # At rest before t = 0 (the rig starts unloaded).
-        q = np.where(t[:, None] < 0, 0.0, q)
-        qd = np.where(t[:, None] < 0, 0.0, qd)
+        q, qd = quintic_moves(t, self.starts, self.durations, self.origins, self.targets)
         dq, dqd = self._dither(np.maximum(t, 0.0))
         scale = self.settings.scale
         return scale * (q + dq), scale * (qd + dqd)
