@@ -34,6 +34,7 @@ namespace {
 
 using fastmath::absf;
 using fastmath::flash_float;
+using fastmath::rotate_back;
 
 // One encoder count, rad (2 pi / 2^14).
 constexpr float kCountRad = 3.83495197e-4f;
@@ -55,13 +56,6 @@ inline bool negative(float x) { return (fastmath::bits_of(x) & 0x80000000ul) != 
 uint8_t fail(uint8_t status, float wrench[6]) {
     for (uint8_t i = 0; i < 6; ++i) wrench[i] = 0.0f;
     return status;
-}
-
-// (a, b) <- (c a + s b, c b - s a): a plane rotation by -angle (as in the solver).
-inline void rotate_back(float c, float s, float& a, float& b) {
-    const float a1 = c * a + s * b;
-    b = c * b - s * a;
-    a = a1;
 }
 
 // The stages below are separate functions on purpose: inlined into one, the AVR build runs

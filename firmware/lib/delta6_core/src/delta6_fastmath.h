@@ -80,6 +80,13 @@ inline void table_cos_sin(const float* coarse, const float* fine, uint16_t biase
     *sin_out = k1 + flash_float(cq) * flash_float(cl + 1);
 }
 
+// (a, b) <- (c a + s b, c b - s a): a plane rotation by -angle (the statics of both solvers).
+inline void rotate_back(float c, float s, float& a, float& b) {
+    const float a1 = c * a + s * b;
+    b = c * b - s * a;
+    a = a1;
+}
+
 }  // namespace fastmath
 }  // namespace delta6
 

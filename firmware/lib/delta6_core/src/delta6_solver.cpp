@@ -18,6 +18,7 @@ namespace {
 
 using fastmath::absf;
 using fastmath::scale2;
+using fastmath::rotate_back;
 
 constexpr float kSqrt3 = 1.73205081f;
 constexpr float kHalfSqrt3 = 0.866025404f;
@@ -36,13 +37,6 @@ struct JointTerms {
 uint8_t fail(uint8_t status, float wrench[6]) {
     for (uint8_t i = 0; i < 6; ++i) wrench[i] = 0.0f;
     return status;
-}
-
-// (a, b) <- (c a + s b, c b - s a): a plane rotation by -angle.
-inline void rotate_back(float c, float s, float& a, float& b) {
-    const float a1 = c * a + s * b;
-    b = c * b - s * a;
-    a = a1;
 }
 
 // Eq. (12): force and moment (w[0..2], w[3..5]) into {E} with R^T, where R = Rz(theta6)
