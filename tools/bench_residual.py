@@ -45,7 +45,13 @@ from delta6.learning import mcu
 from delta6.link.device import Device
 from delta6.link.logfile import LogData
 from delta6.sim import residualbench
-from delta6.sim.virtualboard import VirtualBoard, demo_trajectory, theta_to_counts, write_replay
+from delta6.sim.virtualboard import (
+    VirtualBoard,
+    demo_trajectory,
+    measure_stream,
+    theta_to_counts,
+    write_replay,
+)
 from delta6.twin import truth as truth_mod
 from delta6_codegen import render, render_calibration, render_model
 
@@ -114,22 +120,11 @@ def loop_check(image, rates, seconds: float) -> list[dict]:
         with VirtualBoard(image=image, replay=replay, loop=True, live=True, speed=0) as board:
             with Device(board.port, timeout=2.0) as dev:
                 for rate in rates:
-                    dev.start(rate)
-                    live = board.live
-                    settle = live.time() + 0.3
-                    while live.time() < settle:
-                        dev.flush()
-                        time.sleep(0.02)
-                    lost0 = dev.health.samples_lost
-                    live.reset_stats()
-                    end = live.time() + seconds
-                    while live.time() < end:
-                        dev.flush()
-                        time.sleep(0.02)
-                    t_stats = live.stats()["timing"]
+                    stats, lost = measure_stream(board, dev, rate, seconds)
+                    t_stats = stats["timing"]
                     dev.stop()
                     out.append({"rate": rate, "missed": t_stats["missed_ticks"],
-                                "lost": dev.health.samples_lost - lost0,
+                                "lost": lost,
                                 "solve": t_stats["solve_cycles"]["mean"],
                                 "process": t_stats["process_cycles"]["mean"],
                                 "busy": t_stats["cpu_busy"]})

@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 from delta6.build import avrbuild
@@ -35,6 +34,7 @@ from delta6.sim.virtualboard import (
     VirtualBoard,
     demo_trajectory,
     firmware,
+    measure_stream,
     stack_depth,
     theta_to_counts,
     write_replay,
@@ -64,19 +64,7 @@ def cycles_to_us(c: float) -> float:
 
 
 def measure(board: VirtualBoard, dev: Device, rate: int, seconds: float) -> dict:
-    dev.start(rate)
-    live = board.live
-    settle_until = live.time() + 0.3
-    while live.time() < settle_until:
-        dev.flush()
-        time.sleep(0.02)
-    gaps0 = dev.health.samples_lost
-    live.reset_stats()
-    end = live.time() + seconds
-    while live.time() < end:
-        dev.flush()
-        time.sleep(0.02)
-    stats = live.stats()
+    stats, lost = measure_stream(board, dev, rate, seconds)
     telemetry = dev.telemetry()
     dev.stop()
     t = stats["timing"]
@@ -84,7 +72,7 @@ def measure(board: VirtualBoard, dev: Device, rate: int, seconds: float) -> dict
         "rate": rate,
         "samples": t["samples"],
         "missed": t["missed_ticks"],
-        "lost": dev.health.samples_lost - gaps0,
+        "lost": lost,
         "scan_us": cycles_to_us(t["scan_cycles"]["mean"]),
         "scan_max_us": cycles_to_us(t["scan_cycles"]["max"]),
         "solve": t["solve_cycles"],

@@ -337,6 +337,27 @@ class VirtualBoard:
         return json.loads(self.stats_path.read_text())
 
 
+def measure_stream(board: "VirtualBoard", dev, rate: int, seconds: float,
+                   settle_s: float = 0.3) -> tuple[dict, int]:
+    """Start ``dev`` (a Device on ``board``, a live board) streaming at ``rate``; after
+    ``settle_s`` of board time, measure ``seconds`` of it, reading the stream all along.
+    Returns the board's statistics over that window and the samples the host lost in it; the
+    stream keeps running (the caller stops it)."""
+    dev.start(rate)
+    live = board.live
+    settle_until = live.time() + settle_s
+    while live.time() < settle_until:
+        dev.flush()
+        time.sleep(0.02)
+    lost0 = dev.health.samples_lost
+    live.reset_stats()
+    end = live.time() + seconds
+    while live.time() < end:
+        dev.flush()
+        time.sleep(0.02)
+    return live.stats(), dev.health.samples_lost - lost0
+
+
 def stack_depth(ram_dump: Path, static_ram: int, ram_start: int = 0x100) -> int:
     """Bytes of stack the firmware used at most, from a RAM dump of a run: simavr starts the
     SRAM zeroed, so the lowest non-zero byte above the static data (.data + .bss, which start
