@@ -16,22 +16,13 @@ from delta6.core.calibrated import CalibratedModel
 from delta6.learning import mcu
 from delta6.link.logfile import read_log
 
-
-def unit_calibration(design, name="unit-cal"):
-    """A calibration with history terms, so the base carries state from sample to sample."""
-    neutral = calibration_mod.neutral(design, name)
-    hysteresis = np.zeros_like(neutral.hysteresis_nm)
-    hysteresis[:, 0] = 0.002
-    return dataclasses.replace(
-        neutral, effects=("stiffness_mismatch", "spring_hysteresis", "backlash"),
-        rate_ratio=np.array([1.05, 0.99, 1.08, 1.07, 0.93, 1.0]), hysteresis_nm=hysteresis,
-        backlash_play_rad=np.full(6, 0.004))
+from support.calibrations import history_calibration
 
 
 @pytest.fixture(scope="module")
 def over_cal(tmp_path_factory, baseline, unit_logs):
     folder = tmp_path_factory.mktemp("mcu-cal")
-    cal = unit_calibration(baseline)
+    cal = history_calibration(baseline, "unit-cal")
     cal_path = calibration_mod.save(cal, folder / "unit.toml")
     other_path = calibration_mod.save(
         dataclasses.replace(cal, name="other", rate_ratio=np.ones(6)), folder / "other.toml")

@@ -15,23 +15,13 @@ from delta6.learning import LearnedEstimator, ModelFileError, fit
 from delta6.learning.presets import preset
 from delta6.link.logfile import read_log
 
-
-def unit_calibration(design, name="unit-test"):
-    """A calibration with history terms (hysteresis plays, backlash, friction), so that the
-    base carries state from sample to sample."""
-    neutral = calibration_mod.neutral(design, name)
-    hysteresis = np.zeros_like(neutral.hysteresis_nm)
-    hysteresis[:, 0] = 0.002
-    return dataclasses.replace(
-        neutral, effects=("stiffness_mismatch", "spring_hysteresis", "backlash"),
-        rate_ratio=np.array([1.05, 0.99, 1.08, 1.07, 0.93, 1.0]), hysteresis_nm=hysteresis,
-        backlash_play_rad=np.full(6, 0.004), viscous_nm_s_per_rad=np.full(6, 0.002))
+from support.calibrations import history_calibration
 
 
 @pytest.fixture(scope="module")
 def hybrid(tmp_path_factory, baseline, unit_logs):
     folder = tmp_path_factory.mktemp("hybrid")
-    cal = unit_calibration(baseline)
+    cal = history_calibration(baseline, "unit-test", viscous_nm_s_per_rad=0.002)
     cal_path = calibration_mod.save(cal, folder / "unit.toml")
     chosen = preset("default", "mlp").with_recipe(max_epochs=1, epoch_fraction=0.3)
     fitted = fit.fit(read_log(unit_logs[0]), baseline, chosen, base="calibration",

@@ -1,5 +1,8 @@
-"""Random calibrations for the cross-checks of the calibrated model (native and AVR)."""
+"""Calibrations for tests: random ones for the cross-checks of the calibrated model (native
+and AVR), and a fixed one with history terms for the learned residuals over a calibration."""
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
@@ -26,3 +29,16 @@ def random_calibration(design, seed: int, scale: float = 1.0) -> C.Calibration:
         delta_la_mm=u(0.5, 3), delta_lb_mm=u(1.0, 3), delta_azimuth_rad=u(0.01, 3),
         delta_rest_angle_rad=u(0.01, 3), gimbal_misalignment_rad=u(0.01, 3),
         elbow_rad_per_nm=u(0.1, 3, False), tilt_rad_per_nm=float(u(0.08, (), False)))
+
+
+def history_calibration(design, name: str, viscous_nm_s_per_rad: float = 0.0) -> C.Calibration:
+    """A calibration with history terms (hysteresis plays, backlash; friction if
+    ``viscous_nm_s_per_rad``), so that the base carries state from sample to sample."""
+    neutral = C.neutral(design, name)
+    hysteresis = np.zeros_like(neutral.hysteresis_nm)
+    hysteresis[:, 0] = 0.002
+    return dataclasses.replace(
+        neutral, effects=("stiffness_mismatch", "spring_hysteresis", "backlash"),
+        rate_ratio=np.array([1.05, 0.99, 1.08, 1.07, 0.93, 1.0]), hysteresis_nm=hysteresis,
+        backlash_play_rad=np.full(6, 0.004),
+        viscous_nm_s_per_rad=np.full(6, viscous_nm_s_per_rad))
