@@ -23,8 +23,9 @@ from delta6.diagnosis.terms import TERMS
 from delta6.link.logfile import LogData
 
 #: A structured leftover holding at least this share of the analytical model's held-out
-#: squared error beyond the white noise means the vocabulary misses something sizeable; families carrying less than
-#: ``PARTIAL_SHARE`` of the gap are then reported as partial, not named.
+#: squared error beyond the white noise means the vocabulary misses something sizeable;
+#: families carrying less than ``PARTIAL_SHARE`` of the gap (alone, or with the other members
+#: of their group: ``group_shares``) are then reported as partial, not named.
 MISSING_SHARE = 0.25
 PARTIAL_SHARE = 0.30
 #: Logs up to this many samples keep their columns in memory (no second pass).
@@ -37,6 +38,26 @@ def missing_share(problem: selection.Problem, left_sse: float, base_sse: float) 
     if base_sse <= 0:
         return 0.0
     return max(left_sse - verdicts.noise_floor_sse(problem), 0.0) / base_sse
+
+
+def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float) -> dict:
+    """Per family of the final model ``chosen``, the share of the gap it carries for the
+    partial rule: its own share (what taking it out costs), or, for a member of a group of
+    families that absorb each other (friction, hysteresis and backlash: direction-dependent
+    joint torques), what taking the group's members out together costs. Each member's own
+    share is then small however large their joint one: every one of them stands in for the
+    others' part."""
+    if base_sse <= 0:
+        return {n: 0.0 for n in chosen}
+    full = selection.heldout_block_sse(problem, chosen).sum()
+    out = {}
+    for name in chosen:
+        label = problem.terms[name].group
+        members = {name} if label is None else {n for n in chosen
+                                                if problem.terms[n].group == label}
+        rest = [n for n in chosen if n not in members]
+        out[name] = float((selection.heldout_block_sse(problem, rest).sum() - full) / base_sse)
+    return out
 
 
 def diagnose(log: LogData, design: Design, **kwargs) -> dict:
@@ -226,8 +247,9 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     partial = []
     if left_verdict["structured"] and missing_share(problem, left, base_total) >= MISSING_SHARE:
         own = {n for n, v in info["signature"].items() if v["confirmed"]}
+        carried = group_shares(problem, chosen, base_total)
         partial = [{"name": s["added"], "share_of_gap": s["share_of_gap"]} for s in steps
-                   if s["share_of_gap"] < PARTIAL_SHARE and s["added"] not in own]
+                   if carried[s["added"]] < PARTIAL_SHARE and s["added"] not in own]
     unnamed = {p["name"] for p in partial}
     for step in steps:
         step["named"] = step["added"] not in unnamed
