@@ -80,7 +80,7 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
     if progress:
         progress("model and breakdowns")
     where = gap.where(data)
-    baseline_p99 = ladder_mod.p99(data.residual_pct).tolist()
+    baseline_p99 = ladder_mod.baseline_p99(data.residual / data.fs).tolist()
     for name in ("velocity", "residual_pct", "position_mm"):   # long logs: 50..100 MB each
         data.__dict__.pop(name, None)
 
