@@ -18,6 +18,7 @@ from delta6.core.design import Design
 from delta6.core.model import AXES
 from delta6.diagnosis import blas, excitation, gap, leftover, physics, selection, stream, verdicts
 from delta6.diagnosis import ladder as ladder_mod
+from delta6.diagnosis import terms as terms_mod
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.terms import TERMS
 from delta6.link.logfile import LogData
@@ -60,6 +61,31 @@ def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float)
     return out
 
 
+def harness_clamp(problem: selection.Problem, *, seed: int, min_gain: float,
+                  confidence: float, min_share: float) -> np.ndarray | None:
+    """Where a cable or harness is clamped on the plate (plate frame, mm), when the selection
+    on the first pass keeps the harness family: from the affine part of the family's fit
+    alone (``terms.harness_clamp``; the one-sided terms left out, they would take part of the
+    force's change with the centre's displacement but none of its change with the tilt; and
+    alone, for the families kept with it may be absorbing part of the harness). None: no
+    harness kept, or the clamp at the centre or implausibly far."""
+    if "harness" not in problem.terms:
+        return None
+    _, _, kept, _, _ = select_plausible(problem, list(problem.terms),
+                                        np.random.default_rng(seed), min_gain=min_gain,
+                                        confidence=confidence, min_share=min_share)
+    if "harness" not in kept:
+        return None
+    cols = problem.cols(["harness"])[:terms_mod.HARNESS_AFFINE]
+    gram = problem.gram[:, cols][:, :, cols].sum(axis=0)
+    clamp = terms_mod.harness_clamp(selection.solve(gram, problem.xty[:, cols].sum(axis=0),
+                                                    problem.penalty[cols]))
+    size = float(np.linalg.norm(clamp))
+    if not terms_mod.HARNESS_CLAMP_MIN_MM <= size <= terms_mod.HARNESS_CLAMP_MAX_MM:
+        return None
+    return clamp
+
+
 def diagnose(log: LogData, design: Design, **kwargs) -> dict:
     """Diagnose a log read with ``delta6.link.logfile.read_log`` (see :func:`diagnose_data`)."""
     return diagnose_data(GapData.from_log(log, design), **kwargs)
@@ -95,16 +121,34 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
         problem = selection.build_problem(data, terms, progress=progress,
                                           signatures=signatures, keep_columns=keep,
                                           cache=cache)
-        return _decide(data, problem, terms, skipped, where, baseline_p99, cache, started,
+        clamp = harness_clamp(problem, seed=seed, min_gain=min_gain, confidence=confidence,
+                              min_share=min_share)
+        if clamp is not None:
+            # Second pass: the harness's hinge in the clamp's own displacement.
+            if progress:
+                progress("harness clamp {:.0f} mm off the centre: second pass".format(
+                    float(np.linalg.norm(clamp))))
+            terms = [terms_mod.harness_with_clamp(t, clamp) if t.name == "harness" else t
+                     for t in terms]
+            if cache is not None:
+                cache = stream.ColumnCache(scratch, cache.width)
+            del problem
+            problem = selection.build_problem(data, terms, progress=progress,
+                                              signatures=signatures, keep_columns=keep,
+                                              cache=cache)
+        result = _decide(data, problem, terms, skipped, where, baseline_p99, cache, started,
                        seed=seed, progress=progress, min_gain=min_gain,
                        confidence=confidence, min_share=min_share)
+        result["harness_clamp_mm"] = None if clamp is None else [float(v) for v in clamp]
+        return result
 
 
-def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, *, seed,
-            progress, min_gain, confidence, min_share) -> dict:
-    design = data.design
-    rng = np.random.default_rng(seed)
-    names = [t.name for t in terms]
+def select_plausible(problem: selection.Problem, names: list[str], rng, *, min_gain: float,
+                     confidence: float, min_share: float, progress=None):
+    """Forward and backward selection among ``names`` (which loses the implausible ones),
+    until every family kept fits plausibly. Returns the steps, the selection's information,
+    the families kept, the implausible ones (with their checks) and every candidate's
+    held-out error alone."""
     implausible = {}
     alone = None
     # A family that explains the data only with physically implausible parameters is not
@@ -144,6 +188,17 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         names.remove(worst)
         if progress:
             progress(f"not named: {worst} fits only with implausible parameters")
+    return steps_found, info, kept, implausible, alone
+
+
+def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, *, seed,
+            progress, min_gain, confidence, min_share) -> dict:
+    design = data.design
+    rng = np.random.default_rng(seed)
+    names = [t.name for t in terms]
+    steps_found, info, kept, implausible, alone = select_plausible(
+        problem, names, rng, min_gain=min_gain, confidence=confidence, min_share=min_share,
+        progress=progress)
     base_sse = info["base"]
     group_verdicts = verdicts.groups(problem, kept, info)
     # Members of a group verdict join the ladder (in forward order): the shrink is predicted
