@@ -395,14 +395,22 @@ def _harness(data: GapData, clamp_mm=None) -> np.ndarray:
     return np.concatenate(cols, axis=-1)
 
 
+#: Directions of the clamp's offset whose singular value is below this share of the largest
+#: are left at zero: a cable's stiffness is nearly of rank one (a harness stiff along one
+#: direction, a third of that across it, keeps all three).
+HARNESS_CLAMP_RCOND = 0.1
+
+
 def harness_clamp(affine: np.ndarray) -> np.ndarray:
     """The clamp's offset from the plate's centre (plate frame {E}, mm) that the harness
     family's affine fit ``affine`` (its first ``HARNESS_AFFINE`` coefficients) implies. The
     force follows the clamp's displacement, the plate centre's plus the tilt's share R(q) c -
     c: so its change per gimbal angle is its change per mm of the centre's displacement
     times the clamp's motion per angle, d(R c)/dq at rest, linear in c. A least-squares
-    solve (minimum norm: a cable pulling along one direction only shows c's part across
-    it, the only part that moves the hinge)."""
+    solve, minimum norm over the directions the fit determines (``HARNESS_CLAMP_RCOND``): a
+    cable pulling along one direction only shows c's part across it, which is the only part
+    that moves its hinge or turns the gimbal; the part along it stays zero rather than
+    following the noise."""
     from delta6.core.model import rotation
     f = np.asarray(affine, float)[:HARNESS_AFFINE].reshape(7, 3)
     stiff = f[1:4].T                        # (force component, centre's x y z): N/mm
@@ -415,7 +423,7 @@ def harness_clamp(affine: np.ndarray) -> np.ndarray:
                            for i in range(3)], axis=1)
         rows.append((stiff @ motion).ravel())
     system = np.stack(rows, axis=1)          # (9, 3)
-    return np.linalg.lstsq(system, tilt.ravel(), rcond=1e-3)[0]
+    return np.linalg.lstsq(system, tilt.ravel(), rcond=HARNESS_CLAMP_RCOND)[0]
 
 
 #: A clamp estimated closer to the plate's centre than this (mm) is taken to be at it; one
