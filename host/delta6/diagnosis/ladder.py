@@ -24,8 +24,6 @@ import numpy as np
 ALPHAS = np.linspace(1.0, 0.0, 11)
 TOLERANCE_REL = 0.02
 TOLERANCE_PCT = 0.005
-TOLERANCE_REL = 0.0
-TOLERANCE_PCT = 0.0
 
 
 def p99(err_pct: np.ndarray) -> np.ndarray:
