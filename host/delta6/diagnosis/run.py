@@ -86,6 +86,18 @@ def harness_clamp(problem: selection.Problem, *, seed: int, min_gain: float,
     return clamp
 
 
+def follows_better(data: GapData, problem: selection.Problem, terms, clamp) -> bool:
+    """Whether the harness family with its hinge at the estimated clamp ``clamp`` removes more
+    of the held-out error, alone, than the first pass's (a pass over the harness's columns
+    only): a clamp near the centre, or one the affine fit estimated poorly, can follow the
+    data worse than the plate centre's displacement does."""
+    harness = next(t for t in terms if t.name == "harness")
+    trial = selection.build_problem(data, [terms_mod.harness_with_clamp(harness, clamp)],
+                                    keep_columns=False)
+    return bool(selection.heldout_block_sse(trial, ["harness"]).sum()
+                < selection.heldout_block_sse(problem, ["harness"]).sum())
+
+
 def diagnose(log: LogData, design: Design, **kwargs) -> dict:
     """Diagnose a log read with ``delta6.link.logfile.read_log`` (see :func:`diagnose_data`)."""
     return diagnose_data(GapData.from_log(log, design), **kwargs)
@@ -123,6 +135,8 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
                                           cache=cache)
         clamp = harness_clamp(problem, seed=seed, min_gain=min_gain, confidence=confidence,
                               min_share=min_share)
+        if clamp is not None and not follows_better(data, problem, terms, clamp):
+            clamp = None
         if clamp is not None:
             # Second pass: the harness's hinge in the clamp's own displacement.
             if progress:
