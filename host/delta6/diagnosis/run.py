@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -138,18 +139,30 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
         if clamp is not None and not follows_better(data, problem, terms, clamp):
             clamp = None
         if clamp is not None:
-            # Second pass: the harness's hinge in the clamp's own displacement.
+            # Second pass: the harness's hinge in the clamp's own displacement. It stands
+            # only when its selection keeps the harness family, the reason for it (a hinge
+            # in the wrong place can leave the family below the forward test).
             if progress:
                 progress("harness clamp {:.0f} mm off the centre: second pass".format(
                     float(np.linalg.norm(clamp))))
-            terms = [terms_mod.harness_with_clamp(t, clamp) if t.name == "harness" else t
-                     for t in terms]
+            second_terms = [terms_mod.harness_with_clamp(t, clamp) if t.name == "harness"
+                            else t for t in terms]
+            second_cache = None
             if cache is not None:
-                cache = stream.ColumnCache(scratch, cache.width)
-            del problem
-            problem = selection.build_problem(data, terms, progress=progress,
-                                              signatures=signatures, keep_columns=keep,
-                                              cache=cache)
+                Path(scratch, "second").mkdir()
+                second_cache = stream.ColumnCache(Path(scratch, "second"), cache.width)
+            second = selection.build_problem(data, second_terms, progress=progress,
+                                             signatures=signatures, keep_columns=keep,
+                                             cache=second_cache)
+            if "harness" in select_plausible(second, [t.name for t in second_terms],
+                                             np.random.default_rng(seed), min_gain=min_gain,
+                                             confidence=confidence, min_share=min_share)[2]:
+                problem, terms, cache = second, second_terms, second_cache
+            else:
+                clamp = None
+                if progress:
+                    progress("second pass dropped: the harness is not kept with it")
+            del second
         result = _decide(data, problem, terms, skipped, where, baseline_p99, cache, started,
                        seed=seed, progress=progress, min_gain=min_gain,
                        confidence=confidence, min_share=min_share)
