@@ -3,6 +3,7 @@
     .venv/bin/python tools/bench_calibration.py                   # everything, ~30 min
     .venv/bin/python tools/bench_calibration.py --quick           # shorter runs, ~5 min
     .venv/bin/python tools/bench_calibration.py --sections paper,board,sizes
+    .venv/bin/python tools/bench_calibration.py --sections paper --rig-latency 0.01
 
 Sections (each prints a Markdown table):
 
@@ -76,7 +77,8 @@ def section_paper(design, args, out, tmp) -> dict:
     cal_run = twin.simulate(design, effects, duration_s=args.cal_duration, rate_hz=50, seed=1,
                             scenario="paper")
     wall, cpu = time.perf_counter(), cpu_seconds()
-    fit = calibrate(cal_run, design, name="paper-unit", source="paper seed 1")
+    fit = calibrate(cal_run, design, name="paper-unit", source="paper seed 1",
+                    rig_latency_s=args.rig_latency)
     wall, cpu = time.perf_counter() - wall, cpu_seconds() - cpu
     path = C.save(fit.calibration, tmp / "paper-unit.toml")
     check = twin.simulate(duration_s=args.eval_duration, rate_hz=50,
@@ -237,6 +239,9 @@ def main(argv=None) -> int:
                         help="seconds of the evaluation run streamed by the board (default all)")
     parser.add_argument("--sweep", default="250,275,300",
                         help="rates (Hz) of the short overrun check")
+    parser.add_argument("--rig-latency", type=float, default=None, metavar="SECONDS",
+                        help="the paper unit's calibration states the rig's latency instead of "
+                             "fitting it (delta6 calibrate --rig-latency; the twin's rig: 0.01)")
     parser.add_argument("--json", metavar="OUT.json")
     args = parser.parse_args(argv)
     args.cal_duration = 600.0 if args.quick else 2000.0
