@@ -191,16 +191,17 @@ class _Fitter:
 
 
 def _extend(fitter: _Fitter, chosen: list[str], rng, progress) -> list[str]:
-    """Add correctable families that still lower the held-out error (module docstring); the
-    rig's latency is in every trial, as in the fit."""
+    """Add correctable families that still lower the held-out error (module docstring). The
+    rig's latency is not in these trials: their linear fits are unbounded, and a negative
+    latency would pass for the friction a candidate brings."""
     p = fitter.problem
     chosen = list(chosen)
-    current = selection.heldout_block_sse(p, chosen + [LATENCY])
+    current = selection.heldout_block_sse(p, chosen)
     while True:
         remaining = [f for f in fitter.families if f not in chosen]
         if not remaining:
             return chosen
-        trials = {f: selection.heldout_block_sse(p, chosen + [f, LATENCY]) for f in remaining}
+        trials = {f: selection.heldout_block_sse(p, chosen + [f]) for f in remaining}
         best = max(trials, key=lambda f: selection.gain(current, trials[f]))
         boot = selection.bootstrap_gain(current, trials[best], rng, n_boot=1000)
         low = float(np.quantile(boot, 1.0 - EXTRA_CONFIDENCE))
