@@ -51,9 +51,9 @@ def write_report(fit, log, design, out_dir, source: str = "") -> Path:
              f"0x{cal.hash32():08x}; {len(log)} samples; fitted in {fit.seconds:.1f} s.", "",
              "Corrects: " + (", ".join(f"**{e}**" for e in cal.effects) or "nothing")
              + f" (chosen by {fit.chosen_by}).", ""]
-    if fit.latency_s is not None:
-        lines += [f"The reference sensor is late by {1e3 * fit.latency_s:.1f} ms: fitted as a "
-                  "property of the rig, not applied on the board.", ""]
+    how = "as stated" if fit.latency_given else "fitted"
+    lines += [f"The reference sensor is late by {1e3 * fit.latency_s:.1f} ms ({how}): a "
+              "property of the rig, not applied on the board.", ""]
     lines += [f"- {n}" for n in fit.notes]
     lines += ["", "## Held-out Table V (% FS)", "", "| | " + " | ".join(AXES) + " |",
               "|---|" + "---|" * 6]
