@@ -52,12 +52,17 @@ def solve(h: np.ndarray, v: np.ndarray, a: np.ndarray | None = None, b: np.ndarr
     active = [i for i in np.flatnonzero(np.abs(a @ y - b) <= tol)]
     active = _independent(a, active)
     m = len(b)
+    # After a full, unblocked step y is the minimum on the active constraints' plane: the next
+    # step is zero in exact arithmetic, but in an ill-conditioned problem its rounding can stay
+    # above any fixed tolerance, and chasing it never ends.
+    on_plane_minimum = False
     for _ in range(max_iterations or 10 * (n + m)):
         p, lam = _equality_step(hs, vs, a, active, y)
-        if np.max(np.abs(p)) <= TOL * max(1.0, float(np.max(np.abs(y)))):
+        if on_plane_minimum or np.max(np.abs(p)) <= TOL * max(1.0, float(np.max(np.abs(y)))):
             if not active or lam.min() >= -TOL:
                 return y / scale
             active.pop(int(np.argmin(lam)))
+            on_plane_minimum = False
             continue
         ap = a @ p
         slack = a @ y - b
@@ -67,10 +72,13 @@ def solve(h: np.ndarray, v: np.ndarray, a: np.ndarray | None = None, b: np.ndarr
         for i in range(m):
             if i not in active and ap[i] < toward:
                 reach = max(slack[i], 0.0) / -ap[i]
-                if reach < alpha:
+                # A constraint that depends on the active ones cannot block a step along
+                # their plane; it only seems to, by rounding (and would stall the iterations).
+                if reach < alpha and len(_independent(a, active + [i])) > len(active):
                     alpha, blocking = reach, i
         y = y + alpha * p
-        if blocking is not None and len(_independent(a, active + [blocking])) > len(active):
+        on_plane_minimum = blocking is None
+        if blocking is not None:
             active.append(blocking)
     raise RuntimeError("the active-set iterations did not converge")
 
