@@ -122,6 +122,14 @@ def test_evaluate_refuses_calibration_latency_from_a_file_without_one(runs, tmp_
     assert main(["evaluate", str(check_log), "--design", DESIGN, "--calibration", str(path),
                  "--rig-latency", "calibration"]) == 2
     assert "records no rig latency" in capsys.readouterr().err
+    # A value out of range (a hand edit, or a bound reached only to within rounding) is named
+    # with the file and the field, not as if the user had typed it.
+    bad = C.save(C.neutral(baseline, "bad").with_(fit={"rig_latency_s": -1e-18}),
+                 tmp_path / "bad.toml")
+    assert main(["evaluate", str(check_log), "--design", DESIGN, "--calibration", str(bad),
+                 "--rig-latency", "calibration"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"{bad}: fit.rig_latency_s:" in err and len(err.splitlines()) == 1, err
 
 
 def test_evaluate_without_calibration_has_the_analytical_row(runs, capsys):

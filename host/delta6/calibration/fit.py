@@ -76,6 +76,8 @@ class CalibrationFit:
     heldout_before: dict          # Table V of the analytical model on the held-out blocks
     heldout_after: dict           # ... of the calibrated model (latency not applied)
     latency_s: float              # the rig's (fitted, or as given)
+    heldout_before_rig: dict | None = None    # both against the reference advanced by it
+    heldout_after_rig: dict | None = None
     latency_given: bool = False   # stated by the user, not fitted
     diagnosis: dict | None = None
     chosen_by: str = "diagnosis"
@@ -101,6 +103,21 @@ def _terms(ctx: Context, fams: dict) -> list[Term]:
 def _table(err_pct: np.ndarray) -> dict:
     t = accuracy.table(err_pct, (95, 99, 100))
     return {"p95_pct": t["p95"], "p99_pct": t["p99"], "max_pct": t["p100"]}
+
+
+def _heldout_tables(data: GapData, calibrated: np.ndarray, rows: np.ndarray, latency: float):
+    """Table V of the analytical and the calibrated model on the held-out ``rows``: against
+    the recorded reference, and against the reference advanced by the rig's ``latency``."""
+    before = _table(data.residual_pct[rows])
+    after = _table((100.0 * (calibrated - data.reference) / data.fs)[rows])
+    advanced, keep = accuracy.advanced(data.t, data.reference, latency)
+    at = np.full(len(data.t), -1)
+    at[np.flatnonzero(keep)] = np.arange(int(keep.sum()))
+    held = rows[keep[rows]]
+    reference = advanced[at[held]]
+    before_rig = _table(100.0 * (data.model[held] - reference) / data.fs)
+    after_rig = _table(100.0 * (calibrated[held] - reference) / data.fs)
+    return before, after, before_rig, after_rig
 
 
 class _Fitter:
@@ -156,7 +173,8 @@ class _Fitter:
                 part = step[at:at + width]
                 at += width
                 if name == LATENCY:
-                    latency += float(part[0])
+                    # The solver reaches an active bound only to within rounding (-7e-18).
+                    latency = min(max(latency + float(part[0]), 0.0), MAX_RIG_LATENCY_S)
                 else:
                     cal = self.families[name].apply(cal, part)
         return cal, latency
@@ -272,7 +290,11 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
         diagnosis = diagnose_data(data, seed=seed, progress=progress)
         present = diagnosis["present"]
         chosen = [e for e in present if e in CORRECTED]
-        notes += [f"{e}: {NOT_APPLIED[e]}" for e in present if e in NOT_APPLIED]
+        notes += [f"{e}: {NOT_APPLIED[e]}" for e in present if e in NOT_APPLIED
+                  and not (e == LATENCY and given)]
+        if LATENCY in present and given:
+            notes.append(f"{LATENCY}: a property of the calibration rig, given as "
+                         f"{1e3 * rig_latency_s:g} ms (--rig-latency), not applied")
         chosen_by = "diagnosis"
     else:
         check_effects(effects)
@@ -296,9 +318,9 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
         bad = _worst_implausible(fitter, cal, chosen)
         if bad is None:
             rows = fitter.rows(held)
-            before = _table(data.residual_pct[rows])
             calibrated = fitter.predict(cal)          # what the board gives: no latency
-            after = _table((100.0 * (calibrated - data.reference) / data.fs)[rows])
+            before, after, before_rig, after_rig = _heldout_tables(
+                data, calibrated, rows, latency)
             if progress:
                 progress("fitting on all blocks")
             cal, latency = fitter.fit(cal, names, np.arange(N_BLOCKS), FINAL_ITERATIONS,
@@ -325,10 +347,14 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
         "left_out": sorted(left_out),
         "seconds": round(seconds, 2),
         "heldout_before": before, "heldout_after": after,
+        # The same against the reference read the rig's latency later (what the sensor felt
+        # at the sample's time): the calibrated wrench is not late, the recorded reference is.
+        "heldout_before_rig": before_rig, "heldout_after_rig": after_rig,
     }
     fit_record["rig_latency_s"] = latency
     fit_record["rig_latency"] = "given" if given else "fitted"
     cal = cal.with_(name=name or base.name, fit=fit_record)
     return CalibrationFit(calibration=cal, heldout_before=before, heldout_after=after,
+                          heldout_before_rig=before_rig, heldout_after_rig=after_rig,
                           latency_s=latency, latency_given=given, diagnosis=diagnosis,
                           chosen_by=chosen_by, seconds=seconds, notes=notes)

@@ -90,7 +90,10 @@ def rig_latency(args, cal) -> float:
         if fitted is None:
             raise UserError(f"{args.calibration}: the calibration records no rig latency "
                             "(fit.rig_latency_s); give --rig-latency SECONDS")
-        return check_rig_latency(fitted)
+        try:
+            return check_rig_latency(fitted)
+        except UserError as exc:
+            raise UserError(f"{args.calibration}: fit.rig_latency_s: {exc}") from None
     return check_rig_latency(args.rig_latency)
 
 

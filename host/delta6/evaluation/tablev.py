@@ -57,13 +57,7 @@ def advanced_reference(log, latency_s: float) -> tuple[np.ndarray, np.ndarray]:
     """The reference wrench advanced by a rig's latency: what the reference sensor read
     ``latency_s`` after each sample (linear interpolation between the log's rows), and the
     samples that have it (those within ``latency_s`` of the log's end do not)."""
-    t = np.asarray(log.t, dtype=float)
-    keep = t + latency_s <= t[-1] + 1e-9 * max(1.0, abs(t[-1]))     # (rounding of t)
-    if latency_s == 0:
-        return np.asarray(log.wrench, dtype=float), keep
-    ref = np.stack([np.interp(t[keep] + latency_s, t, log.wrench[:, i]) for i in range(6)],
-                   axis=1)
-    return ref, keep
+    return accuracy.advanced(log.t, log.wrench, latency_s)
 
 
 def row(estimator: Estimator, log, fs: np.ndarray, reference: np.ndarray | None = None,
