@@ -3,13 +3,17 @@
     .venv/bin/python tools/bench_calibration.py                   # everything, ~30 min
     .venv/bin/python tools/bench_calibration.py --quick           # shorter runs, ~5 min
     .venv/bin/python tools/bench_calibration.py --sections paper,board,sizes
+    .venv/bin/python tools/bench_calibration.py --sections paper --rig-latency 0.01
 
 Sections (each prints a Markdown table):
 
 - ``paper``: the twin's ``paper`` scenario, a 2000 s calibration run (seed 1) and a 600 s
   evaluation run of the same unit (seed 2, ``twin.same_unit``): ``delta6 calibrate`` (timed:
   10^5 samples) and Table V of the analytical and the calibrated model (Python) on the
-  evaluation run.
+  evaluation run: against its recorded reference (late by the rig's 10 ms, the paper's
+  Table V), against that reference advanced by the fitted rig latency (``delta6 evaluate
+  --rig-latency calibration``), and against the same run re-simulated without the rig's
+  delay (``twin.without(truth, ["sensor_latency"])``: the true wrench).
 - ``board``: the same unit's evaluation run at the board's rate, replayed through the
   calibrated firmware on the virtual board (emulated ATmega328P, 16 MHz): Table V of the
   streamed wrench, the Python calibrated model on the counts the board latched, the largest
@@ -44,6 +48,7 @@ from delta6.core.model import AXES
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.spec import full_scale
 from delta6.core.workspace import load_checked
+from delta6.evaluation import tablev
 from delta6.evaluation.boardstream import stream_log
 
 HEADER = "| | " + " | ".join(AXES) + " |\n|---|" + "---|" * 6
@@ -72,24 +77,48 @@ def section_paper(design, args, out, tmp) -> dict:
     cal_run = twin.simulate(design, effects, duration_s=args.cal_duration, rate_hz=50, seed=1,
                             scenario="paper")
     wall, cpu = time.perf_counter(), cpu_seconds()
-    fit = calibrate(cal_run, design, name="paper-unit", source="paper seed 1")
+    fit = calibrate(cal_run, design, name="paper-unit", source="paper seed 1",
+                    rig_latency_s=args.rig_latency)
     wall, cpu = time.perf_counter() - wall, cpu_seconds() - cpu
     path = C.save(fit.calibration, tmp / "paper-unit.toml")
     check = twin.simulate(duration_s=args.eval_duration, rate_hz=50,
                           **twin.same_unit(cal_run.truth, 2))
     fs = full_scale(design)
-    analytical = tv(check.model_wrench(), check.wrench, fs)
-    calibrated = tv(CalibratedModel(design, fit.calibration).predict(check), check.wrench, fs)
+    model = CalibratedModel(design, fit.calibration)
+    estimate, plain = model.predict(check), check.model_wrench()
+    analytical = tv(plain, check.wrench, fs)
+    calibrated = tv(estimate, check.wrench, fs)
+    advanced, keep = tablev.advanced_reference(check, fit.latency_s)
+    analytical_adv = tv(plain[keep], advanced, fs)
+    calibrated_adv = tv(estimate[keep], advanced, fs)
+    prompt = twin.simulate(**twin.without(check.truth, ["sensor_latency"]))
+    analytical_true = tv(prompt.model_wrench(), prompt.wrench, fs)
+    calibrated_true = tv(model.predict(prompt), prompt.wrench, fs)
+    cal = fit.calibration
     lines = [f"### paper: calibrated on {len(cal_run)} samples ({args.cal_duration:g} s), "
              f"evaluated on {len(check)} ({args.eval_duration:g} s, same unit, seed 2)", "",
              f"`delta6 calibrate`: {wall:.1f} s wall, {cpu:.1f} s CPU; corrects "
-             f"{', '.join(fit.calibration.effects)}", "", HEADER,
-             *table_lines("analytical", analytical), *table_lines("calibrated", calibrated)]
+             f"{', '.join(cal.effects)}; rig latency {1e3 * fit.latency_s:.2f} ms; viscous "
+             f"{' '.join(f'{v:.5f}' for v in cal.viscous_nm_s_per_rad)} N*m*s/rad; sign levels "
+             f"{np.round(cal.friction_sign_nm, 4).tolist()} N*m", "", HEADER,
+             *table_lines("analytical", analytical), *table_lines("calibrated", calibrated),
+             *table_lines("analytical, reference advanced by the fitted latency",
+                          analytical_adv),
+             *table_lines("calibrated, reference advanced by the fitted latency",
+                          calibrated_adv),
+             *table_lines("analytical, the run without the rig's delay", analytical_true),
+             *table_lines("calibrated, the run without the rig's delay", calibrated_true)]
     print("\n".join(lines) + "\n", flush=True)
     out["paper"] = {"calibrate_wall_s": wall, "calibrate_cpu_s": cpu,
-                    "effects": list(fit.calibration.effects), "analytical": analytical,
-                    "calibrated": calibrated, "samples": len(cal_run)}
-    return {"truth": cal_run.truth, "calibration": fit.calibration, "path": path}
+                    "effects": list(cal.effects), "analytical": analytical,
+                    "calibrated": calibrated, "samples": len(cal_run),
+                    "rig_latency_s": fit.latency_s,
+                    "viscous_nm_s_per_rad": cal.viscous_nm_s_per_rad.tolist(),
+                    "analytical_advanced": analytical_adv, "calibrated_advanced": calibrated_adv,
+                    "analytical_without_delay": analytical_true,
+                    "calibrated_without_delay": calibrated_true}
+    return {"truth": cal_run.truth, "calibration": fit.calibration, "path": path,
+            "latency_s": fit.latency_s}
 
 
 def section_board(design, args, out, unit) -> None:
@@ -107,13 +136,20 @@ def section_board(design, args, out, unit) -> None:
     board = tv(run.wrench[moving], ref, fs)
     host = tv(python[moving], ref, fs)
     analytical = tv(check.model_wrench()[run.rows[moving]], ref, fs)
+    advanced, keep = tablev.advanced_reference(check, unit["latency_s"])
+    index = np.full(len(check), -1)
+    index[np.flatnonzero(keep)] = np.arange(keep.sum())
+    late = moving & (index[np.maximum(run.rows, 0)] >= 0)
+    board_adv = tv(run.wrench[late], advanced[index[run.rows[late]]], fs)
     diff = float((np.abs(run.wrench - python) / fs * 100).max())
     t = run.stats["timing"]
     lines = [f"### board: {moving.sum()} records at {args.board_rate} Hz "
              f"({time.perf_counter() - started:.0f} s wall), the unit's seed-2 run", "",
              HEADER, *table_lines("analytical", analytical),
              *table_lines("calibrated, streamed by the board", board),
-             *table_lines("calibrated, Python on the board's counts", host), "",
+             *table_lines("calibrated, Python on the board's counts", host),
+             *table_lines("calibrated, streamed by the board, reference advanced by the "
+                          "fitted latency", board_adv), "",
              f"largest |board - Python| {diff:.4f} % FS; records paired with their log row: "
              f"{100 * run.matched:.1f} %", "",
              f"solve {t['solve_cycles']['mean']:.0f} cycles mean, {t['solve_cycles']['max']:.0f}"
@@ -136,6 +172,7 @@ def section_board(design, args, out, unit) -> None:
     print("\n".join(lines) + "\n", flush=True)
     out["board"] = {"rate_hz": args.board_rate, "records": int(moving.sum()),
                     "analytical": analytical, "board": board, "python": host,
+                    "board_advanced": board_adv,
                     "max_board_python_pct": diff, "timing": t, "sweep": sweep}
 
 
@@ -160,8 +197,8 @@ def section_sizes(design, args, out, unit) -> None:
 def section_effects(design, args, out, tmp) -> None:
     fs = full_scale(design)
     lines = ["### single effects: calibrated p99 on an unseen run vs the diagnosis's prediction",
-             "", "| effect | chosen | floor p99 (max axis) | predicted p99 | calibrated p99 "
-             "| worst ratio | within 25 % |", "|---|---|---|---|---|---|---|"]
+             "", "| effect | chosen | rig latency fitted, ms | floor p99 (max axis) | predicted p99 "
+             "| calibrated p99 | worst ratio | within 25 % |", "|---|---|---|---|---|---|---|---|"]
     rows = []
     for name in CORRECTED:
         effects = twin.scenario_effects(name, seed=1)
@@ -180,10 +217,11 @@ def section_effects(design, args, out, tmp) -> None:
         ratio = got / predicted
         ok = bool(np.all(ratio <= 1.25))
         rows.append({"effect": name, "chosen": list(fit.calibration.effects),
+                     "rig_latency_s": fit.latency_s,
                      "floor": floor.tolist(), "predicted": predicted.tolist(),
                      "calibrated": got.tolist(), "ok": ok})
         lines.append(f"| {name} | {', '.join(fit.calibration.effects) or '-'} | "
-                     f"{floor.max():.2f} | {' '.join(f'{v:.2f}' for v in predicted)} | "
+                     f"{1e3 * fit.latency_s:.2f} | {floor.max():.2f} | {' '.join(f'{v:.2f}' for v in predicted)} | "
                      f"{' '.join(f'{v:.2f}' for v in got)} | {ratio.max():.2f} | "
                      f"{'yes' if ok else 'NO'} |")
         print(lines[-1], file=sys.stderr, flush=True)
@@ -202,6 +240,9 @@ def main(argv=None) -> int:
                         help="seconds of the evaluation run streamed by the board (default all)")
     parser.add_argument("--sweep", default="250,275,300",
                         help="rates (Hz) of the short overrun check")
+    parser.add_argument("--rig-latency", type=float, default=None, metavar="SECONDS",
+                        help="the paper unit's calibration states the rig's latency instead of "
+                             "fitting it (delta6 calibrate --rig-latency; the twin's rig: 0.01)")
     parser.add_argument("--json", metavar="OUT.json")
     args = parser.parse_args(argv)
     args.cal_duration = 600.0 if args.quick else 2000.0

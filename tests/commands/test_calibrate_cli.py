@@ -62,6 +62,76 @@ def test_calibrate_then_evaluate(runs, tmp_path, capsys):
     assert "calibrated" in capsys.readouterr().out
 
 
+def test_evaluate_scores_against_the_reference_advanced_by_the_rig_latency(runs, tmp_path,
+                                                                          capsys):
+    _, cal_log, check_log = runs
+    out = tmp_path / "unit.toml"
+    assert main(["calibrate", str(cal_log), "--design", DESIGN, "-o", str(out), "--effect",
+                 "stiffness_mismatch", "--rig-latency", "0.02", "--quiet"]) == 0
+    cal = C.load(out)
+    assert cal.fit["rig_latency_s"] == 0.02 and cal.fit["rig_latency"] == "given"
+    assert "20.0 ms (as stated)" in capsys.readouterr().out
+    results = {}
+    for option in (None, "0", "0.02", "calibration"):
+        js = tmp_path / f"{option}.json"
+        argv = ["evaluate", str(check_log), "--design", DESIGN, "--calibration", str(out),
+                "--json", str(js)] + ([] if option is None else ["--rig-latency", option])
+        assert main(argv) == 0
+        results[option] = json.loads(js.read_text())
+    assert results[None]["rig_latency_s"] == 0.0 and results[None]["samples"] == 3000
+    assert results["0"] == results[None]
+    assert results["calibration"] == results["0.02"]
+    advanced = results["0.02"]
+    # 60 s at 50 Hz: the last sample has no reference 20 ms later.
+    assert advanced["rig_latency_s"] == 0.02 and advanced["samples"] == 2999
+    # This rig has no delay: advancing its reference makes every row worse.
+    for before, after in zip(results[None]["rows"], advanced["rows"]):
+        assert before["estimator"] == after["estimator"]
+        assert np.mean(after["p95_pct"]) > np.mean(before["p95_pct"])
+    assert "reference advanced by the rig latency, 20.0 ms" in capsys.readouterr().out
+
+
+def test_the_advanced_reference_is_the_reference_later_by_the_latency():
+    from types import SimpleNamespace
+
+    from delta6.evaluation.tablev import advanced_reference
+    t = np.arange(0.0, 1.0, 0.02)
+    wrench = np.stack([np.sin(3 * t + i) for i in range(6)], axis=1)
+    ref, keep = advanced_reference(SimpleNamespace(t=t, wrench=wrench), 0.03)
+    assert keep.sum() == len(t) - 2
+    exact = np.stack([np.sin(3 * (t[keep] + 0.03) + i) for i in range(6)], axis=1)
+    # Linear interpolation between samples 20 ms apart: within (3 * 0.01)^2 / 2 of the curve.
+    np.testing.assert_allclose(ref, exact, atol=(3 * 0.01) ** 2 / 2)
+
+
+@pytest.mark.parametrize("value,message", [
+    ("-0.01", "0..0.2 s"), ("nan", "0..0.2 s"), ("0.5", "0..0.2 s"),
+    ("soon", "a number of seconds"), ("calibration", "needs --calibration"),
+])
+def test_evaluate_refuses_a_bad_rig_latency(runs, capsys, value, message):
+    _, _, check_log = runs
+    assert main(["evaluate", str(check_log), "--design", DESIGN, "--rig-latency", value]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1, err
+
+
+def test_evaluate_refuses_calibration_latency_from_a_file_without_one(runs, tmp_path, capsys,
+                                                                     baseline):
+    _, _, check_log = runs
+    path = C.save(C.neutral(baseline, "old"), tmp_path / "old.toml")
+    assert main(["evaluate", str(check_log), "--design", DESIGN, "--calibration", str(path),
+                 "--rig-latency", "calibration"]) == 2
+    assert "records no rig latency" in capsys.readouterr().err
+    # A value out of range (a hand edit, or a bound reached only to within rounding) is named
+    # with the file and the field, not as if the user had typed it.
+    bad = C.save(C.neutral(baseline, "bad").with_(fit={"rig_latency_s": -1e-18}),
+                 tmp_path / "bad.toml")
+    assert main(["evaluate", str(check_log), "--design", DESIGN, "--calibration", str(bad),
+                 "--rig-latency", "calibration"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"{bad}: fit.rig_latency_s:" in err and len(err.splitlines()) == 1, err
+
+
 def test_evaluate_without_calibration_has_the_analytical_row(runs, capsys):
     _, _, check_log = runs
     assert main(["evaluate", str(check_log), "--design", DESIGN]) == 0
@@ -73,6 +143,8 @@ def test_evaluate_without_calibration_has_the_analytical_row(runs, capsys):
     (["calibrate", "{log}", "-o", "{tmp}/c.toml", "--effect", "warp"], "unknown effect"),
     (["calibrate", "{tmp}/missing.csv", "-o", "{tmp}/c.toml"], "missing.csv"),
     (["calibrate", "{log}", "-o", "{tmp}/nodir/c.toml"], "does not exist"),
+    (["calibrate", "{log}", "-o", "{tmp}/c.toml", "--rig-latency", "-1"], "0..0.2 s"),
+    (["calibrate", "{log}", "-o", "{tmp}/c.toml", "--rig-latency", "x"], "number of seconds"),
     (["calibrate", "{log}", "-o", "{tmp}/c.toml", "--design", str(DESIGNS / "stiff.toml")],
      "recorded with design"),
     (["evaluate", "{log}", "--calibration", "{tmp}/missing.toml"], "no such file"),

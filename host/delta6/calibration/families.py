@@ -10,7 +10,11 @@ computes. Each family returns columns (n, 6, p) in the units of its parameters.
 Each family also says how its parameters read in the diagnosis's term of the same effect
 (``term_map``: a linear map onto that term's coefficients), so the fit carries the same
 physics as the diagnosis: the term's prior scales (``Term.prior_sd``) regularise the fit, and
-the term's plausible limits (``Term.plausibility``) judge the fitted calibration.
+the term's plausible limits (``Term.plausibility``) judge the fitted calibration, each
+parameter against its own limit.
+
+A family may also hold signs that physics fixes (``constraints``: ``A @ values >= lower``),
+which the fit imposes: a passive friction torque opposes the motion at every speed.
 """
 from __future__ import annotations
 
@@ -51,6 +55,8 @@ class Family:
     #: The calibration's attributes the family sets.
     fields: tuple[str, ...]
     on_device: bool = True
+    #: Linear inequalities on the values, (A, lower): A @ values >= lower (None: no sign fixed).
+    constraints: Callable[[Calibration], tuple[np.ndarray, np.ndarray]] | None = None
 
     @property
     def term(self) -> Term:
@@ -64,8 +70,19 @@ class Family:
 
     def plausibility(self, cal: Calibration) -> list[dict]:
         """The fitted parameters against the term's plausible limits (``Term.plausibility``),
-        and against the calibration file's own bounds (a check named ``file_bounds``)."""
-        checks = self.term.plausibility(self.term_map @ self.values(cal))
+        and against the calibration file's own bounds (a check named ``file_bounds``).
+
+        Each parameter is checked on its own (alone in the term's coefficients), and the
+        family as a whole: several parameters can map onto one coefficient (two play radii
+        near one of the diagnosis's) or onto quantities the term sums (a loop half-width over
+        the radii), and large values of opposite signs would cancel in the sum."""
+        values = self.values(cal)
+        checks = self.term.plausibility(self.term_map @ values)
+        for i in np.flatnonzero(values):
+            for check in self.term.plausibility(self.term_map[:, i] * values[i]):
+                same = next(c for c in checks if c["quantity"] == check["quantity"])
+                if check["ratio"] > same["ratio"]:
+                    same.update(check)
         probe = neutral_like(cal).with_(**{f: getattr(cal, f) for f in self.fields})
         try:
             validate(probe)
@@ -184,6 +201,22 @@ def _friction_map(speeds) -> np.ndarray:
     return _per_joint_map(block)
 
 
+def _friction_constraints(cal):
+    """Friction opposes the motion: per joint, the torque of the sign levels and the viscous
+    term is >= 0 at every sign speed (it is piecewise linear in the speed, zero at rest, so
+    that holds it at every speed up to the last; a Stribeck dip of one level below another
+    stays allowed), and the viscous coefficient is >= 0 (the slope beyond). Pre-sliding is
+    left free: its direction state also carries what the causal backlash switch misses."""
+    speeds = np.asarray(cal.friction_speeds_rad_s, dtype=float)
+    s = len(speeds)
+    block = np.zeros((s + 1, s + 2))
+    block[:s, :s] = np.minimum(speeds[:, None] / speeds[None, :], 1.0)
+    block[:s, s] = speeds
+    block[s, s] = 1.0
+    a = _per_joint_map(block)
+    return a, np.zeros(len(a))
+
+
 def _friction_values(cal):
     return np.concatenate([cal.friction_sign_nm, cal.viscous_nm_s_per_rad[:, None],
                            cal.presliding_nm[:, None]], axis=1).ravel()
@@ -229,7 +262,8 @@ def families(cal: Calibration) -> dict[str, Family]:
                                        tuple(f"sign_v{v:g}_nm" for v in speeds)
                                        + ("viscous_nm_s_per_rad", "presliding_nm")),
                _friction, _apply_friction, _friction_values, _friction_map(speeds),
-               ("friction_sign_nm", "viscous_nm_s_per_rad", "presliding_nm")),
+               ("friction_sign_nm", "viscous_nm_s_per_rad", "presliding_nm"),
+               constraints=_friction_constraints),
         Family("backlash", tuple(f"backlash_play_{j}_rad" for j in JOINTS), _backlash,
                lambda c, x: _add(c, backlash_play_rad=x),
                lambda c: np.asarray(c.backlash_play_rad),

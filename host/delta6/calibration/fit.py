@@ -5,8 +5,10 @@
    time-blocked held-out error of the calibrated model by more than ``MIN_EXTRA_GAIN`` of what
    is left (at the lower 5 % of a block bootstrap) is added: the diagnosis names an effect only
    when it can tell it apart; a calibration may also use a family that merely helps. Or the
-   user names the effects (``--effect``). The reference sensor's latency, when present, is
-   fitted as a property of the rig (never applied); thermal drift is not corrected.
+   user names the effects (``--effect``). Thermal drift is not corrected.
+   The reference sensor's latency is always fitted, as a property of the rig (never applied):
+   a late reference and a viscous friction of the opposite sign look nearly alike, and left
+   out the latency ends up in the friction (or the user states it, ``rig_latency``).
 2. **Held-out check.** The last ``HELDOUT_BLOCKS`` of the log's ``N_BLOCKS`` time blocks are
    held out (one buffer block before them); the calibration fitted on the rest is scored there:
    the Table V before (analytical model) and after (calibrated model) in the file.
@@ -17,7 +19,10 @@
    The parameters carry the diagnosis's physical priors (``Term.prior_sd``: a Gaussian prior
    on the calibration's values, not on the step, so a direction the log hardly excites, such
    as a + b of a branch, stays near zero instead of drifting with every iteration).
-4. **Plausibility.** A family whose fitted parameters leave the diagnosis term's plausible
+4. **Signs physics fixes.** The rig's latency lies in [0, ``MAX_RIG_LATENCY_S``]; a family
+   may hold signs too (``Family.constraints``: friction opposes the motion). Each step is the
+   prior-regularised least squares under those inequalities (``bounded.solve``).
+5. **Plausibility.** A family whose fitted parameters leave the diagnosis term's plausible
    limits (``Term.plausibility``) or the file's bounds is left out (the worst first) and the
    rest refitted; the calibration and the report say so (``fit.left_out``). An implausible
    calibration is never written.
@@ -30,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from delta6 import __version__
+from delta6.calibration import bounded
 from delta6.calibration.families import Context, families
 from delta6.core import accuracy
 from delta6.core.calibrated import CalibratedModel, counts_from_angles, sample_period
@@ -52,12 +58,27 @@ ITERATIONS = 3
 FINAL_ITERATIONS = 2
 
 
+def _latency_limit() -> float:
+    """The diagnosis's plausible limit of a reference latency (``Term.plausibility``)."""
+    checks = TERMS_BY_NAME[LATENCY].plausibility(np.zeros(2))
+    return next(c["limit"] for c in checks if c["quantity"] == "latency_s")
+
+
+#: The largest rig latency the fit accepts: the diagnosis's plausible limit (0.2 s, ten
+#: samples of the rig's 50 Hz; a reference that late is not paired with the encoders at all,
+#: and the first-order term the fit uses, W - L dW/dt, no longer describes it).
+MAX_RIG_LATENCY_S = _latency_limit()
+
+
 @dataclass
 class CalibrationFit:
     calibration: Calibration
     heldout_before: dict          # Table V of the analytical model on the held-out blocks
     heldout_after: dict           # ... of the calibrated model (latency not applied)
-    latency_s: float | None       # the rig's, when fitted
+    latency_s: float              # the rig's (fitted, or as given)
+    heldout_before_rig: dict | None = None    # both against the reference advanced by it
+    heldout_after_rig: dict | None = None
+    latency_given: bool = False   # stated by the user, not fitted
     diagnosis: dict | None = None
     chosen_by: str = "diagnosis"
     seconds: float = 0.0
@@ -84,11 +105,26 @@ def _table(err_pct: np.ndarray) -> dict:
     return {"p95_pct": t["p95"], "p99_pct": t["p99"], "max_pct": t["p100"]}
 
 
+def _heldout_tables(data: GapData, calibrated: np.ndarray, rows: np.ndarray, latency: float):
+    """Table V of the analytical and the calibrated model on the held-out ``rows``: against
+    the recorded reference, and against the reference advanced by the rig's ``latency``."""
+    before = _table(data.residual_pct[rows])
+    after = _table((100.0 * (calibrated - data.reference) / data.fs)[rows])
+    advanced, keep = accuracy.advanced(data.t, data.reference, latency)
+    at = np.full(len(data.t), -1)
+    at[np.flatnonzero(keep)] = np.arange(int(keep.sum()))
+    held = rows[keep[rows]]
+    reference = advanced[at[held]]
+    before_rig = _table(100.0 * (data.model[held] - reference) / data.fs)
+    after_rig = _table(100.0 * (calibrated[held] - reference) / data.fs)
+    return before, after, before_rig, after_rig
+
+
 class _Fitter:
     """The problem (columns of every family, FS-normalised, with per-block Gram matrices) and
     the Gauss-Newton iterations on a chosen subset."""
 
-    def __init__(self, data: GapData, settings: Calibration, with_latency: bool, progress):
+    def __init__(self, data: GapData, settings: Calibration, progress):
         self.data = data
         self.counts = counts_from_angles(data.theta)
         self.dt = sample_period(data.t)
@@ -96,7 +132,7 @@ class _Fitter:
         terms, _ = CalibratedModel(data.design, settings).joint_terms(self.counts, self.dt)
         self.families = families(settings)
         ctx = Context(data, terms, settings)
-        all_terms = _terms(ctx, self.families) + ([_latency_term(data)] if with_latency else [])
+        all_terms = _terms(ctx, self.families) + [_latency_term(data)]
         # The families' columns come from the calibrated model run over the whole log (its
         # history state included), so the log is one piece.
         self.problem = selection.build_problem(data, all_terms, n_blocks=N_BLOCKS,
@@ -124,17 +160,45 @@ class _Fitter:
             # towards zero: (G + P) step = X^T r - P current.
             current = np.concatenate([[latency] if n == LATENCY
                                       else self.families[n].values(cal) for n in names])
-            step = selection.solve(gram, x.T @ r - penalty * current, penalty)
+            a, lower = self.constraints(cal, names)
+            # The constraints on the step: A (current + step) >= lower. Start from no step,
+            # or, if the current values break a constraint, from the neutral ones.
+            lower = lower - a @ current
+            start = np.zeros(len(current)) if np.all(lower <= 0) else -current
+            step = bounded.solve(gram + np.diag(penalty), x.T @ r - penalty * current,
+                                 a, lower, start)
             at = 0
             for name in names:
                 width = p.slices[name].stop - p.slices[name].start
                 part = step[at:at + width]
                 at += width
                 if name == LATENCY:
-                    latency += float(part[0])
+                    # The solver reaches an active bound only to within rounding (-7e-18).
+                    latency = min(max(latency + float(part[0]), 0.0), MAX_RIG_LATENCY_S)
                 else:
                     cal = self.families[name].apply(cal, part)
         return cal, latency
+
+    def constraints(self, cal: Calibration, names) -> tuple[np.ndarray, np.ndarray]:
+        """The fitted parameters' inequalities, A @ values >= lower, over ``names``' columns."""
+        widths = [self.problem.slices[n].stop - self.problem.slices[n].start for n in names]
+        rows, lowers, at = [], [], 0
+        for name, width in zip(names, widths):
+            if name == LATENCY:
+                a, lower = np.array([[1.0], [-1.0]]), np.array([0.0, -MAX_RIG_LATENCY_S])
+            elif self.families[name].constraints is not None:
+                a, lower = self.families[name].constraints(cal)
+            else:
+                at += width
+                continue
+            block = np.zeros((len(a), sum(widths)))
+            block[:, at:at + width] = a
+            rows.append(block)
+            lowers.append(lower)
+            at += width
+        if not rows:
+            return np.zeros((0, sum(widths))), np.zeros(0)
+        return np.concatenate(rows), np.concatenate(lowers)
 
     def predict(self, cal: Calibration, latency: float = 0.0) -> np.ndarray:
         """What the reference should read: the calibrated wrench, late by the rig's latency."""
@@ -145,7 +209,9 @@ class _Fitter:
 
 
 def _extend(fitter: _Fitter, chosen: list[str], rng, progress) -> list[str]:
-    """Add correctable families that still lower the held-out error (module docstring)."""
+    """Add correctable families that still lower the held-out error (module docstring). The
+    rig's latency is not in these trials: their linear fits are unbounded, and a negative
+    latency would pass for the friction a candidate brings."""
     p = fitter.problem
     chosen = list(chosen)
     current = selection.heldout_block_sse(p, chosen)
@@ -192,12 +258,30 @@ def check_effects(effects) -> None:
             raise UserError(f"unknown effect {e!r} (one of {', '.join(CORRECTED + (LATENCY,))})")
 
 
+def check_rig_latency(value) -> float:
+    """A stated rig latency in seconds: finite, in [0, MAX_RIG_LATENCY_S]."""
+    try:
+        latency = float(value)
+    except (TypeError, ValueError):
+        raise UserError(f"the rig latency must be a number of seconds, got {value!r}") from None
+    if not (np.isfinite(latency) and 0.0 <= latency <= MAX_RIG_LATENCY_S):
+        raise UserError(f"the rig latency must be 0..{MAX_RIG_LATENCY_S:g} s (the reference "
+                        f"is late, never early), got {value!r}")
+    return latency
+
+
 def calibrate(log, design: Design, *, effects=None, name: str | None = None,
               source: str = "", settings: Calibration | None = None, seed: int = 0,
-              progress=None) -> CalibrationFit:
+              rig_latency_s: float | None = None, progress=None) -> CalibrationFit:
     """Fit a calibration of ``design`` to ``log`` (a ``LogData``). ``effects``: the effects
-    to correct (None: the diagnosis's findings, extended; see the module docstring)."""
+    to correct (None: the diagnosis's findings, extended; see the module docstring).
+    ``rig_latency_s``: the rig's known latency (0: none), used instead of fitting it."""
     started = time.perf_counter()
+    given = rig_latency_s is not None
+    if given:
+        rig_latency_s = check_rig_latency(rig_latency_s)
+        if effects is not None and LATENCY in effects:
+            raise UserError("a stated rig latency is not fitted: drop --effect sensor_latency")
     data = GapData.from_log(log, design)
     base = settings or neutral(design)
     diagnosis = None
@@ -205,35 +289,38 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
     if effects is None:
         diagnosis = diagnose_data(data, seed=seed, progress=progress)
         present = diagnosis["present"]
-        with_latency = LATENCY in present
         chosen = [e for e in present if e in CORRECTED]
-        notes += [f"{e}: {NOT_APPLIED[e]}" for e in present if e in NOT_APPLIED]
+        notes += [f"{e}: {NOT_APPLIED[e]}" for e in present if e in NOT_APPLIED
+                  and not (e == LATENCY and given)]
+        if LATENCY in present and given:
+            notes.append(f"{LATENCY}: a property of the calibration rig, given as "
+                         f"{1e3 * rig_latency_s:g} ms (--rig-latency), not applied")
         chosen_by = "diagnosis"
     else:
         check_effects(effects)
-        with_latency = LATENCY in effects
         chosen = [e for e in dict.fromkeys(effects) if e in CORRECTED]
         chosen_by = "--effect"
     if progress:
         progress("calibration columns")
-    fitter = _Fitter(data, base, with_latency, progress)
+    fitter = _Fitter(data, base, progress)
     if effects is None:
         chosen = _extend(fitter, chosen, np.random.default_rng(seed), progress)
     held = np.arange(N_BLOCKS - HELDOUT_BLOCKS, N_BLOCKS)
     train = np.arange(0, N_BLOCKS - HELDOUT_BLOCKS - 1)
     left_out = {}
     while True:
-        names = chosen + ([LATENCY] if with_latency else [])
+        names = chosen + ([] if given else [LATENCY])
         if progress:
             progress("fitting on the training blocks")
         start = base.with_(effects=tuple(chosen))
-        cal, latency = fitter.fit(start, names, train, ITERATIONS)
+        cal, latency = fitter.fit(start, names, train, ITERATIONS,
+                                  rig_latency_s if given else 0.0)
         bad = _worst_implausible(fitter, cal, chosen)
         if bad is None:
             rows = fitter.rows(held)
-            before = _table(data.residual_pct[rows])
             calibrated = fitter.predict(cal)          # what the board gives: no latency
-            after = _table((100.0 * (calibrated - data.reference) / data.fs)[rows])
+            before, after, before_rig, after_rig = _heldout_tables(
+                data, calibrated, rows, latency)
             if progress:
                 progress("fitting on all blocks")
             cal, latency = fitter.fit(cal, names, np.arange(N_BLOCKS), FINAL_ITERATIONS,
@@ -260,10 +347,14 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
         "left_out": sorted(left_out),
         "seconds": round(seconds, 2),
         "heldout_before": before, "heldout_after": after,
+        # The same against the reference read the rig's latency later (what the sensor felt
+        # at the sample's time): the calibrated wrench is not late, the recorded reference is.
+        "heldout_before_rig": before_rig, "heldout_after_rig": after_rig,
     }
-    if with_latency:
-        fit_record["rig_latency_s"] = latency
+    fit_record["rig_latency_s"] = latency
+    fit_record["rig_latency"] = "given" if given else "fitted"
     cal = cal.with_(name=name or base.name, fit=fit_record)
     return CalibrationFit(calibration=cal, heldout_before=before, heldout_after=after,
-                          latency_s=latency if with_latency else None, diagnosis=diagnosis,
+                          heldout_before_rig=before_rig, heldout_after_rig=after_rig,
+                          latency_s=latency, latency_given=given, diagnosis=diagnosis,
                           chosen_by=chosen_by, seconds=seconds, notes=notes)

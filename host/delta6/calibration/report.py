@@ -51,13 +51,18 @@ def write_report(fit, log, design, out_dir, source: str = "") -> Path:
              f"0x{cal.hash32():08x}; {len(log)} samples; fitted in {fit.seconds:.1f} s.", "",
              "Corrects: " + (", ".join(f"**{e}**" for e in cal.effects) or "nothing")
              + f" (chosen by {fit.chosen_by}).", ""]
-    if fit.latency_s is not None:
-        lines += [f"The reference sensor is late by {1e3 * fit.latency_s:.1f} ms: fitted as a "
-                  "property of the rig, not applied on the board.", ""]
+    how = "as stated" if fit.latency_given else "fitted"
+    lines += [f"The reference sensor is late by {1e3 * fit.latency_s:.1f} ms ({how}): a "
+              "property of the rig, not applied on the board.", ""]
     lines += [f"- {n}" for n in fit.notes]
     lines += ["", "## Held-out Table V (% FS)", "", "| | " + " | ".join(AXES) + " |",
               "|---|" + "---|" * 6]
-    for label, table in (("analytical", fit.heldout_before), ("calibrated", fit.heldout_after)):
+    tables = [("analytical", fit.heldout_before), ("calibrated", fit.heldout_after)]
+    if fit.latency_s > 0 and fit.heldout_after_rig is not None:
+        late = f"{1e3 * fit.latency_s:.1f} ms later reference"
+        tables += [(f"analytical, {late}", fit.heldout_before_rig),
+                   (f"calibrated, {late}", fit.heldout_after_rig)]
+    for label, table in tables:
         for key in ("p95_pct", "p99_pct", "max_pct"):
             lines.append(_row(f"{label} {key[:-4]}", table[key]))
     lines += ["", "![held-out p99](heldout_p99.png)", "", "## Parameters", ""]

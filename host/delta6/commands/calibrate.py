@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from delta6.calibration import calibrate
+from delta6.calibration.fit import check_rig_latency
 from delta6.calibration.report import write_report
 from delta6.core import calibration as calibration_mod
 from delta6.core.calibration import CORRECTED, NAME_LIMIT
@@ -30,8 +31,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="calibration file to write")
     parser.add_argument("--effect", action="append", metavar="NAME",
                         help="correct this effect (repeatable; default: what the gap diagnosis "
-                             f"finds). One of {', '.join(CORRECTED)}, or sensor_latency (the "
-                             "rig's: fitted, not applied)")
+                             f"finds). One of {', '.join(CORRECTED)}; the rig's latency "
+                             "(sensor_latency) is always fitted, never applied")
+    parser.add_argument("--rig-latency", metavar="SECONDS",
+                        help="the calibration rig's known latency (its reference wrench is "
+                             "paired with the encoders this late; 0: none), used instead of "
+                             "fitting it (default: fitted, 0..0.2 s)")
     parser.add_argument("--name", metavar="NAME",
                         help=f"the calibration's name (ASCII, at most {NAME_LIMIT} characters; "
                              "the board reports it); default: the output file's stem")
@@ -46,6 +51,7 @@ def run(args: argparse.Namespace) -> int:
     if args.report:
         check_output_folder(args.report, "--report")
     design = load_checked(args.design)
+    latency = None if args.rig_latency is None else check_rig_latency(args.rig_latency)
     name = args.name or out.name.removesuffix(".toml")[:NAME_LIMIT]
     log = read_log(args.log)
     if wrench_from_device(log.meta):
@@ -59,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {message}", file=sys.stderr, flush=True)
 
     fit = calibrate(log, design, effects=args.effect, name=name, source=Path(args.log).name,
-                    seed=args.seed, progress=progress)
+                    seed=args.seed, rig_latency_s=latency, progress=progress)
     calibration_mod.save(fit.calibration, out)
     if args.report:
         path = write_report(fit, log, design, args.report, source=str(args.log))
@@ -79,11 +85,18 @@ def summary(fit, out: Path) -> str:
              "corrects: " + (", ".join(cal.effects) or "nothing (no significant unmodelled "
                                                         "effect)")
              + f" (chosen by {fit.chosen_by})"]
-    if fit.latency_s is not None:
-        lines.append(f"rig latency {1e3 * fit.latency_s:.1f} ms: fitted, not applied on the board")
+    how = "as stated" if fit.latency_given else "fitted"
+    lines.append(f"rig latency {1e3 * fit.latency_s:.1f} ms ({how}): the reference's, not "
+                 "applied on the board")
     lines += [f"  {n}" for n in fit.notes]
     lines.append("held-out p99 |error|, % FS:" )
     lines.append(f"  {'':<22}" + "".join(f"{a:>8}" for a in AXES))
     lines.append(row("analytical", fit.heldout_before["p99_pct"]))
     lines.append(row("calibrated", fit.heldout_after["p99_pct"]))
+    if fit.latency_s > 0 and fit.heldout_after_rig is not None:
+        # The board's wrench is not late; the recorded reference is.
+        lines.append(f"  against the reference {1e3 * fit.latency_s:.1f} ms later "
+                     "(evaluate --rig-latency calibration):")
+        lines.append(row("analytical", fit.heldout_before_rig["p99_pct"]))
+        lines.append(row("calibrated", fit.heldout_after_rig["p99_pct"]))
     return "\n".join(lines)

@@ -136,22 +136,24 @@ def write_headers(out: Path, headers: Headers) -> list[str]:
     compiled in). Returns one line per file, saying what was done."""
     design, cal, model = headers.design, headers.cal, headers.model
     cal_out, model_out = out.with_name(CALIBRATION_HEADER), out.with_name(MODEL_HEADER)
-    lines = []
-    verb = "wrote" if _write_if_changed(out, headers.text) else "unchanged:"
-    lines.append(f"{verb} {_rel(out)} for design '{design.name}' (hash 0x{design.hash32():08x})")
+    lines = [_write_line(out, headers.text, f"design '{design.name}' (hash 0x{design.hash32():08x})")]
     if cal is not None:
-        verb = "wrote" if _write_if_changed(cal_out, headers.cal_text) else "unchanged:"
-        lines.append(f"{verb} {_rel(cal_out)} for calibration '{cal.name}' "
-                     f"(hash 0x{cal.hash32():08x})")
+        lines.append(_write_line(cal_out, headers.cal_text,
+                                 f"calibration '{cal.name}' (hash 0x{cal.hash32():08x})"))
     elif _remove(cal_out):
         lines.append(f"removed {_rel(cal_out)}: the firmware is the uncalibrated one")
     if model is not None:
-        verb = "wrote" if _write_if_changed(model_out, headers.model_text) else "unchanged:"
-        lines.append(f"{verb} {_rel(model_out)} for model '{model.name}' (hash "
-                     f"0x{model.hash32():08x}, {model.net.macs} multiply-accumulates per sample)")
+        lines.append(_write_line(model_out, headers.model_text,
+                                 f"model '{model.name}' (hash 0x{model.hash32():08x}, "
+                                 f"{model.net.macs} multiply-accumulates per sample)"))
     elif _remove(model_out):
         lines.append(f"removed {_rel(model_out)}: no model")
     return lines
+
+
+def _write_line(path: Path, text: str, what: str) -> str:
+    verb = "wrote" if _write_if_changed(path, text) else "unchanged:"
+    return f"{verb} {_rel(path)} for {what}"
 
 
 def build_name(design: design_mod.Design, cal=None, model=None) -> str:

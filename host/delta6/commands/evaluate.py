@@ -7,6 +7,7 @@ import argparse
 import json
 from pathlib import Path
 
+from delta6.calibration.fit import check_rig_latency
 from delta6.core import calibration as calibration_mod
 from delta6.core.calibrated import CalibratedModel
 from delta6.core.errors import UserError
@@ -39,18 +40,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "file; a residual over a calibration needs that --calibration; an "
                              "on-chip model (M.json, delta6 train --target mcu) runs through "
                              "the integer reference as the board runs it")
+    parser.add_argument("--rig-latency", metavar="SECONDS|calibration",
+                        help="score every row against the reference advanced by the "
+                             "calibration rig's latency (linear interpolation; 'calibration': "
+                             "the latency the --calibration fitted, fit.rig_latency_s); "
+                             "default: the recorded reference")
     parser.add_argument("--json", metavar="OUT.json", help="write the table as JSON")
     parser.add_argument("--plot", metavar="OUT.png",
                         help="plot the error distributions of every row (needs matplotlib)")
 
 
-def estimators(args, design, log) -> list:
-    """The rows: the analytical model always, the calibrated model with --calibration, then
-    each --model in the order given."""
+def estimators(args, design, log, cal) -> list:
+    """The rows: the analytical model always, the calibrated model with --calibration (``cal``,
+    loaded), then each --model in the order given."""
     rows = [tablev.Analytical(design)]
-    cal = None
-    if args.calibration:
-        cal = calibration_mod.load(args.calibration)
+    if cal is not None:
         calibration_mod.check_log_meta(log.meta, design, cal, source=str(args.log))
         rows.append(CalibratedModel(design, cal))
     else:
@@ -75,7 +79,27 @@ class Computed:
         return self.estimate
 
 
+def rig_latency(args, cal) -> float:
+    """The latency the reference is advanced by (0: the recorded reference)."""
+    if args.rig_latency is None:
+        return 0.0
+    if args.rig_latency == "calibration":
+        if cal is None:
+            raise UserError("--rig-latency calibration needs --calibration CAL.toml")
+        fitted = cal.fit.get("rig_latency_s")
+        if fitted is None:
+            raise UserError(f"{args.calibration}: the calibration records no rig latency "
+                            "(fit.rig_latency_s); give --rig-latency SECONDS")
+        try:
+            return check_rig_latency(fitted)
+        except UserError as exc:
+            raise UserError(f"{args.calibration}: fit.rig_latency_s: {exc}") from None
+    return check_rig_latency(args.rig_latency)
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.rig_latency not in (None, "calibration"):
+        check_rig_latency(args.rig_latency)
     if args.json:
         check_output_file(args.json, "--json")
     if args.plot:
@@ -86,15 +110,19 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"{args.log}: no samples")
     require_reference_wrench(log.meta, args.log, "Table V compares the estimators with a "
                              "reference (docs/calibration.md)")
-    rows = [Computed(e.name, e.predict(log)) for e in estimators(args, design, log)]
-    result = tablev.table(rows, log, design)
+    cal = calibration_mod.load(args.calibration) if args.calibration else None
+    latency = rig_latency(args, cal)
+    rows = [Computed(e.name, e.predict(log)) for e in estimators(args, design, log, cal)]
+    result = tablev.table(rows, log, design, rig_latency_s=latency)
     if args.json:
         try:
             Path(args.json).write_text(json.dumps(result, indent=1) + "\n")
         except OSError as exc:
             raise UserError(f"cannot write {args.json}: {exc.strerror}") from None
     if args.plot:
-        plot_errors({r.name: r.estimate for r in rows}, log.wrench, full_scale(design), args.plot,
+        reference, keep = tablev.advanced_reference(log, latency)
+        plot_errors({r.name: r.estimate[keep] for r in rows}, reference, full_scale(design),
+                    args.plot,
                     title=f"|error| distributions on {Path(args.log).name}")
     print(tablev.format_table(result))
     return 0

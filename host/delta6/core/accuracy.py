@@ -30,6 +30,21 @@ def percentiles(estimate: np.ndarray, reference: np.ndarray, full_scale,
     return table(error_pct_fs(estimate, reference, full_scale), which)
 
 
+def advanced(t: np.ndarray, values: np.ndarray, latency_s: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """What a sensor that is ``latency_s`` late read for each sample: ``values`` at
+    ``t + latency_s`` (linear interpolation between the rows), and the mask of the samples
+    that have it (those within ``latency_s`` of the end do not). Returns (values at the
+    masked samples, mask)."""
+    t = np.asarray(t, dtype=float)
+    values = np.asarray(values, dtype=float)
+    keep = t + latency_s <= t[-1] + 1e-9 * max(1.0, abs(t[-1]))     # (rounding of t)
+    if latency_s == 0:
+        return values, keep
+    return np.stack([np.interp(t[keep] + latency_s, t, values[:, i])
+                     for i in range(values.shape[1])], axis=1), keep
+
+
 def format_table(table: dict[str, list[float]], title: str = "") -> str:
     """The percentiles as a small text table, one row per percentile."""
     lines = [f"{title:<12}" + "".join(f"{a:>8}" for a in AXES)] if title is not None else []

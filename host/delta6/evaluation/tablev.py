@@ -53,8 +53,17 @@ class Analytical:
         return model.wrench(self.design, log.theta)
 
 
-def row(estimator: Estimator, log, fs: np.ndarray) -> dict:
-    """One estimator's Table V row on ``log``."""
+def advanced_reference(log, latency_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The reference wrench advanced by a rig's latency: what the reference sensor read
+    ``latency_s`` after each sample (linear interpolation between the log's rows), and the
+    samples that have it (those within ``latency_s`` of the log's end do not)."""
+    return accuracy.advanced(log.t, log.wrench, latency_s)
+
+
+def row(estimator: Estimator, log, fs: np.ndarray, reference: np.ndarray | None = None,
+        keep: np.ndarray | None = None) -> dict:
+    """One estimator's Table V row on ``log``: against ``reference`` on the samples ``keep``
+    (default: the logged reference, every sample)."""
     estimate = np.asarray(estimator.predict(log), dtype=float)
     if estimate.shape != (len(log), 6):
         raise UserError(f"estimator {estimator.name!r} returned shape {estimate.shape}, "
@@ -62,27 +71,40 @@ def row(estimator: Estimator, log, fs: np.ndarray) -> dict:
     if not np.all(np.isfinite(estimate)):
         bad = int((~np.isfinite(estimate)).any(axis=1).sum())
         raise UserError(f"estimator {estimator.name!r} gave no finite wrench for {bad} samples")
-    t = accuracy.percentiles(estimate, log.wrench, fs, [q for q, _ in COLUMNS])
+    if keep is not None:
+        estimate = estimate[keep]
+    t = accuracy.percentiles(estimate, log.wrench if reference is None else reference, fs,
+                             [q for q, _ in COLUMNS])
     return {"estimator": estimator.name,
             **{key: t[f"p{q:g}"] for q, key in COLUMNS}}
 
 
-def table(estimators, log, design: Design) -> dict:
+def table(estimators, log, design: Design, rig_latency_s: float = 0.0) -> dict:
     """``{"rows": [{"estimator", "p95_pct", "p99_pct", "max_pct"}, ...], "samples": n,
-    "full_scale": [6], "axes": [...]}`` for the estimators on one log."""
+    "full_scale": [6], "axes": [...], "rig_latency_s": s}`` for the estimators on one log.
+    With ``rig_latency_s`` every row is scored against the reference advanced by the rig's
+    latency (:func:`advanced_reference`; the last samples, which it leaves without one, are
+    not scored)."""
     names = [e.name for e in estimators]
     if len(set(names)) != len(names):
         raise UserError("two estimators share a name: " + ", ".join(names))
     fs = full_scale(design)
-    return {"rows": [row(e, log, fs) for e in estimators], "samples": len(log),
-            "full_scale": fs.tolist(), "axes": list(AXES),
-            "design": {"name": design.name, "hash": f"0x{design.hash32():08x}"}}
+    reference, keep = advanced_reference(log, rig_latency_s)
+    if not keep.any():
+        raise UserError(f"a rig latency of {rig_latency_s:g} s leaves no sample of the log "
+                        "with a reference")
+    return {"rows": [row(e, log, fs, reference, keep) for e in estimators],
+            "samples": int(keep.sum()), "full_scale": fs.tolist(), "axes": list(AXES),
+            "design": {"name": design.name, "hash": f"0x{design.hash32():08x}"},
+            "rig_latency_s": float(rig_latency_s)}
 
 
 def format_table(result: dict) -> str:
     """Table V as text: one line per estimator and percentile."""
     width = max([10] + [len(r["estimator"]) for r in result["rows"]])
-    lines = [f"Table V: |error| in % of full scale, {result['samples']} samples",
+    against = (f" (reference advanced by the rig latency, {1e3 * result['rig_latency_s']:.1f} ms)"
+               if result.get("rig_latency_s") else "")
+    lines = [f"Table V: |error| in % of full scale, {result['samples']} samples{against}",
              f"{'estimator':<{width}}  {'':<4}" + "".join(f"{a:>8}" for a in AXES)]
     for r in result["rows"]:
         for q, key in COLUMNS:

@@ -70,6 +70,21 @@ def six_columns(values, n: int) -> np.ndarray:
     return values
 
 
+def check_rows(path, t: np.ndarray, theta: np.ndarray, wrench: np.ndarray,
+               place, require_complete_rows: bool) -> None:
+    """The row checks both log readers share: complete angle and wrench rows (when required)
+    and strictly increasing time. ``place(i)`` names row i in the reader's terms ("line 7" of
+    a CSV file, "sample 3" of an MCAP file) for the one-line error."""
+    if require_complete_rows:
+        for name, values in (("theta_e", theta), ("wrench", wrench)):
+            bad = np.isnan(values).any(axis=1)
+            if bad.any():
+                raise LogError(f"{path}: missing or NaN {name} value at {place(int(np.argmax(bad)))}")
+    steps = np.diff(t)
+    if (steps <= 0).any():
+        raise LogError(f"{path}: time is not strictly increasing at {place(int(np.argmax(steps <= 0)) + 1)}")
+
+
 class PartialOnError:
     """The ``with`` behaviour both log writers share: a clean exit completes the log; an
     exception leaves the ``.partial`` file (unless ``keep_partial_on_error`` is False), and a

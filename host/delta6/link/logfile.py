@@ -32,6 +32,7 @@ from delta6.link.logdata import (
     LogData,
     LogError,
     PartialOnError,
+    check_rows,
     six_columns,  # noqa: F401 - re-exported: the log API is this module's
 )
 
@@ -294,16 +295,7 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
     wrench = np.stack([col[c] for c in WRENCH_COLUMNS], axis=1)
     if np.isnan(t).any():
         raise LogError(f"{path}: missing time value on line {line_of[int(np.argmax(np.isnan(t)))]}")
-    if require_complete_rows:
-        for name, values in (("theta_e", theta), ("wrench", wrench)):
-            bad = np.isnan(values).any(axis=1)
-            if bad.any():
-                raise LogError(f"{path}: missing or NaN {name} value on line "
-                               f"{line_of[int(np.argmax(bad))]}")
-    steps = np.diff(t)
-    if (steps <= 0).any():
-        line = line_of[int(np.argmax(steps <= 0)) + 1]
-        raise LogError(f"{path}: time is not strictly increasing at line {line}")
+    check_rows(path, t, theta, wrench, lambda i: f"line {line_of[i]}", require_complete_rows)
 
     def optional(name):
         return col.get(name)

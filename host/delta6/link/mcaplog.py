@@ -38,6 +38,7 @@ from delta6.link.logdata import (
     LogData,
     LogError,
     PartialOnError,
+    check_rows,
     six_columns,
 )
 
@@ -281,16 +282,7 @@ def read_mcap(path: str | Path, *, require_complete_rows: bool = True) -> LogDat
             raise LogError(f"{path}: no whole sample before the cut")
         t, theta, wrench = t[:keep], theta[:keep], wrench[:keep]
         extra = {name: values[:keep] for name, values in extra.items()}
-    if require_complete_rows:
-        for name, values in (("theta_e", theta), ("wrench", wrench)):
-            bad = np.isnan(values).any(axis=1)
-            if bad.any():
-                raise LogError(f"{path}: missing or NaN {name} value in sample "
-                               f"{int(np.argmax(bad)) + 1}")
-    steps = np.diff(t)
-    if (steps <= 0).any():
-        raise LogError(f"{path}: time is not strictly increasing at sample "
-                       f"{int(np.argmax(steps <= 0)) + 2}")
+    check_rows(path, t, theta, wrench, lambda i: f"sample {i + 1}", require_complete_rows)
     meta.pop("columns", None)
     return LogData(t=t, theta=theta, wrench=wrench, seq=_as_int(extra.get("seq")),
                    status=_as_int(extra.get("status")), host_t=extra.get("host_t"),
