@@ -82,3 +82,19 @@ def test_heldout_scoring_never_sees_its_own_block(baseline):
     base = selection.heldout_block_sse(problem, [])
     for t in TERMS[:4]:
         assert selection.gain(base, selection.heldout_block_sse(problem, [t.name])) < 0.01
+
+
+@given(arrays(float, 3, elements=st.floats(-60.0, 60.0)),
+       arrays(float, (3, 3), elements=st.floats(-0.03, 0.03)))
+def test_the_clamp_offset_follows_from_the_affine_fit(clamp, mix):
+    # A force that follows the clamp's displacement, stiffness A (N/mm): per gimbal angle at
+    # rest it changes by A (e_i x c), the clamp's motion per angle turning about axis i.
+    from delta6.diagnosis.terms import HARNESS_AFFINE, harness_clamp
+    stiff = np.diag([0.3, 0.2, 0.1]) + mix
+    motion = np.stack([np.cross(e, clamp) for e in np.eye(3)], axis=1)     # mm/rad
+    f = np.zeros((7, 3))
+    f[1:4] = stiff.T
+    f[4:7] = (stiff @ motion).T
+    coef = f.ravel()
+    assert len(coef) == HARNESS_AFFINE
+    assert np.allclose(harness_clamp(coef), clamp, atol=1e-3 * (1 + np.abs(clamp).max()))

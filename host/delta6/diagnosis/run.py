@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -18,13 +19,15 @@ from delta6.core.design import Design
 from delta6.core.model import AXES
 from delta6.diagnosis import blas, excitation, gap, leftover, physics, selection, stream, verdicts
 from delta6.diagnosis import ladder as ladder_mod
+from delta6.diagnosis import terms as terms_mod
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.terms import TERMS
 from delta6.link.logfile import LogData
 
 #: A structured leftover holding at least this share of the analytical model's held-out
-#: squared error beyond the white noise means the vocabulary misses something sizeable; families carrying less than
-#: ``PARTIAL_SHARE`` of the gap are then reported as partial, not named.
+#: squared error beyond the white noise means the vocabulary misses something sizeable;
+#: families carrying less than ``PARTIAL_SHARE`` of the gap (alone, or with the other members
+#: of their group: ``group_shares``) are then reported as partial, not named.
 MISSING_SHARE = 0.25
 PARTIAL_SHARE = 0.30
 #: Logs up to this many samples keep their columns in memory (no second pass).
@@ -37,6 +40,63 @@ def missing_share(problem: selection.Problem, left_sse: float, base_sse: float) 
     if base_sse <= 0:
         return 0.0
     return max(left_sse - verdicts.noise_floor_sse(problem), 0.0) / base_sse
+
+
+def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float) -> dict:
+    """Per family of the final model ``chosen``, the share of the gap it carries for the
+    partial rule: its own share (what taking it out costs), or, for a member of a group of
+    families that absorb each other (friction, hysteresis and backlash: direction-dependent
+    joint torques), what taking the group's members out together costs. Each member's own
+    share is then small however large their joint one: every one of them stands in for the
+    others' part."""
+    if base_sse <= 0:
+        return {n: 0.0 for n in chosen}
+    full = selection.heldout_block_sse(problem, chosen).sum()
+    out = {}
+    for name in chosen:
+        label = problem.terms[name].group
+        members = {name} if label is None else {n for n in chosen
+                                                if problem.terms[n].group == label}
+        rest = [n for n in chosen if n not in members]
+        out[name] = float((selection.heldout_block_sse(problem, rest).sum() - full) / base_sse)
+    return out
+
+
+def harness_clamp(problem: selection.Problem, *, seed: int, min_gain: float,
+                  confidence: float, min_share: float) -> np.ndarray | None:
+    """Where a cable or harness is clamped on the plate (plate frame, mm), when the selection
+    on the first pass keeps the harness family: from the affine part of the family's fit
+    alone (``terms.harness_clamp``; the one-sided terms left out, they would take part of the
+    force's change with the centre's displacement but none of its change with the tilt; and
+    alone, for the families kept with it may be absorbing part of the harness). None: no
+    harness kept, or the clamp at the centre or implausibly far."""
+    if "harness" not in problem.terms:
+        return None
+    _, _, kept, _, _ = select_plausible(problem, list(problem.terms),
+                                        np.random.default_rng(seed), min_gain=min_gain,
+                                        confidence=confidence, min_share=min_share)
+    if "harness" not in kept:
+        return None
+    cols = problem.cols(["harness"])[:terms_mod.HARNESS_AFFINE]
+    gram = problem.gram[:, cols][:, :, cols].sum(axis=0)
+    clamp = terms_mod.harness_clamp(selection.solve(gram, problem.xty[:, cols].sum(axis=0),
+                                                    problem.penalty[cols]))
+    size = float(np.linalg.norm(clamp))
+    if not terms_mod.HARNESS_CLAMP_MIN_MM <= size <= terms_mod.HARNESS_CLAMP_MAX_MM:
+        return None
+    return clamp
+
+
+def follows_better(data: GapData, problem: selection.Problem, terms, clamp) -> bool:
+    """Whether the harness family with its hinge at the estimated clamp ``clamp`` removes more
+    of the held-out error, alone, than the first pass's (a pass over the harness's columns
+    only): a clamp near the centre, or one the affine fit estimated poorly, can follow the
+    data worse than the plate centre's displacement does."""
+    harness = next(t for t in terms if t.name == "harness")
+    trial = selection.build_problem(data, [terms_mod.harness_with_clamp(harness, clamp)],
+                                    keep_columns=False)
+    return bool(selection.heldout_block_sse(trial, ["harness"]).sum()
+                < selection.heldout_block_sse(problem, ["harness"]).sum())
 
 
 def diagnose(log: LogData, design: Design, **kwargs) -> dict:
@@ -59,7 +119,7 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
     if progress:
         progress("model and breakdowns")
     where = gap.where(data)
-    baseline_p99 = ladder_mod.p99(data.residual_pct).tolist()
+    baseline_p99 = ladder_mod.baseline_p99(data.residual / data.fs).tolist()
     for name in ("velocity", "residual_pct", "position_mm"):   # long logs: 50..100 MB each
         data.__dict__.pop(name, None)
 
@@ -74,16 +134,48 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
         problem = selection.build_problem(data, terms, progress=progress,
                                           signatures=signatures, keep_columns=keep,
                                           cache=cache)
-        return _decide(data, problem, terms, skipped, where, baseline_p99, cache, started,
+        clamp = harness_clamp(problem, seed=seed, min_gain=min_gain, confidence=confidence,
+                              min_share=min_share)
+        if clamp is not None and not follows_better(data, problem, terms, clamp):
+            clamp = None
+        if clamp is not None:
+            # Second pass: the harness's hinge in the clamp's own displacement. It stands
+            # only when its selection keeps the harness family, the reason for it (a hinge
+            # in the wrong place can leave the family below the forward test).
+            if progress:
+                progress("harness clamp {:.0f} mm off the centre: second pass".format(
+                    float(np.linalg.norm(clamp))))
+            second_terms = [terms_mod.harness_with_clamp(t, clamp) if t.name == "harness"
+                            else t for t in terms]
+            second_cache = None
+            if cache is not None:
+                Path(scratch, "second").mkdir()
+                second_cache = stream.ColumnCache(Path(scratch, "second"), cache.width)
+            second = selection.build_problem(data, second_terms, progress=progress,
+                                             signatures=signatures, keep_columns=keep,
+                                             cache=second_cache)
+            if "harness" in select_plausible(second, [t.name for t in second_terms],
+                                             np.random.default_rng(seed), min_gain=min_gain,
+                                             confidence=confidence, min_share=min_share)[2]:
+                problem, terms, cache = second, second_terms, second_cache
+            else:
+                clamp = None
+                if progress:
+                    progress("second pass dropped: the harness is not kept with it")
+            del second
+        result = _decide(data, problem, terms, skipped, where, baseline_p99, cache, started,
                        seed=seed, progress=progress, min_gain=min_gain,
                        confidence=confidence, min_share=min_share)
+        result["harness_clamp_mm"] = None if clamp is None else [float(v) for v in clamp]
+        return result
 
 
-def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, *, seed,
-            progress, min_gain, confidence, min_share) -> dict:
-    design = data.design
-    rng = np.random.default_rng(seed)
-    names = [t.name for t in terms]
+def select_plausible(problem: selection.Problem, names: list[str], rng, *, min_gain: float,
+                     confidence: float, min_share: float, progress=None):
+    """Forward and backward selection among ``names`` (which loses the implausible ones),
+    until every family kept fits plausibly. Returns the steps, the selection's information,
+    the families kept, the implausible ones (with their checks) and every candidate's
+    held-out error alone."""
     implausible = {}
     alone = None
     # A family that explains the data only with physically implausible parameters is not
@@ -123,6 +215,17 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         names.remove(worst)
         if progress:
             progress(f"not named: {worst} fits only with implausible parameters")
+    return steps_found, info, kept, implausible, alone
+
+
+def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, *, seed,
+            progress, min_gain, confidence, min_share) -> dict:
+    design = data.design
+    rng = np.random.default_rng(seed)
+    names = [t.name for t in terms]
+    steps_found, info, kept, implausible, alone = select_plausible(
+        problem, names, rng, min_gain=min_gain, confidence=confidence, min_share=min_share,
+        progress=progress)
     base_sse = info["base"]
     group_verdicts = verdicts.groups(problem, kept, info)
     # Members of a group verdict join the ladder (in forward order): the shrink is predicted
@@ -226,8 +329,9 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     partial = []
     if left_verdict["structured"] and missing_share(problem, left, base_total) >= MISSING_SHARE:
         own = {n for n, v in info["signature"].items() if v["confirmed"]}
+        carried = group_shares(problem, chosen, base_total)
         partial = [{"name": s["added"], "share_of_gap": s["share_of_gap"]} for s in steps
-                   if s["share_of_gap"] < PARTIAL_SHARE and s["added"] not in own]
+                   if carried[s["added"]] < PARTIAL_SHARE and s["added"] not in own]
     unnamed = {p["name"] for p in partial}
     for step in steps:
         step["named"] = step["added"] not in unnamed

@@ -212,20 +212,26 @@ def gain(sse_before: np.ndarray, sse_after: np.ndarray) -> float:
 
 #: The loud stratum of the block bootstrap: the fewest blocks holding this share of the error.
 LOUD_SHARE = 0.5
+#: ... but never fewer than this many: a stratum of one block is in every resample, and what
+#: a term does on that one block would never be questioned (a term fitting one outlier block
+#: would pass on it alone).
+MIN_LOUD_BLOCKS = 2
 
 
 def loudness_strata(sse: np.ndarray, share: float = LOUD_SHARE) -> np.ndarray:
     """1 for the loud blocks (the fewest, loudest first, that hold ``share`` of ``sse``; the
-    one that crosses it included), 0 for the others. How the error is spread over the blocks
-    is a property of the log's excitation, not of chance: a resample keeps as many loud
-    blocks as the log has."""
+    one that crosses it included; at least ``MIN_LOUD_BLOCKS``), 0 for the others. How the
+    error is spread over the blocks is a property of the log's excitation, not of chance: a
+    resample keeps as many loud blocks as the log has."""
     order = np.argsort(sse)[::-1]
     total = float(sse.sum())
     if not total > 0:
         return np.ones(len(sse), dtype=int)
     before = (np.cumsum(sse[order]) - sse[order]) / total
+    loud = max(int(np.count_nonzero(before < share - 1e-9)),   # (rounding of the cumsum)
+               min(MIN_LOUD_BLOCKS, len(sse)))
     out = np.zeros(len(sse), dtype=int)
-    out[order[before < share - 1e-9]] = 1      # (rounding of the cumulative sum)
+    out[order[:loud]] = 1
     return out
 
 

@@ -35,6 +35,8 @@ sample, shape (n, 6, p), with the parameters in physical units.
 """
 from __future__ import annotations
 
+import dataclasses
+import functools
 from dataclasses import dataclass
 from typing import Callable
 
@@ -340,7 +342,25 @@ HARNESS_REF_MM = 10.0
 _ONE_SIDED = ("abs", "abs_signed", "square")
 
 
-def _harness(data: GapData) -> np.ndarray:
+def clamp_displacement(data: GapData, clamp_mm) -> tuple[np.ndarray, np.ndarray]:
+    """A clamp ``clamp_mm`` (plate frame {E}, mm) off the plate's centre: its displacement
+    from rest (n, 3, mm, {B}) and its motion per joint angle (n, 3, 6, m/rad)."""
+    from delta6.core.model import forward_kinematics, rotation
+    c = np.asarray(clamp_mm, float) * 1e-3
+    rest = forward_kinematics(data.params, np.zeros((1, 3)))[0]
+    q = data.theta[:, 3:]
+    turned = rotation(q) @ c                                           # (n, 3) m
+    disp = (data.position_mm - rest * 1e3) + (turned - c) * 1e3
+    jac = np.empty((len(data), 3, 6))
+    jac[:, :, :3] = plate_jacobian(data)
+    for i in range(3):
+        step = np.zeros(3)
+        step[i] = _FK_STEP
+        jac[:, :, 3 + i] = (rotation(q + step) @ c - turned) / _FK_STEP
+    return disp, jac
+
+
+def _harness(data: GapData, clamp_mm=None) -> np.ndarray:
     # A cable or harness pulls on the plate with a force that depends on where the plate is:
     # affine in its pose's displacement from rest, the plate centre's (dp, mm) and the
     # gimbal's angles (q4..6, rad: a clamp off the centre moves with the tilt). The force f
@@ -359,12 +379,63 @@ def _harness(data: GapData) -> np.ndarray:
     for m in range(6):                                                 # per mm or rad
         cols.append(force * pose[:, None, m:m + 1])
     dirs = np.asarray(HARNESS_DIRECTIONS)                              # (D, 3)
-    along = force @ dirs.T                                             # (n, 6, D) per N
-    x = pose[:, :3] @ dirs.T                                           # (n, D) mm
+    if clamp_mm is None:
+        along = force @ dirs.T                                         # (n, 6, D) per N
+        x = pose[:, :3] @ dirs.T                                       # (n, D) mm
+    else:
+        # With the clamp's offset known (``harness_clamp``), the hinge is in the clamp's own
+        # displacement (the plate centre's plus the tilt's share), and its pull turns the
+        # gimbal too.
+        disp, jac_c = clamp_displacement(data, clamp_mm)
+        along = np.einsum("naj,nkj,dk->nad", data.torque_map, jac_c, dirs)
+        x = disp @ dirs.T
     ax = np.abs(x)
     for feat in (ax, x * ax / HARNESS_REF_MM, x * x / HARNESS_REF_MM):
         cols.append(along * feat[:, None, :])
     return np.concatenate(cols, axis=-1)
+
+
+#: Directions of the clamp's offset whose singular value is below this share of the largest
+#: are left at zero: a cable's stiffness is nearly of rank one (a harness stiff along one
+#: direction, a third of that across it, keeps all three).
+HARNESS_CLAMP_RCOND = 0.1
+
+
+def harness_clamp(affine: np.ndarray) -> np.ndarray:
+    """The clamp's offset from the plate's centre (plate frame {E}, mm) that the harness
+    family's affine fit ``affine`` (its first ``HARNESS_AFFINE`` coefficients) implies. The
+    force follows the clamp's displacement, the plate centre's plus the tilt's share R(q) c -
+    c: so its change per gimbal angle is its change per mm of the centre's displacement
+    times the clamp's motion per angle, d(R c)/dq at rest, linear in c. A least-squares
+    solve, minimum norm over the directions the fit determines (``HARNESS_CLAMP_RCOND``): a
+    cable pulling along one direction only shows c's part across it, which is the only part
+    that moves its hinge or turns the gimbal; the part along it stays zero rather than
+    following the noise."""
+    from delta6.core.model import rotation
+    f = np.asarray(affine, float)[:HARNESS_AFFINE].reshape(7, 3)
+    stiff = f[1:4].T                        # (force component, centre's x y z): N/mm
+    tilt = f[4:7].T                         # (force component, gimbal angle): N/rad
+    rows = []
+    for k in range(3):                      # d(R e_k)/dq at rest, (3, 3): mm/rad per mm
+        e = np.zeros(3)
+        e[k] = 1.0
+        motion = np.stack([(rotation(np.eye(3)[i] * _FK_STEP) @ e - e) / _FK_STEP
+                           for i in range(3)], axis=1)
+        rows.append((stiff @ motion).ravel())
+    system = np.stack(rows, axis=1)          # (9, 3)
+    return np.linalg.lstsq(system, tilt.ravel(), rcond=HARNESS_CLAMP_RCOND)[0]
+
+
+#: A clamp estimated closer to the plate's centre than this (mm) is taken to be at it; one
+#: further out than the plausibility limit is not believed (the first pass stays).
+HARNESS_CLAMP_MIN_MM = 1.0
+HARNESS_CLAMP_MAX_MM = 100.0
+
+
+def harness_with_clamp(term: Term, clamp_mm) -> Term:
+    """The harness family with its one-sided terms at a clamp ``clamp_mm`` off the centre."""
+    return dataclasses.replace(term, build=functools.partial(_harness, clamp_mm=tuple(
+        float(v) for v in clamp_mm)))
 
 
 def _dwell_samples(data: GapData) -> np.ndarray:
@@ -431,14 +502,14 @@ _POSE_UNITS = ("_n", "_per_x_mm", "_per_y_mm", "_per_z_mm", "_per_q4_rad", "_per
 #: The one-sided terms: a few hundredths of a N/mm too.
 HARNESS_PRIORS = ((0.3,) * 3 + (0.05,) * 9 + (0.05 * 20.0,) * 9
                   + (0.05,) * (len(_ONE_SIDED) * len(HARNESS_DIRECTIONS)))
-_HARNESS_AFFINE = 7 * 3
+HARNESS_AFFINE = 7 * 3
 
 
 def _harness_plausible(coef):
     # Limits: 3 N of preload, 0.5 N/mm, a clamp at most 100 mm off the centre; the one-sided
     # pull at most 0.5 N/mm along any direction, at the reference displacement.
-    f = coef[:_HARNESS_AFFINE].reshape(7, 3)        # pose, component
-    one_sided = np.abs(coef[_HARNESS_AFFINE:].reshape(len(_ONE_SIDED), -1)).sum(axis=0)
+    f = coef[:HARNESS_AFFINE].reshape(7, 3)        # pose, component
+    one_sided = np.abs(coef[HARNESS_AFFINE:].reshape(len(_ONE_SIDED), -1)).sum(axis=0)
     return [("preload_n", f[0], 3.0), ("stiffness_n_per_mm", f[1:4], 0.5),
             ("stiffness_n_per_rad", f[4:], 0.5 * 100.0),
             ("one_sided_n_per_mm", one_sided, 0.5)]
