@@ -63,40 +63,56 @@ def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float)
 
 
 def harness_clamp(problem: selection.Problem, *, seed: int, min_gain: float,
-                  confidence: float, min_share: float) -> np.ndarray | None:
-    """Where a cable or harness is clamped on the plate (plate frame, mm), when the selection
-    on the first pass keeps the harness family: from the affine part of the family's fit
-    alone (``terms.harness_clamp``; the one-sided terms left out, they would take part of the
-    force's change with the centre's displacement but none of its change with the tilt; and
-    alone, for the families kept with it may be absorbing part of the harness). None: no
-    harness kept, or the clamp at the centre or implausibly far."""
+                  confidence: float, min_share: float) -> tuple[np.ndarray | None, bool]:
+    """Where a cable or harness is clamped on the plate (plate frame, mm), from the affine
+    part of the harness family's fit alone (``terms.harness_clamp``; the one-sided terms left
+    out, they would take part of the force's change with the centre's displacement but none of
+    its change with the tilt; and alone, for the families kept with it may be absorbing part
+    of the harness), and whether the first pass's selection (with the plausibility checks)
+    kept the family. The clamp is estimated also when the family was not kept but removes a
+    significant share of the held-out error alone (the forward test's rule): a cable clamped
+    far off the centre stretches mostly with the tilt, so a hinge in the centre's displacement
+    misses most of it and a neighbouring family can win the first pass. None: no such
+    family, or the clamp at the centre or implausibly far."""
     if "harness" not in problem.terms:
-        return None
-    _, _, kept, _, _ = select_plausible(problem, list(problem.terms),
-                                        np.random.default_rng(seed), min_gain=min_gain,
-                                        confidence=confidence, min_share=min_share)
-    if "harness" not in kept:
-        return None
+        return None, False
+    rng = np.random.default_rng(seed)
+    _, info, kept, _, alone = select_plausible(problem, list(problem.terms), rng,
+                                               min_gain=min_gain, confidence=confidence,
+                                               min_share=min_share)
+    was_kept = "harness" in kept
+    if not was_kept:
+        boot = selection.stratified_gain(info["base"], alone["harness"], rng)
+        if not float(np.quantile(boot, 1 - confidence)) > min_gain:
+            return None, False
     cols = problem.cols(["harness"])[:terms_mod.HARNESS_AFFINE]
     gram = problem.gram[:, cols][:, :, cols].sum(axis=0)
     clamp = terms_mod.harness_clamp(selection.solve(gram, problem.xty[:, cols].sum(axis=0),
                                                     problem.penalty[cols]))
     size = float(np.linalg.norm(clamp))
     if not terms_mod.HARNESS_CLAMP_MIN_MM <= size <= terms_mod.HARNESS_CLAMP_MAX_MM:
-        return None
-    return clamp
+        return None, was_kept
+    return clamp, was_kept
 
 
-def follows_better(data: GapData, problem: selection.Problem, terms, clamp) -> bool:
+def follows_better(data: GapData, problem: selection.Problem, terms, clamp, *,
+                   significant: bool = False, seed: int = 0, min_gain: float = 0.0,
+                   confidence: float = selection.CONFIDENCE) -> bool:
     """Whether the harness family with its hinge at the estimated clamp ``clamp`` removes more
     of the held-out error, alone, than the first pass's (a pass over the harness's columns
     only): a clamp near the centre, or one the affine fit estimated poorly, can follow the
-    data worse than the plate centre's displacement does."""
+    data worse than the plate centre's displacement does. With ``significant`` (a family
+    the first pass did not keep), more by the forward test's rule: the clamp must remove more
+    than ``min_gain`` of what the centre's hinge leaves, at the bootstrap's lower quantile."""
     harness = next(t for t in terms if t.name == "harness")
     trial = selection.build_problem(data, [terms_mod.harness_with_clamp(harness, clamp)],
                                     keep_columns=False)
-    return bool(selection.heldout_block_sse(trial, ["harness"]).sum()
-                < selection.heldout_block_sse(problem, ["harness"]).sum())
+    at_clamp = selection.heldout_block_sse(trial, ["harness"])
+    at_centre = selection.heldout_block_sse(problem, ["harness"])
+    if not significant:
+        return bool(at_clamp.sum() < at_centre.sum())
+    boot = selection.stratified_gain(at_centre, at_clamp, np.random.default_rng(seed))
+    return bool(float(np.quantile(boot, 1 - confidence)) > min_gain)
 
 
 def diagnose(log: LogData, design: Design, **kwargs) -> dict:
@@ -134,9 +150,11 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
         problem = selection.build_problem(data, terms, progress=progress,
                                           signatures=signatures, keep_columns=keep,
                                           cache=cache)
-        clamp = harness_clamp(problem, seed=seed, min_gain=min_gain, confidence=confidence,
-                              min_share=min_share)
-        if clamp is not None and not follows_better(data, problem, terms, clamp):
+        clamp, was_kept = harness_clamp(problem, seed=seed, min_gain=min_gain,
+                                        confidence=confidence, min_share=min_share)
+        if clamp is not None and not follows_better(
+                data, problem, terms, clamp, significant=not was_kept, seed=seed,
+                min_gain=min_gain, confidence=confidence):
             clamp = None
         if clamp is not None:
             # Second pass: the harness's hinge in the clamp's own displacement. It stands
