@@ -293,20 +293,16 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     candidates.sort(key=lambda c: c["score"], reverse=True)
 
     y = data.residual / data.fs
-    weights, step_p99, final_pred = ladder_mod.monotone(
+    weights, step_p99, final_pred, step_sse = ladder_mod.monotone(
         y, (held["pred"].pop(("step", s.added)) for s in steps_found))
     steps = []
     notes: list[str] = []
     chosen = []
     coef_all = np.zeros(0)
-    fold_all = np.zeros((len(problem.folds), 0))
-    current = base_sse
-    for step, weight, p99_after in zip(steps_found, weights, step_p99):
+    current = float(base_sse.sum())
+    for step, weight, p99_after, sse in zip(steps_found, weights, step_p99, step_sse):
         chosen.append(step.added)
-        coef_all = ladder_mod.blend_coefficients(coef_all, selection.fit(problem, chosen), weight)
-        fold_all = ladder_mod.blend_coefficients(
-            fold_all, selection.fold_coefficients(problem, chosen), weight)
-        sse = selection.heldout_block_sse(problem, chosen, coefs=fold_all)
+        coef_all = selection.fit(problem, chosen)
         params = {}
         cols = 0
         for name in chosen:
@@ -317,8 +313,9 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         notes += physics.warnings(step.added, params[step.added])
         steps.append({"added": step.added,
                       "heldout_p99_pct": p99_after.tolist(),
-                      "gain": selection.gain(current, sse), "gain_lower": step.gain_low,
-                      "damping": 1.0 - weight,
+                      "gain": 1.0 - sse / current if current > 0 else 0.0,
+                      "gain_lower": step.gain_low,
+                      "damping": (1.0 - weight).tolist(),
                       "params": params[step.added], "all_params": params})
         current = sse
 
@@ -332,7 +329,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     del y
     final_pct = 100.0 * leftover_fs
     base_total = float(base_sse.sum())
-    left = float(current.sum())
+    left = float(current)
     # Plausibility of every named family's fit, and of each candidate's fit alone.
     named_plausibility = verdicts.plausibility(problem, chosen, coef_all) if chosen else {}
     for c in candidates:
