@@ -156,6 +156,36 @@ def test_a_cable_far_off_the_centre_is_found_when_the_first_pass_misses_it(basel
     assert {c["name"]: c["score"] for c in verdict["candidates"]}["harness"] > 0.7
 
 
+def test_a_family_carrying_too_little_with_its_neighbours_stays_in_the_ladder_unnamed(
+        baseline, monkeypatch):
+    """The naming rule weighs a family with the families it trades with (a stiffening spring
+    with the spring-rate error that is its straight part): with a threshold above what the
+    weaker of the two carries alone but below what the pair carries, both stay named; a
+    family below it stays in the ladder (the shrink is predicted with it) but is listed as
+    minor, not named."""
+    from delta6.diagnosis import run as run_module
+    effect = twin.make_effect("nonlinear_spring", seed=35, formulation="progressive",
+                              magnitude=0.9)
+    r = twin.simulate(baseline, [effect], duration_s=DURATION_S, rate_hz=50.0, seed=35,
+                      record_temp=True)
+    log = LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c)
+    verdict = diagnose(log, baseline, seed=0)
+    assert verdict["present"][:2] == ["nonlinear_spring", "stiffness_mismatch"]
+    assert verdict["minor"] == []
+    own = {s["added"]: s["share_of_gap"] for s in verdict["ladder"]}
+    weaker = min(own["nonlinear_spring"], own["stiffness_mismatch"])
+    assert weaker * 1.01 < own["nonlinear_spring"] + own["stiffness_mismatch"]
+    monkeypatch.setattr(run_module, "NAME_SHARE", weaker * 1.01)
+    assert diagnose(log, baseline, seed=0)["present"] == verdict["present"]
+    monkeypatch.setattr(run_module, "NAME_SHARE", 10.0)
+    strict = diagnose(log, baseline, seed=0)
+    assert strict["present"] == []
+    assert {m["name"] for m in strict["minor"]} == set(verdict["present"])
+    assert [s["added"] for s in strict["ladder"]] == [s["added"] for s in verdict["ladder"]]
+    assert not any(s["named"] for s in strict["ladder"])
+    assert strict["ladder"][-1]["heldout_p99_pct"] == verdict["ladder"][-1]["heldout_p99_pct"]
+
+
 def test_no_effect_on_ideal_data(baseline):
     _, verdict = run(baseline, [], seed=32)
     assert verdict["present"] == []

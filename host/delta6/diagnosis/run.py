@@ -30,6 +30,11 @@ from delta6.link.logfile import LogData
 #: of their group: ``group_shares``) are then reported as partial, not named.
 MISSING_SHARE = 0.25
 PARTIAL_SHARE = 0.30
+#: A family whose removal from the final model costs less than this share of the gap (with
+#: the families it trades with: ``group_shares`` with ``refinements``) stays in the ladder
+#: but is not named (``minor``): in a mix, neighbouring families trade that much among
+#: themselves, so such a name says little about which effect is there.
+NAME_SHARE = 0.015
 #: Logs up to this many samples keep their columns in memory (no second pass).
 KEEP_COLUMNS_SAMPLES = 30_000
 
@@ -42,13 +47,16 @@ def missing_share(problem: selection.Problem, left_sse: float, base_sse: float) 
     return max(left_sse - verdicts.noise_floor_sse(problem), 0.0) / base_sse
 
 
-def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float) -> dict:
+def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float,
+                 refinements: bool = False) -> dict:
     """Per family of the final model ``chosen``, the share of the gap it carries for the
     partial rule: its own share (what taking it out costs), or, for a member of a group of
     families that absorb each other (friction, hysteresis and backlash: direction-dependent
     joint torques), what taking the group's members out together costs. Each member's own
     share is then small however large their joint one: every one of them stands in for the
-    others' part."""
+    others' part. With ``refinements``, a family and the one it refines (a stiffening spring
+    and a spring-rate error: the first's straight-line part is the second's) count as such
+    a group too."""
     if base_sse <= 0:
         return {n: 0.0 for n in chosen}
     full = selection.heldout_block_sse(problem, chosen).sum()
@@ -57,6 +65,9 @@ def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float)
         label = problem.terms[name].group
         members = {name} if label is None else {n for n in chosen
                                                 if problem.terms[n].group == label}
+        if refinements:
+            members |= {n for n in chosen if problem.terms[n].refines == name
+                        or problem.terms[name].refines == n}
         rest = [n for n in chosen if n not in members]
         out[name] = float((selection.heldout_block_sse(problem, rest).sum() - full) / base_sse)
     return out
@@ -348,6 +359,15 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         partial = [{"name": s["added"], "share_of_gap": s["share_of_gap"]} for s in steps
                    if carried[s["added"]] < PARTIAL_SHARE and s["added"] not in own]
     unnamed = {p["name"] for p in partial}
+    # A family that carries too little of the gap, with the families it trades with, to
+    # tell it from its neighbours' trading is not named either (a family its own signature
+    # confirms is spared, as above).
+    confirmed = {n for n, v in info["signature"].items() if v["confirmed"]}
+    traded = group_shares(problem, chosen, base_total, refinements=True) if chosen else {}
+    minor = [{"name": s["added"], "share_of_gap": s["share_of_gap"]} for s in steps
+             if s["added"] in kept and s["added"] not in unnamed
+             and s["added"] not in confirmed and traded[s["added"]] < NAME_SHARE]
+    unnamed |= {m["name"] for m in minor}
     for step in steps:
         step["named"] = step["added"] not in unnamed
     present = [n for n in chosen if n in kept and n not in unnamed]
@@ -356,6 +376,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         "baseline_heldout_p99_pct": baseline_p99,
         "present": present,
         "partial": partial,
+        "minor": minor,
         "below_noise": faint,
         "groups": group_verdicts,
         "ladder": steps,

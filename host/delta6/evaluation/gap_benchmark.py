@@ -211,6 +211,7 @@ def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> d
         "groups": [{"members": g["members"], "share_of_gap": g["share_of_gap"],
                     "text": g["text"]} for g in verdict["groups"]],
         "partial": verdict["partial"],
+        "minor": verdict["minor"],
         "implausible": sorted(verdict["implausible"]),
         "ladder": [{"added": s["added"], "heldout_p99_pct": s["heldout_p99_pct"],
                     "share_of_gap": s["share_of_gap"], "damping": s["damping"],
@@ -488,6 +489,7 @@ def format_extended(summary: dict, results: list[dict]) -> str:
         verdict = ", ".join(r["present"]) or "nothing"
         extra = "".join(f"; group {g['members']}" for g in r["groups"])
         extra += "".join(f"; partial {p['name']}" for p in r["partial"])
+        extra += "".join(f"; minor {m['name']}" for m in r.get("minor", []))
         extra += f"; not plausible {r['implausible']}" if r["implausible"] else ""
         if r["kind"] == "unknown":
             left = r["leftover"]
