@@ -243,7 +243,7 @@ def main() -> int:
               f"{with_model.sizes.ram:,} B of {avrbuild.NANO.flash_bytes:,} / "
               f"{avrbuild.NANO.ram_bytes:,} (without model{' (calibrated)' if cal else ''} "
               f"{plain.sizes.flash:,} / "
-              f"{plain.sizes.ram:,})")
+              f"{plain.sizes.ram:,})" + avrbuild.flash_note(with_model.sizes.flash))
         print(f"flash / static RAM, avrxmega3 size check: {model_x3.sizes.flash:,} / "
               f"{model_x3.sizes.ram:,} B of 49,152 / 6,144 (without model"
               f"{' (calibrated)' if cal else ''} "

@@ -60,9 +60,19 @@ class Board:
     ram_bytes: int
 
 
-#: The classic Nano: what the emulator runs (simavr knows the ATmega328P, not the 4809).
+#: The classic Nano: what the emulator runs (simavr knows the ATmega328P, not the 4809). Its
+#: budget is the 30,720 B a classic Nano's bootloader leaves; the emulator runs all 32 KB.
 NANO = Board("nano", "atmega328p", 16_000_000, "eightanaloginputs", "ARDUINO_AVR_NANO",
              flash_bytes=30720, ram_bytes=2048)
+
+
+def flash_note(flash: int) -> str:
+    """What an ATmega328P image over a classic Nano's budget still fits ('' when within)."""
+    if flash <= NANO.flash_bytes:
+        return ""
+    room = "within" if flash <= 32_768 else "over"
+    return (f" (over a classic Nano's {NANO.flash_bytes:,} B with its bootloader; {room} the "
+            "32 KB the emulator runs; the Nano Every has 48 KB)")
 
 
 @dataclass(frozen=True)

@@ -202,7 +202,8 @@ def run(args: argparse.Namespace) -> int:
         image = build_image(design, include_dir_of(out), cal, model)
         sizes = image.sizes
         print(f"built {_rel(image.elf)} and .hex ({image.mcu}): flash {sizes.flash} B of "
-              f"{avrbuild.NANO.flash_bytes}, static RAM {sizes.ram} B of {avrbuild.NANO.ram_bytes}")
+              f"{avrbuild.NANO.flash_bytes}, static RAM {sizes.ram} B of {avrbuild.NANO.ram_bytes}"
+              + avrbuild.flash_note(sizes.flash))
     return 0
 
 
