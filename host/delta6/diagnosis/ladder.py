@@ -1,29 +1,27 @@
 """The ladder: the present effects added one by one, never making the held-out error worse.
 
-Each step refits all added terms. A step that would raise the held-out p99 of any axis above
-the step before (a flexible term that helps most axes but extrapolates on one) is damped: its
-model is blended with the step before, coefficients (1 - a) * before + a * refit, with the
-largest a in 1, 0.9, ..., 0 that leaves no axis worse. The blend is itself a linear model of
-the same terms (the parameters reported are the blended ones), and a = 0 is the step before,
-so no step can be worse than its predecessor on any axis.
+Each step refits all added terms. A step that would raise the held-out p99 of an axis above
+the step before (a flexible term that helps most axes but extrapolates on one) is damped on
+that axis: the axis's prediction is blended with the step before, (1 - a_k) * before + a_k *
+refit, with the largest a_k in 1, 0.9, ..., 0 that leaves the axis no worse. The p99 of an
+axis depends on that axis's prediction alone, so each axis is settled by itself, and a_k = 0
+is the step before exactly: no step is worse than its predecessor on any axis, not even by
+the rounding of a p99.
 
-"Worse" allows for the resolution of a held-out p99: ``TOLERANCE_REL`` of the value plus
-``TOLERANCE_PCT`` (% FS). Both are far below what the step is judged on (an axis that a step
-takes from 5 % to 16 % FS, as a flexible term extrapolating can, is damped), and keep an axis
-at the noise floor from damping a step that halves the error of the others. Without them (no
-axis may rise at all) the one blend weight all axes share gives up whole steps over a hair on
-one axis: any correction moves an axis at its noise floor by a hair either way, at first
-order in the weight (on a development run, 0.003 % FS on an axis at 0.18 % FS damped every
-step of a ladder entirely). The comparison is made on the very p99s the ladder reports (the
-baseline's rounded as every step's).
+Why per axis: the effect's parameters are shared by the six axes, and one blend weight for
+all of them had to choose between two wrongs. An axis at its noise floor moves by a hair
+either way under any correction, at first order in the weight: a strict common weight gave up
+whole steps over such hairs (on a development run, 0.003 % FS on an axis at 0.18 % FS damped
+every step of a ladder entirely), and a tolerance for them let real trade-offs through (under
+one-axis pushes, a step taking one axis up by 2 % of its value while taking others down by
+ten times that). Per axis, the compensation of an axis uses the step where it helps that
+axis and leaves the axis alone where it does not; the step's parameters are its refit's.
 """
 from __future__ import annotations
 
 import numpy as np
 
 ALPHAS = np.linspace(1.0, 0.0, 11)
-TOLERANCE_REL = 0.02
-TOLERANCE_PCT = 0.005
 
 
 def p99(err_pct: np.ndarray) -> np.ndarray:
@@ -44,35 +42,40 @@ def baseline_p99(y: np.ndarray) -> np.ndarray:
     return p99_of_difference(y, np.zeros((1, y.shape[1])))
 
 
-def monotone(y: np.ndarray, preds) -> tuple[list[float], list[np.ndarray], np.ndarray]:
+def squared_error(y: np.ndarray, pred: np.ndarray) -> float:
+    """Sum of (y - pred)^2 over all samples and axes, with one temporary array."""
+    tmp = np.subtract(y, pred)
+    np.square(tmp, out=tmp)
+    return float(tmp.sum())
+
+
+def monotone(y: np.ndarray, preds) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray,
+                                             list[float]]:
     """``y`` (n, 6) FS-normalised residual, ``preds`` the held-out predictions of the refit
-    after each step (any iterable: a generator lets each be freed once used). Returns the blend
-    weight of each step, the held-out p99 (% FS) after each step, and the final blended
-    prediction (only one (n, 6) array is kept: long logs). The steps start from
-    :func:`baseline_p99`."""
-    weights, p99s = [], []
+    after each step (any iterable: a generator lets each be freed once used). Returns the
+    per-axis blend weights of each step (6,), the held-out p99 (% FS) after each step, the
+    final blended prediction (only one (n, 6) array is kept: long logs) and the held-out
+    squared error after each step. The steps start from :func:`baseline_p99`."""
+    weights, p99s, sses = [], [], []
     before = np.zeros_like(y)
     before_p99 = baseline_p99(y)
     for pred in preds:
         step = np.subtract(pred, before, dtype=float)        # pred - before
-        for a in ALPHAS:
-            if a == 0.0:                    # the step before, exactly (its reported p99s)
-                trial, trial_p99 = before, before_p99
+        a = np.zeros(y.shape[1])
+        after_p99 = before_p99.copy()
+        open_axes = np.ones(y.shape[1], dtype=bool)
+        for alpha in ALPHAS[ALPHAS > 0]:
+            trial_p99 = p99_of_difference(y, before + alpha * step)
+            take = open_axes & (trial_p99 <= before_p99)
+            a[take] = alpha
+            after_p99[take] = trial_p99[take]
+            open_axes &= ~take
+            if not open_axes.any():
                 break
-            trial = before + a * step
-            trial_p99 = p99_of_difference(y, trial)
-            if np.all(trial_p99 <= before_p99 * (1 + TOLERANCE_REL) + TOLERANCE_PCT):
-                break
-        weights.append(float(a))
-        p99s.append(trial_p99)
-        before, before_p99 = trial, trial_p99
+        before = before + a * step
+        weights.append(a)
+        p99s.append(after_p99)
+        sses.append(squared_error(y, before))
+        before_p99 = after_p99
         del step
-    return weights, p99s, before
-
-
-def blend_coefficients(prev: np.ndarray, new: np.ndarray, a: float) -> np.ndarray:
-    """Coefficients of the blend; ``prev`` covers the first len(prev) of ``new``'s columns
-    (the terms added before), the rest start from zero. Works per fold too (last axis)."""
-    padded = np.zeros_like(new)
-    padded[..., :prev.shape[-1]] = prev
-    return (1.0 - a) * padded + a * new
+    return weights, p99s, before, sses

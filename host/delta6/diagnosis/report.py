@@ -137,6 +137,10 @@ def verdict_lines(result: dict) -> list[str]:
         lines.append(f"- Not named: {p['name']} carries only {100 * p['share_of_gap']:.0f} % "
                      "of the gap while a structured leftover remains: it may be absorbing part "
                      "of an effect the vocabulary lacks.")
+    for m in result.get("minor", []):
+        lines.append(f"- Not named: {m['name']} carries only {100 * m['share_of_gap']:.1f} % "
+                     "of the gap (with the families it trades with): in the ladder, but too "
+                     "little to tell it from its neighbours.")
     for f in result.get("below_noise", []):
         lines.append(f"- Not named: {f['name']} removes only "
                      f"{100 * f['share_of_noise_floor']:.0f} % of the noise floor's squared "

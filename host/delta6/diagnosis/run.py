@@ -30,6 +30,11 @@ from delta6.link.logfile import LogData
 #: of their group: ``group_shares``) are then reported as partial, not named.
 MISSING_SHARE = 0.25
 PARTIAL_SHARE = 0.30
+#: A family whose removal from the final model costs less than this share of the gap (with
+#: the families it trades with: ``group_shares`` with ``refinements``) stays in the ladder
+#: but is not named (``minor``): in a mix, neighbouring families trade that much among
+#: themselves, so such a name says little about which effect is there.
+NAME_SHARE = 0.015
 #: Logs up to this many samples keep their columns in memory (no second pass).
 KEEP_COLUMNS_SAMPLES = 30_000
 
@@ -42,13 +47,16 @@ def missing_share(problem: selection.Problem, left_sse: float, base_sse: float) 
     return max(left_sse - verdicts.noise_floor_sse(problem), 0.0) / base_sse
 
 
-def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float) -> dict:
+def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float,
+                 refinements: bool = False) -> dict:
     """Per family of the final model ``chosen``, the share of the gap it carries for the
     partial rule: its own share (what taking it out costs), or, for a member of a group of
     families that absorb each other (friction, hysteresis and backlash: direction-dependent
     joint torques), what taking the group's members out together costs. Each member's own
     share is then small however large their joint one: every one of them stands in for the
-    others' part."""
+    others' part. With ``refinements``, a family and the one it refines (a stiffening spring
+    and a spring-rate error: the first's straight-line part is the second's) count as such
+    a group too."""
     if base_sse <= 0:
         return {n: 0.0 for n in chosen}
     full = selection.heldout_block_sse(problem, chosen).sum()
@@ -57,46 +65,65 @@ def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float)
         label = problem.terms[name].group
         members = {name} if label is None else {n for n in chosen
                                                 if problem.terms[n].group == label}
+        if refinements:
+            members |= {n for n in chosen if problem.terms[n].refines == name
+                        or problem.terms[name].refines == n}
         rest = [n for n in chosen if n not in members]
         out[name] = float((selection.heldout_block_sse(problem, rest).sum() - full) / base_sse)
     return out
 
 
 def harness_clamp(problem: selection.Problem, *, seed: int, min_gain: float,
-                  confidence: float, min_share: float) -> np.ndarray | None:
-    """Where a cable or harness is clamped on the plate (plate frame, mm), when the selection
-    on the first pass keeps the harness family: from the affine part of the family's fit
-    alone (``terms.harness_clamp``; the one-sided terms left out, they would take part of the
-    force's change with the centre's displacement but none of its change with the tilt; and
-    alone, for the families kept with it may be absorbing part of the harness). None: no
-    harness kept, or the clamp at the centre or implausibly far."""
+                  confidence: float, min_share: float) -> tuple[np.ndarray | None, bool]:
+    """Where a cable or harness is clamped on the plate (plate frame, mm), from the affine
+    part of the harness family's fit alone (``terms.harness_clamp``; the one-sided terms left
+    out, they would take part of the force's change with the centre's displacement but none of
+    its change with the tilt; and alone, for the families kept with it may be absorbing part
+    of the harness), and whether the first pass's selection (with the plausibility checks)
+    kept the family. The clamp is estimated also when the family was not kept but removes a
+    significant share of the held-out error alone (the forward test's rule): a cable clamped
+    far off the centre stretches mostly with the tilt, so a hinge in the centre's displacement
+    misses most of it and a neighbouring family can win the first pass. None: no such
+    family, or the clamp at the centre or implausibly far."""
     if "harness" not in problem.terms:
-        return None
-    _, _, kept, _, _ = select_plausible(problem, list(problem.terms),
-                                        np.random.default_rng(seed), min_gain=min_gain,
-                                        confidence=confidence, min_share=min_share)
-    if "harness" not in kept:
-        return None
+        return None, False
+    rng = np.random.default_rng(seed)
+    _, info, kept, _, alone = select_plausible(problem, list(problem.terms), rng,
+                                               min_gain=min_gain, confidence=confidence,
+                                               min_share=min_share)
+    was_kept = "harness" in kept
+    if not was_kept:
+        boot = selection.stratified_gain(info["base"], alone["harness"], rng)
+        if not float(np.quantile(boot, 1 - confidence)) > min_gain:
+            return None, False
     cols = problem.cols(["harness"])[:terms_mod.HARNESS_AFFINE]
     gram = problem.gram[:, cols][:, :, cols].sum(axis=0)
     clamp = terms_mod.harness_clamp(selection.solve(gram, problem.xty[:, cols].sum(axis=0),
                                                     problem.penalty[cols]))
     size = float(np.linalg.norm(clamp))
     if not terms_mod.HARNESS_CLAMP_MIN_MM <= size <= terms_mod.HARNESS_CLAMP_MAX_MM:
-        return None
-    return clamp
+        return None, was_kept
+    return clamp, was_kept
 
 
-def follows_better(data: GapData, problem: selection.Problem, terms, clamp) -> bool:
+def follows_better(data: GapData, problem: selection.Problem, terms, clamp, *,
+                   significant: bool = False, seed: int = 0, min_gain: float = 0.0,
+                   confidence: float = selection.CONFIDENCE) -> bool:
     """Whether the harness family with its hinge at the estimated clamp ``clamp`` removes more
     of the held-out error, alone, than the first pass's (a pass over the harness's columns
     only): a clamp near the centre, or one the affine fit estimated poorly, can follow the
-    data worse than the plate centre's displacement does."""
+    data worse than the plate centre's displacement does. With ``significant`` (a family
+    the first pass did not keep), more by the forward test's rule: the clamp must remove more
+    than ``min_gain`` of what the centre's hinge leaves, at the bootstrap's lower quantile."""
     harness = next(t for t in terms if t.name == "harness")
     trial = selection.build_problem(data, [terms_mod.harness_with_clamp(harness, clamp)],
                                     keep_columns=False)
-    return bool(selection.heldout_block_sse(trial, ["harness"]).sum()
-                < selection.heldout_block_sse(problem, ["harness"]).sum())
+    at_clamp = selection.heldout_block_sse(trial, ["harness"])
+    at_centre = selection.heldout_block_sse(problem, ["harness"])
+    if not significant:
+        return bool(at_clamp.sum() < at_centre.sum())
+    boot = selection.stratified_gain(at_centre, at_clamp, np.random.default_rng(seed))
+    return bool(float(np.quantile(boot, 1 - confidence)) > min_gain)
 
 
 def diagnose(log: LogData, design: Design, **kwargs) -> dict:
@@ -134,9 +161,11 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
         problem = selection.build_problem(data, terms, progress=progress,
                                           signatures=signatures, keep_columns=keep,
                                           cache=cache)
-        clamp = harness_clamp(problem, seed=seed, min_gain=min_gain, confidence=confidence,
-                              min_share=min_share)
-        if clamp is not None and not follows_better(data, problem, terms, clamp):
+        clamp, was_kept = harness_clamp(problem, seed=seed, min_gain=min_gain,
+                                        confidence=confidence, min_share=min_share)
+        if clamp is not None and not follows_better(
+                data, problem, terms, clamp, significant=not was_kept, seed=seed,
+                min_gain=min_gain, confidence=confidence):
             clamp = None
         if clamp is not None:
             # Second pass: the harness's hinge in the clamp's own displacement. It stands
@@ -275,20 +304,16 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     candidates.sort(key=lambda c: c["score"], reverse=True)
 
     y = data.residual / data.fs
-    weights, step_p99, final_pred = ladder_mod.monotone(
+    weights, step_p99, final_pred, step_sse = ladder_mod.monotone(
         y, (held["pred"].pop(("step", s.added)) for s in steps_found))
     steps = []
     notes: list[str] = []
     chosen = []
     coef_all = np.zeros(0)
-    fold_all = np.zeros((len(problem.folds), 0))
-    current = base_sse
-    for step, weight, p99_after in zip(steps_found, weights, step_p99):
+    current = float(base_sse.sum())
+    for step, weight, p99_after, sse in zip(steps_found, weights, step_p99, step_sse):
         chosen.append(step.added)
-        coef_all = ladder_mod.blend_coefficients(coef_all, selection.fit(problem, chosen), weight)
-        fold_all = ladder_mod.blend_coefficients(
-            fold_all, selection.fold_coefficients(problem, chosen), weight)
-        sse = selection.heldout_block_sse(problem, chosen, coefs=fold_all)
+        coef_all = selection.fit(problem, chosen)
         params = {}
         cols = 0
         for name in chosen:
@@ -299,8 +324,9 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         notes += physics.warnings(step.added, params[step.added])
         steps.append({"added": step.added,
                       "heldout_p99_pct": p99_after.tolist(),
-                      "gain": selection.gain(current, sse), "gain_lower": step.gain_low,
-                      "damping": 1.0 - weight,
+                      "gain": 1.0 - sse / current if current > 0 else 0.0,
+                      "gain_lower": step.gain_low,
+                      "damping": (1.0 - weight).tolist(),
                       "params": params[step.added], "all_params": params})
         current = sse
 
@@ -314,7 +340,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     del y
     final_pct = 100.0 * leftover_fs
     base_total = float(base_sse.sum())
-    left = float(current.sum())
+    left = float(current)
     # Plausibility of every named family's fit, and of each candidate's fit alone.
     named_plausibility = verdicts.plausibility(problem, chosen, coef_all) if chosen else {}
     for c in candidates:
@@ -333,6 +359,15 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         partial = [{"name": s["added"], "share_of_gap": s["share_of_gap"]} for s in steps
                    if carried[s["added"]] < PARTIAL_SHARE and s["added"] not in own]
     unnamed = {p["name"] for p in partial}
+    # A family that carries too little of the gap, with the families it trades with, to
+    # tell it from its neighbours' trading is not named either (a family its own signature
+    # confirms is spared, as above).
+    confirmed = {n for n, v in info["signature"].items() if v["confirmed"]}
+    traded = group_shares(problem, chosen, base_total, refinements=True) if chosen else {}
+    minor = [{"name": s["added"], "share_of_gap": s["share_of_gap"]} for s in steps
+             if s["added"] in kept and s["added"] not in unnamed
+             and s["added"] not in confirmed and traded[s["added"]] < NAME_SHARE]
+    unnamed |= {m["name"] for m in minor}
     for step in steps:
         step["named"] = step["added"] not in unnamed
     present = [n for n in chosen if n in kept and n not in unnamed]
@@ -341,6 +376,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         "baseline_heldout_p99_pct": baseline_p99,
         "present": present,
         "partial": partial,
+        "minor": minor,
         "below_noise": faint,
         "groups": group_verdicts,
         "ladder": steps,
