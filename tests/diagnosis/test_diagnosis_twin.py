@@ -109,8 +109,30 @@ def test_a_cable_clamped_off_the_centre_is_followed_in_a_second_pass(baseline, m
     assert verdict["present"][:1] == ["harness"], verdict["present"]
     monkeypatch.setattr(run_module, "KEEP_COLUMNS_SAMPLES", 0)
     monkeypatch.setattr(stream, "PIECE_SAMPLES", 5000)
+    # The first pass's column cache (gigabytes on a long log) is gone before the decision
+    # reads the second's; the selection is made once per pass.
+    caches, selections, on_disk = [], [], []
+    cache_init, select, decide = (stream.ColumnCache.__init__, run_module.select_plausible,
+                                  run_module._decide)
+
+    def recording_init(self, *args, **kwargs):
+        cache_init(self, *args, **kwargs)
+        caches.append(self)
+
+    def counting_select(*args, **kwargs):
+        selections.append(1)
+        return select(*args, **kwargs)
+
+    def checking_decide(*args, **kwargs):
+        on_disk.extend(c.path.exists() for c in caches)
+        return decide(*args, **kwargs)
+
+    monkeypatch.setattr(stream.ColumnCache, "__init__", recording_init)
+    monkeypatch.setattr(run_module, "select_plausible", counting_select)
+    monkeypatch.setattr(run_module, "_decide", checking_decide)
     streamed = diagnose(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c),
                         baseline, seed=0)
+    assert on_disk == [False, True] and len(selections) == 2
     assert streamed["present"] == verdict["present"]
     assert np.allclose(streamed["harness_clamp_mm"], verdict["harness_clamp_mm"], atol=1e-6)
     assert np.allclose(streamed["ladder"][-1]["heldout_p99_pct"],

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -74,7 +75,8 @@ def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float,
 
 
 def harness_clamp(problem: selection.Problem, *, seed: int, min_gain: float,
-                  confidence: float, min_share: float) -> tuple[np.ndarray | None, bool]:
+                  confidence: float, min_share: float, progress=None
+                  ) -> tuple[np.ndarray | None, bool, "Selected | None"]:
     """Where a cable or harness is clamped on the plate (plate frame, mm), from the affine
     part of the harness family's fit alone (``terms.harness_clamp``; the one-sided terms left
     out, they would take part of the force's change with the centre's displacement but none of
@@ -84,26 +86,54 @@ def harness_clamp(problem: selection.Problem, *, seed: int, min_gain: float,
     significant share of the held-out error alone (the forward test's rule): a cable clamped
     far off the centre stretches mostly with the tilt, so a hinge in the centre's displacement
     misses most of it and a neighbouring family can win the first pass. None: no such
-    family, or the clamp at the centre or implausibly far."""
+    family, or the clamp at the centre or implausibly far. Also returns the first pass's
+    selection (:func:`selected`), for the decision to reuse (None without a harness family)."""
     if "harness" not in problem.terms:
-        return None, False
-    rng = np.random.default_rng(seed)
-    _, info, kept, _, alone = select_plausible(problem, list(problem.terms), rng,
-                                               min_gain=min_gain, confidence=confidence,
-                                               min_share=min_share)
-    was_kept = "harness" in kept
+        return None, False, None
+    first = selected(problem, list(problem.terms), seed, min_gain=min_gain,
+                     confidence=confidence, min_share=min_share, progress=progress)
+    was_kept = "harness" in first.kept
     if not was_kept:
-        boot = selection.stratified_gain(info["base"], alone["harness"], rng)
+        boot = selection.stratified_gain(first.info["base"], first.alone["harness"],
+                                         first.rng())
         if not float(np.quantile(boot, 1 - confidence)) > min_gain:
-            return None, False
+            return None, False, first
     cols = problem.cols(["harness"])[:terms_mod.HARNESS_AFFINE]
     gram = problem.gram[:, cols][:, :, cols].sum(axis=0)
     clamp = terms_mod.harness_clamp(selection.solve(gram, problem.xty[:, cols].sum(axis=0),
                                                     problem.penalty[cols]))
     size = float(np.linalg.norm(clamp))
     if not terms_mod.HARNESS_CLAMP_MIN_MM <= size <= terms_mod.HARNESS_CLAMP_MAX_MM:
-        return None, was_kept
-    return clamp, was_kept
+        return None, was_kept, first
+    return clamp, was_kept, first
+
+
+@dataclass(frozen=True)
+class Selected:
+    """A pass's selection (:func:`select_plausible`'s results) and the random generator's
+    state after it: the decision goes on from there exactly as if it had selected itself
+    (the selection is the diagnosis's costliest step; it is not run twice)."""
+    steps: list
+    info: dict
+    kept: list
+    implausible: dict
+    alone: dict
+    rng_state: dict
+
+    def rng(self) -> np.random.Generator:
+        rng = np.random.default_rng()
+        rng.bit_generator.state = self.rng_state
+        return rng
+
+
+def selected(problem: selection.Problem, names: list[str], seed: int, *, min_gain: float,
+             confidence: float, min_share: float, progress=None) -> Selected:
+    """:func:`select_plausible` from a generator seeded with ``seed``, kept for reuse."""
+    rng = np.random.default_rng(seed)
+    steps, info, kept, implausible, alone = select_plausible(
+        problem, list(names), rng, min_gain=min_gain, confidence=confidence,
+        min_share=min_share, progress=progress)
+    return Selected(steps, info, kept, implausible, alone, rng.bit_generator.state)
 
 
 def follows_better(data: GapData, problem: selection.Problem, terms, clamp, *,
@@ -161,8 +191,9 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
         problem = selection.build_problem(data, terms, progress=progress,
                                           signatures=signatures, keep_columns=keep,
                                           cache=cache)
-        clamp, was_kept = harness_clamp(problem, seed=seed, min_gain=min_gain,
-                                        confidence=confidence, min_share=min_share)
+        clamp, was_kept, first = harness_clamp(problem, seed=seed, min_gain=min_gain,
+                                               confidence=confidence, min_share=min_share,
+                                               progress=progress)
         if clamp is not None and not follows_better(
                 data, problem, terms, clamp, significant=not was_kept, seed=seed,
                 min_gain=min_gain, confidence=confidence):
@@ -183,18 +214,24 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
             second = selection.build_problem(data, second_terms, progress=progress,
                                              signatures=signatures, keep_columns=keep,
                                              cache=second_cache)
-            if "harness" in select_plausible(second, [t.name for t in second_terms],
-                                             np.random.default_rng(seed), min_gain=min_gain,
-                                             confidence=confidence, min_share=min_share)[2]:
-                problem, terms, cache = second, second_terms, second_cache
+            second_selected = selected(second, [t.name for t in second_terms], seed,
+                                       min_gain=min_gain, confidence=confidence,
+                                       min_share=min_share)
+            if "harness" in second_selected.kept:
+                # The first pass's columns are not read again: on a long log its cache is
+                # gigabytes of disk.
+                _drop(cache)
+                problem, terms, cache, first = second, second_terms, second_cache, \
+                    second_selected
             else:
                 clamp = None
+                _drop(second_cache)
                 if progress:
                     progress("second pass dropped: the harness is not kept with it")
             del second
         result = _decide(data, problem, terms, skipped, where, baseline_p99, cache, started,
-                       seed=seed, progress=progress, min_gain=min_gain,
-                       confidence=confidence, min_share=min_share)
+                         seed=seed, progress=progress, min_gain=min_gain,
+                         confidence=confidence, min_share=min_share, first=first)
         result["harness_clamp_mm"] = None if clamp is None else [float(v) for v in clamp]
         return result
 
@@ -247,14 +284,22 @@ def select_plausible(problem: selection.Problem, names: list[str], rng, *, min_g
     return steps_found, info, kept, implausible, alone
 
 
+def _drop(cache) -> None:
+    if cache is not None:
+        cache.path.unlink(missing_ok=True)
+
+
 def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, *, seed,
-            progress, min_gain, confidence, min_share) -> dict:
+            progress, min_gain, confidence, min_share, first: Selected | None = None) -> dict:
+    """``first``: this problem's selection when it is already made (:func:`selected`)."""
     design = data.design
-    rng = np.random.default_rng(seed)
     names = [t.name for t in terms]
-    steps_found, info, kept, implausible, alone = select_plausible(
-        problem, names, rng, min_gain=min_gain, confidence=confidence, min_share=min_share,
-        progress=progress)
+    if first is None:
+        first = selected(problem, names, seed, min_gain=min_gain, confidence=confidence,
+                         min_share=min_share, progress=progress)
+    rng = first.rng()
+    steps_found, info, kept, implausible, alone = (first.steps, first.info, list(first.kept),
+                                                   dict(first.implausible), first.alone)
     base_sse = info["base"]
     group_verdicts = verdicts.groups(problem, kept, info)
     # Members of a group verdict join the ladder (in forward order): the shrink is predicted
