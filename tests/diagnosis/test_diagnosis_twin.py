@@ -167,7 +167,7 @@ def test_a_cable_far_off_the_centre_is_found_when_the_first_pass_misses_it(basel
                       record_temp=True)
     verdict = diagnose(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c),
                        baseline, seed=0)
-    (clamp, kept_first), = first_pass
+    (clamp, kept_first, _), = first_pass
     assert not kept_first
     assert verdict["present"][:1] == ["harness"], verdict["present"]
     assert verdict["harness_clamp_mm"] is not None
