@@ -149,6 +149,12 @@ def verdict_lines(result: dict) -> list[str]:
         worst = max(check["checks"], key=lambda c: c["ratio"])
         lines.append(f"- Not named: {name} fits only by going out of bounds ({worst['quantity']}"
                      f" {worst['largest']:.3g}, plausible up to {worst['limit']:.3g}).")
+    clamp = result.get("harness_clamp_mm")
+    if clamp is not None:
+        lines.append("- The harness is clamped off the plate's centre, at "
+                     + ", ".join(f"{v:+.1f}" for v in clamp) + " mm (x, y, z in the plate's "
+                     "frame; only the part across its pull is determined): its hinge was fitted "
+                     "in the clamp's own displacement.")
     for name, test in result["signature_tests"].items():
         if test["confirmed"]:
             lines.append(f"- {name} confirmed by its own signature: on the {test['samples']} "

@@ -1,0 +1,19 @@
+"""The verdict lines of the report and of the command's summary name the harness's clamp when
+a second pass fitted the hinge there, and say nothing of it otherwise."""
+from delta6.diagnosis.report import verdict_lines
+
+
+def _result(clamp):
+    return {"groups": [], "partial": [], "implausible": {}, "signature_tests": {},
+            "unexplained": {"verdict": {"structured": False}},
+            "excitation": {"unsupported": []}, "harness_clamp_mm": clamp}
+
+
+def test_the_clamp_of_a_second_pass_is_reported():
+    lines = verdict_lines(_result([24.6, -3.4, 0.0]))
+    (line,) = [x for x in lines if "clamped" in x]
+    assert "+24.6, -3.4, +0.0 mm" in line
+
+
+def test_no_clamp_line_without_a_second_pass():
+    assert not any("clamped" in x for x in verdict_lines(_result(None)))
