@@ -59,7 +59,7 @@ def test_every_folds_training_blocks_reach_every_sixth_of_the_log(n_blocks, n_fo
        st.lists(arrays(float, (300, 6), elements=st.floats(-1, 1)), min_size=1, max_size=4))
 def test_a_damped_ladder_never_gets_worse_on_any_axis(y, preds):
     start = ladder.baseline_p99(y)
-    weights, p99s, final, sses = ladder.monotone(y, preds)
+    weights, p99s, final, sses, refits = ladder.monotone(y, preds)
     assert all(np.all((0.0 <= a) & (a <= 1.0)) and a.shape == (6,) for a in weights)
     # The reported p99s never rise, not even by a rounding, from the reported start on; an
     # axis a step leaves alone reports exactly the p99 of the step before.
@@ -75,6 +75,21 @@ def test_a_damped_ladder_never_gets_worse_on_any_axis(y, preds):
         assert np.allclose(ladder.p99(100 * (y - blended)), reported)
         assert np.isclose(((y - blended) ** 2).sum(), sse)
     assert np.allclose(final, blended)
+    # Each step's refit, undamped, is reported too: what one set of parameters gives.
+    for pred, refit in zip(preds, refits):
+        assert np.allclose(ladder.p99(100 * (y - pred)), refit)
+
+
+def test_an_axis_a_step_leaves_alone_stays_finite_whatever_the_step_predicts_there():
+    """A prediction that overflowed on an axis the step does not take leaves that axis
+    exactly as the step before (0 x inf would be NaN in the report's JSON)."""
+    y = np.random.default_rng(5).normal(size=(500, 6))
+    pred = 0.5 * y
+    pred[:, 2] = -y[:, 2]                   # worse on that axis: not taken there
+    pred[0, 2] = np.inf
+    weights, p99s, final, sses, _ = ladder.monotone(y, [pred])
+    assert weights[0][2] == 0.0 and np.all(np.isfinite(final)) and np.isfinite(sses[0])
+    assert np.all(np.isfinite(p99s[0]))
 
 
 def test_an_axis_that_a_step_makes_worse_is_left_alone_and_the_others_keep_it():
@@ -85,7 +100,7 @@ def test_an_axis_that_a_step_makes_worse_is_left_alone_and_the_others_keep_it():
     y = rng.normal(size=(2000, 6))
     pred = 0.5 * y
     pred[:, 5] = -y[:, 5]
-    weights, p99s, final, _ = ladder.monotone(y, [pred])
+    weights, p99s, final, _, _ = ladder.monotone(y, [pred])
     assert np.array_equal(weights[0], [1, 1, 1, 1, 1, 0])
     assert np.array_equal(final[:, 5], np.zeros(2000))
     assert np.array_equal(p99s[0][5], ladder.baseline_p99(y)[5])

@@ -50,16 +50,19 @@ def squared_error(y: np.ndarray, pred: np.ndarray) -> float:
 
 
 def monotone(y: np.ndarray, preds) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray,
-                                             list[float]]:
+                                             list[float], list[np.ndarray]]:
     """``y`` (n, 6) FS-normalised residual, ``preds`` the held-out predictions of the refit
     after each step (any iterable: a generator lets each be freed once used). Returns the
     per-axis blend weights of each step (6,), the held-out p99 (% FS) after each step, the
-    final blended prediction (only one (n, 6) array is kept: long logs) and the held-out
-    squared error after each step. The steps start from :func:`baseline_p99`."""
-    weights, p99s, sses = [], [], []
+    final blended prediction (only one (n, 6) array is kept: long logs), the held-out
+    squared error after each step, and the held-out p99 of each step's refit undamped (what
+    one set of parameters, the step's refit, gives: the per-axis blend mixes refits). The
+    steps start from :func:`baseline_p99`."""
+    weights, p99s, sses, refits = [], [], [], []
     before = np.zeros_like(y)
     before_p99 = baseline_p99(y)
     for pred in preds:
+        refits.append(p99_of_difference(y, pred))
         step = np.subtract(pred, before, dtype=float)        # pred - before
         a = np.zeros(y.shape[1])
         after_p99 = before_p99.copy()
@@ -72,10 +75,12 @@ def monotone(y: np.ndarray, preds) -> tuple[list[np.ndarray], list[np.ndarray], 
             open_axes &= ~take
             if not open_axes.any():
                 break
-        before = before + a * step
+        # An axis the step does not take keeps the step before exactly (0 * inf is NaN).
+        taken = a > 0
+        before[:, taken] += a[taken] * step[:, taken]
         weights.append(a)
         p99s.append(after_p99)
         sses.append(squared_error(y, before))
         before_p99 = after_p99
         del step
-    return weights, p99s, before, sses
+    return weights, p99s, before, sses, refits

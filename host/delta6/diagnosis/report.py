@@ -138,7 +138,8 @@ def verdict_lines(result: dict) -> list[str]:
                      "of the gap while a structured leftover remains: it may be absorbing part "
                      "of an effect the vocabulary lacks.")
     for m in result.get("minor", []):
-        lines.append(f"- Not named: {m['name']} carries only {100 * m['share_of_gap']:.1f} % "
+        share = m.get("share_with_traded", m["share_of_gap"])
+        lines.append(f"- Not named: {m['name']} carries only {100 * share:.1f} % "
                      "of the gap (with the families it trades with): in the ladder, but too "
                      "little to tell it from its neighbours.")
     for f in result.get("below_noise", []):

@@ -349,14 +349,15 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     candidates.sort(key=lambda c: c["score"], reverse=True)
 
     y = data.residual / data.fs
-    weights, step_p99, final_pred, step_sse = ladder_mod.monotone(
+    weights, step_p99, final_pred, step_sse, refit_p99 = ladder_mod.monotone(
         y, (held["pred"].pop(("step", s.added)) for s in steps_found))
     steps = []
     notes: list[str] = []
     chosen = []
     coef_all = np.zeros(0)
     current = float(base_sse.sum())
-    for step, weight, p99_after, sse in zip(steps_found, weights, step_p99, step_sse):
+    for step, weight, p99_after, sse, refit in zip(steps_found, weights, step_p99, step_sse,
+                                                   refit_p99):
         chosen.append(step.added)
         coef_all = selection.fit(problem, chosen)
         params = {}
@@ -369,6 +370,8 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         notes += physics.warnings(step.added, params[step.added])
         steps.append({"added": step.added,
                       "heldout_p99_pct": p99_after.tolist(),
+                      # The step's refit alone, undamped: what its parameters give.
+                      "refit_heldout_p99_pct": refit.tolist(),
                       "gain": 1.0 - sse / current if current > 0 else 0.0,
                       "gain_lower": step.gain_low,
                       "damping": (1.0 - weight).tolist(),
@@ -409,10 +412,23 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     # confirms is spared, as above).
     confirmed = {n for n, v in info["signature"].items() if v["confirmed"]}
     traded = group_shares(problem, chosen, base_total, refinements=True) if chosen else {}
-    minor = [{"name": s["added"], "share_of_gap": s["share_of_gap"]} for s in steps
+    minor = [{"name": s["added"], "share_of_gap": s["share_of_gap"],
+              "share_with_traded": traded[s["added"]]} for s in steps
              if s["added"] in kept and s["added"] not in unnamed
              and s["added"] not in confirmed and traded[s["added"]] < NAME_SHARE]
+    named_rest = [n for n in chosen if n in kept and n not in unnamed
+                  and n not in {m["name"] for m in minor}]
+    if minor and not named_rest and chosen:
+        # Every name would go: families that trade without a declared group (collinear
+        # columns) can each carry little while together they carry the gap. Taking them all
+        # out of the final model is the test, by the same share.
+        together = float((base_sse.sum() - final_sse) / base_total)
+        if together >= NAME_SHARE:
+            minor = []
     unnamed |= {m["name"] for m in minor}
+    # A group verdict names its members: none of them is a minor name.
+    group_verdicts = [g for g in group_verdicts
+                      if not set(g["named_alone"]) & {m["name"] for m in minor}]
     for step in steps:
         step["named"] = step["added"] not in unnamed
     present = [n for n in chosen if n in kept and n not in unnamed]
