@@ -232,3 +232,24 @@ def test_parameters_are_recovered_in_physical_units(baseline, name, tolerance):
     fitted = verdict["ladder"][0]["params"]
     truth = r.truth["effects"][0]["summary"]
     assert recovery_error(name, truth, fitted, baseline) < tolerance
+
+
+def test_the_minor_rule_never_strikes_every_name_of_families_that_carry_the_gap_together(
+        baseline, monkeypatch):
+    """Families without a declared group can each carry less than the naming share while
+    together they carry the gap: with the share between the larger one's and the pair's,
+    the rule would leave the run with no name; the pair's joint share keeps both named."""
+    from delta6.diagnosis import run as run_module
+    effects = [twin.make_effect("encoder_offset", 3, magnitude=0.6),
+               twin.make_effect("stiffness_mismatch", 3, magnitude=0.6)]
+    r = twin.simulate(baseline, effects, duration_s=200.0, rate_hz=50.0, seed=3)
+    log = LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c)
+    verdict = diagnose(log, baseline, seed=0)
+    assert set(verdict["present"]) == {"encoder_offset", "stiffness_mismatch"}
+    larger = max(s["share_of_gap"] for s in verdict["ladder"])
+    together = 1.0 - verdict["unexplained"]["share_of_squared_error"]
+    assert larger < together
+    monkeypatch.setattr(run_module, "NAME_SHARE", 0.5 * (larger + together))
+    assert set(diagnose(log, baseline, seed=0)["present"]) == set(verdict["present"])
+    monkeypatch.setattr(run_module, "NAME_SHARE", 1.01 * together)
+    assert diagnose(log, baseline, seed=0)["present"] == []
