@@ -281,21 +281,25 @@ def test_a_full_disk_while_decoding_is_one_line(tmp_path, capsys, monkeypatch):
     assert not (tmp_path / "d.csv").exists()
 
 
+
+def _read_cuts(partial, data: bytes, *, seed: int, count: int):
+    """What a killed writer can leave, ``count`` random cuts of ``data`` written to
+    ``partial``: yields (cut, log) for those that read; the others must be refused in one
+    line."""
+    for cut in sorted(random.Random(seed).sample(range(len(data)), count)):
+        partial.write_bytes(data[:cut])
+        try:
+            yield cut, read_log(partial)
+        except LogError as exc:
+            assert "\n" not in str(exc)
+
 def test_every_file_reader_survives_a_truncated_log(tmp_path, capsys):
     """What SIGKILL can leave: a .partial cut anywhere reads as its whole rows, or is refused
     in one line; never a traceback, never a cut number."""
     assert main(["log", "--port", "delta6sim://?rate=1000", "-o", str(tmp_path / "w.csv"),
                  "--raw", "--duration", "0.3"]) == 0
     text = (tmp_path / "w.csv").read_bytes()
-    rnd = random.Random(2)
-    for cut in sorted(rnd.sample(range(len(text)), 40)):
-        partial = tmp_path / "cut.csv.partial"
-        partial.write_bytes(text[:cut])
-        try:
-            log = read_log(partial)
-        except LogError as exc:
-            assert "\n" not in str(exc)
-            continue
+    for cut, log in _read_cuts(tmp_path / "cut.csv.partial", text, seed=2, count=40):
         whole = text[:cut].rsplit(b"\n", 1)[0].decode()
         assert len(log) == sum(1 for ln in whole.splitlines() if ln and ln[0].isdigit())
 
@@ -353,16 +357,8 @@ def test_a_truncated_mcap_log_keeps_its_samples_before_the_cut(tmp_path):
                  "--raw", "--duration", "0.5"]) == 0
     whole = read_log(tmp_path / "w.mcap")
     data = (tmp_path / "w.mcap").read_bytes()
-    rnd = random.Random(3)
     kept = []
-    for cut in sorted(rnd.sample(range(len(data)), 30)):
-        partial = tmp_path / "cut.mcap.partial"
-        partial.write_bytes(data[:cut])
-        try:
-            log = read_log(partial)
-        except LogError as exc:
-            assert "\n" not in str(exc)
-            continue
+    for _, log in _read_cuts(tmp_path / "cut.mcap.partial", data, seed=3, count=30):
         n = len(log.t)
         kept.append(n)
         np.testing.assert_array_equal(log.wrench, whole.wrench[:n])

@@ -111,10 +111,10 @@ def _heldout_tables(data: GapData, calibrated: np.ndarray, rows: np.ndarray, lat
     before = _table(data.residual_pct[rows])
     after = _table((100.0 * (calibrated - data.reference) / data.fs)[rows])
     advanced, keep = accuracy.advanced(data.t, data.reference, latency)
-    at = np.full(len(data.t), -1)
-    at[np.flatnonzero(keep)] = np.arange(int(keep.sum()))
+    # Time increases, so the samples with a later reference are the log's first ones:
+    # ``advanced`` is indexed like the log.
     held = rows[keep[rows]]
-    reference = advanced[at[held]]
+    reference = advanced[held]
     before_rig = _table(100.0 * (data.model[held] - reference) / data.fs)
     after_rig = _table(100.0 * (calibrated[held] - reference) / data.fs)
     return before, after, before_rig, after_rig
