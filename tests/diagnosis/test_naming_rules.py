@@ -33,7 +33,8 @@ def test_a_family_explaining_less_than_the_structured_leftover_is_a_fragment_of_
     # "small" explains less than the leftover both in the model and alone; "overlapping"
     # carries little in the model but alone explains more than the leftover (its share is
     # taken by neighbours, not picked up from them); "big" carries a lot.
-    assert found == [{"name": "small", "share_of_gap": 0.04, "fragment": True}]
+    assert found == [{"name": "small", "share_of_gap": 0.04, "fragment": True,
+                      "leftover_share": missing}]
     # With a leftover smaller than what it carries, it is named.
     assert partial_families(steps, shares, shares, alone, 0.03, spared=set()) == []
     # A white leftover (missing 0) never strikes a name.
@@ -114,7 +115,9 @@ def test_an_absorber_of_an_unknown_effect_that_explains_less_than_the_leftover_i
     alone = {c["name"]: c["score"] for c in verdict["candidates"]}
     own = {s["added"]: s["share_of_gap"] for s in verdict["ladder"]}
     left = verdict["unexplained"]["share_of_squared_error"]
-    assert max(alone["encoder_offset"], own["encoder_offset"]) < left < MISSING_SHARE
+    missing = fragments["encoder_offset"]["leftover_share"]
+    assert max(alone["encoder_offset"], own["encoder_offset"]) < missing < MISSING_SHARE
+    assert missing <= left
     assert verdict["unexplained"]["verdict"]["structured"]
 
 

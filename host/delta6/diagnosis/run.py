@@ -94,7 +94,7 @@ def partial_families(steps: list[dict], carried: dict, traded: dict, alone: dict
     own (``alone``: the share it removes alone): it could be a fragment of that leftover (a
     neighbour's misfit it picks up, or part of an effect the vocabulary lacks), and its name
     would say nothing the leftover verdict does not. ``missing`` is 0 for a white
-    leftover."""
+    leftover; each entry gives it (``leftover_share``)."""
     out = []
     for s in steps:
         name = s["added"]
@@ -103,7 +103,8 @@ def partial_families(steps: list[dict], carried: dict, traded: dict, alone: dict
         fragment = max(traded[name], alone[name]) < missing
         if missing >= MISSING_SHARE or fragment:
             out.append({"name": name, "share_of_gap": s["share_of_gap"],
-                        "fragment": bool(fragment and missing < MISSING_SHARE)})
+                        "fragment": bool(fragment and missing < MISSING_SHARE),
+                        "leftover_share": missing})
     return out
 
 
