@@ -136,9 +136,9 @@ def verdict_lines(result: dict) -> list[str]:
     for p in result["partial"]:
         if p.get("fragment"):
             lines.append(f"- Not named: {p['name']} explains less of the gap, alone and in "
-                         "the model, than the structured leftover: it may be a fragment of "
-                         "it (a neighbour's misfit, or part of an effect the vocabulary "
-                         "lacks).")
+                         "the model, than the structured leftover "
+                         f"({100 * p['leftover_share']:.0f} %): it may be a fragment of it (a "
+                         "neighbour's misfit, or part of an effect the vocabulary lacks).")
             continue
         lines.append(f"- Not named: {p['name']} carries only {100 * p['share_of_gap']:.0f} % "
                      "of the gap while a structured leftover remains: it may be absorbing part "
