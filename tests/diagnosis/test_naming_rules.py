@@ -10,7 +10,16 @@ from delta6 import twin
 from delta6.diagnosis import run as run_module
 from delta6.diagnosis import selection, verdicts
 from delta6.diagnosis.data import GapData
-from delta6.diagnosis.run import MISSING_SHARE, PARTIAL_SHARE, diagnose, first_explanation, partial_families
+from delta6.diagnosis.run import (
+    MISSING_SHARE,
+    NAME_SHARE,
+    PARTIAL_SHARE,
+    SMALL_SHARE,
+    diagnose,
+    first_explanation,
+    minor_families,
+    partial_families,
+)
 from delta6.diagnosis.terms import TERMS
 from delta6.link.logfile import LogData
 from delta6.twin.pushes import AxisPushes
@@ -44,6 +53,22 @@ def test_a_family_explaining_less_than_the_structured_leftover_is_a_fragment_of_
     # What it carries with the families it trades with counts (a refinement's partner).
     traded = {**shares, "small": 0.30}
     assert partial_families(steps, shares, traded, alone, missing, spared=set()) == []
+
+
+def test_a_small_name_needs_to_stand_on_its_own():
+    traded = {"big": 0.60, "compensator": 0.03, "absorbed": 0.03, "tiny": 0.01,
+              "medium": 0.06}
+    alone = {"big": 0.70, "compensator": 0.01, "absorbed": 0.20, "tiny": 0.30,
+             "medium": -0.02}
+    assert NAME_SHARE < 0.03 < SMALL_SHARE < 0.06
+    found = minor_families(steps_of(traded), traded, alone, eligible=set(traded))
+    # Under SMALL_SHARE both in the model and alone: not named. A family its neighbours
+    # absorb in the model but that explains a lot alone keeps its name; so does one that
+    # carries more than SMALL_SHARE in the model; under NAME_SHARE nothing saves a name.
+    assert [m["name"] for m in found] == ["compensator", "tiny"]
+    assert found[0]["share_alone"] == 0.01
+    # Families not eligible (confirmed by their signature, already partial) are left alone.
+    assert minor_families(steps_of(traded), traded, alone, eligible={"big", "medium"}) == []
 
 
 def test_a_sizeable_structured_leftover_still_strikes_every_small_family():

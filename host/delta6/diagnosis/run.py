@@ -36,6 +36,13 @@ PARTIAL_SHARE = 0.30
 #: but is not named (``minor``): in a mix, neighbouring families trade that much among
 #: themselves, so such a name says little about which effect is there.
 NAME_SHARE = 0.015
+#: A family carrying less than this share of the gap in the final model (with the families
+#: it trades with) is named only when it removes at least as much on its own: a small name
+#: needs more evidence than a large one. Under it both ways, a family explains too little,
+#: by itself or beside its neighbours, to be told from their trading (an encoder offset
+#: correcting the constant parts of its neighbours' fits removes nothing alone). It is the
+#: share under which the issue's figures call a name weak.
+SMALL_SHARE = 0.05
 #: Logs up to this many samples keep their columns in memory (no second pass).
 KEEP_COLUMNS_SAMPLES = 30_000
 
@@ -74,13 +81,16 @@ def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float,
     return out
 
 
-def minor_families(steps: list[dict], traded: dict, eligible) -> list[dict]:
+def minor_families(steps: list[dict], traded: dict, alone: dict, eligible) -> list[dict]:
     """The ladder's families of ``eligible`` (named so far) that carry less than
     ``NAME_SHARE`` of the gap with the families they trade with (``traded``, from
-    :func:`group_shares` with refinements), in ladder order."""
+    :func:`group_shares` with refinements), or less than ``SMALL_SHARE`` both so and on
+    their own (``alone``: the share each removes alone), in ladder order."""
     return [{"name": s["added"], "share_of_gap": s["share_of_gap"],
-             "share_with_traded": traded[s["added"]]}
-            for s in steps if s["added"] in eligible and traded[s["added"]] < NAME_SHARE]
+             "share_with_traded": traded[s["added"]], "share_alone": alone[s["added"]]}
+            for s in steps if s["added"] in eligible
+            and (traded[s["added"]] < NAME_SHARE
+                 or max(traded[s["added"]], alone[s["added"]]) < SMALL_SHARE)]
 
 
 def partial_families(steps: list[dict], carried: dict, traded: dict, alone: dict,
@@ -454,17 +464,17 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     missing = missing_share(problem, left, base_total) if left_verdict["structured"] else 0.0
     confirmed = {n for n, v in info["signature"].items() if v["confirmed"]}
     traded = group_shares(problem, chosen, base_total, refinements=True) if chosen else {}
+    alone_share = {n: selection.gain(base_sse, alone[n]) for n in chosen}
     partial = []
     if chosen and missing > 0:
         partial = partial_families(
-            steps, group_shares(problem, chosen, base_total), traded,
-            {n: selection.gain(base_sse, alone[n]) for n in chosen}, missing,
+            steps, group_shares(problem, chosen, base_total), traded, alone_share, missing,
             confirmed | first_explanation(alone, base_sse, steps))
     unnamed = {p["name"] for p in partial}
     # A family that carries too little of the gap, with the families it trades with, to
     # tell it from its neighbours' trading is not named either (a family its own signature
     # confirms is spared, as above).
-    minor = minor_families(steps, traded,
+    minor = minor_families(steps, traded, alone_share,
                            [n for n in kept if n not in unnamed and n not in confirmed])
     named_rest = [n for n in chosen if n in kept and n not in unnamed
                   and n not in {m["name"] for m in minor}]
