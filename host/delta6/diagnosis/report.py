@@ -145,9 +145,11 @@ def verdict_lines(result: dict) -> list[str]:
                      "of an effect the vocabulary lacks.")
     for m in result.get("minor", []):
         share = m.get("share_with_traded", m["share_of_gap"])
+        alone = m.get("share_alone")
+        also = "" if alone is None else f" and removes {100 * alone:.1f} % alone"
         lines.append(f"- Not named: {m['name']} carries only {100 * share:.1f} % "
-                     "of the gap (with the families it trades with): in the ladder, but too "
-                     "little to tell it from its neighbours.")
+                     f"of the gap (with the families it trades with){also}: in the ladder, "
+                     "but too little to tell it from its neighbours.")
     for f in result.get("below_noise", []):
         lines.append(f"- Not named: {f['name']} removes only "
                      f"{100 * f['share_of_noise_floor']:.0f} % of the noise floor's squared "
