@@ -31,12 +31,15 @@ spring-rate and an offset term took its straight-line part) is coherent over the
 noise is not. Per joint, a smooth function of the joint's own angle (a polynomial up to
 ``ANGLE_DEGREE``) is fitted on all but one of ``ANGLE_FOLDS`` contiguous stretches of the log
 and scored on the one left out; white noise of any level gives the held-out fits no gain on
-average, so the folds' gains are tested against zero (Student t, one-sided, at
-``ANGLE_ALPHA`` over the six joints). Contiguous stretches keep the test honest on noise that
+average, so the folds' gains are tested against zero (Student t, one-sided; and by their
+signs, which a large structure passes however unevenly the stretches sweep the angle), at
+``ANGLE_ALPHA`` over the six joints and the two tests. Contiguous stretches keep the test honest on noise that
 is correlated from sample to sample and on a leftover that changes from one held-out fold of
 the ladder to the next: neither is a function of the angle.
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -91,7 +94,7 @@ def student_t_sf(t: float, dof: int) -> float:
             series += term
             term *= c2 * (2 * k - 1) / (2 * k)
         inside = s * series
-    tail = 0.5 * (1.0 - float(inside))
+    tail = min(max(0.5 * (1.0 - float(inside)), 0.0), 0.5)    # rounding, far out
     return tail if t >= 0 else 1.0 - tail
 
 
@@ -101,7 +104,8 @@ def angle_test(tau: np.ndarray, angle: np.ndarray, folds: int = ANGLE_FOLDS,
     polynomial up to ``degree`` in the standardised angle, fitted on all but one of ``folds``
     contiguous stretches and scored on the stretch left out. Returns the held-out explained
     variance (the mean gain per sample over a constant fitted the same way, at least 0), the
-    one-sided t statistic of the stretches' gains against zero and its p-value."""
+    one-sided t statistic of the stretches' gains against zero, how many stretches gain, and
+    the p-value of the two tests together."""
     n = len(tau)
     spread = angle.std()
     s = (angle - angle.mean()) / (spread if spread > 0 else 1.0)
@@ -117,8 +121,15 @@ def angle_test(tau: np.ndarray, angle: np.ndarray, folds: int = ANGLE_FOLDS,
         gains[k] = np.sum((tau[a:b] - mean) ** 2) - np.sum((tau[a:b] - basis[a:b] @ coef) ** 2)
     sd = gains.std(ddof=1)
     t = float(gains.mean() / (sd / np.sqrt(folds))) if sd > 0 else 0.0
-    return {"explained_var": max(float(gains.sum()) / n, 0.0), "t": t,
-            "p": student_t_sf(t, folds - 1)}
+    # The t test's statistic stops growing with the structure's size once the stretches'
+    # gains differ by how much of the angle's range each one sweeps; a sign test does not
+    # care: without structure, a stretch gains with probability at most one half (the fit
+    # elsewhere is independent of the stretch's noise, and costs its own overfit).
+    wins = int(np.sum(gains > 0))
+    p_sign = float(sum(math.comb(folds, k) for k in range(wins, folds + 1))) / 2.0**folds
+    return {"explained_var": max(float(gains.sum()) / n, 0.0), "t": t, "wins": wins,
+            # Bonferroni over the two tests: the level holds for their union.
+            "p": min(1.0, 2.0 * min(student_t_sf(t, folds - 1), p_sign))}
 
 
 def _share(target: np.ndarray, basis: np.ndarray, structured_var: float) -> float:
