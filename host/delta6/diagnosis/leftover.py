@@ -146,7 +146,12 @@ def _own(theta: np.ndarray) -> np.ndarray:
 
 
 def _joint_shapes(tau: np.ndarray, theta: np.ndarray, j: int, direction: np.ndarray,
-                  structured_var: float) -> dict:
+                  structured_var: float, in_angle: bool = False) -> dict:
+    """Each shape's share of the joint's structured leftover, and the shape named. With
+    ``in_angle`` (the held-out test found a function of the joint's own angle), a leftover
+    that the joint's own cubic explains though neither its odd nor its even part does alone
+    (what is left of a periodic error once its straight-line part is gone has both) is
+    named by the larger part."""
     th = theta[:, j]
     centred = tau - tau.mean()
     own = _own(th)
@@ -166,7 +171,11 @@ def _joint_shapes(tau: np.ndarray, theta: np.ndarray, j: int, direction: np.ndar
                                                  structured_var) - base_own),
     }
     best = max(shares, key=shares.get)
-    return {"shares": shares, "best": best if shares[best] >= SHAPE_SHARE else None}
+    if shares[best] < SHAPE_SHARE:
+        best = None
+        if in_angle and base_own >= SHAPE_SHARE:
+            best = max(("odd polynomial", "even polynomial"), key=shares.get)
+    return {"shares": shares, "best": best}
 
 
 def analyse(data: GapData, leftover_fs: np.ndarray) -> dict:
@@ -214,7 +223,8 @@ def analyse(data: GapData, leftover_fs: np.ndarray) -> dict:
         # the variance above the floor is then mostly the floor estimate's own error.
         amount = angle["explained_var"] if row["angle_structured"] and not row["structured"] \
             else structured_var[j]
-        row.update(_joint_shapes(tau[:, j], theta, j, direction, amount))
+        row.update(_joint_shapes(tau[:, j], theta, j, direction, amount,
+                                 in_angle=row["angle_structured"]))
         rows.append((row, amount))
         out["per_joint"].append(row)
     out["structured"] = structured = structured or any(r["angle_structured"] for r, _ in rows)
