@@ -173,8 +173,11 @@ def verdict_lines(result: dict) -> list[str]:
     if left["structured"]:
         where = (f"joint(s) {', '.join(str(j) for j in left['joints'])}" if left["joints"]
                  else "no single joint")
+        in_angle = [r["joint"] for r in left["per_joint"] if r.get("angle_structured")]
+        how = (f"; a function of the own angle of joint(s) {', '.join(map(str, in_angle))} "
+               "by the held-out test") if in_angle else ""
         lines.append(f"- What is left is **structured** (up to {max(left['excess_over_noise']):.1f}"
-                     f" times the noise floor's variance), on {where}, shape: "
+                     f" times the noise floor's variance{how}), on {where}, shape: "
                      f"**{left['shape'] or 'unresolved'}**.")
     else:
         lines.append("- What is left is at the noise floor (white).")
