@@ -375,19 +375,21 @@ def _harness(data: GapData, clamp_mm=None) -> np.ndarray:
     pose = np.concatenate([data.position_mm - rest * 1e3, data.theta[:, 3:]], axis=1)
     g = data.torque_map[:, :, :3]                                      # (n, 6, 3)
     force = np.einsum("naj,nkj->nak", g, jac)                          # per N of f_k
-    cols = [force]                                                     # preload, N
-    for m in range(6):                                                 # per mm or rad
-        cols.append(force * pose[:, None, m:m + 1])
     dirs = np.asarray(HARNESS_DIRECTIONS)                              # (D, 3)
     if clamp_mm is None:
+        cols = [force]                                                 # preload, N
+        for m in range(6):                                             # per mm or rad
+            cols.append(force * pose[:, None, m:m + 1])
         along = force @ dirs.T                                         # (n, 6, D) per N
         x = pose[:, :3] @ dirs.T                                       # (n, D) mm
     else:
-        # With the clamp's offset known (``harness_clamp``), the hinge is in the clamp's own
-        # displacement (the plate centre's plus the tilt's share), and its pull turns the
-        # gimbal too.
         disp, jac_c = clamp_displacement(data, clamp_mm)
-        along = np.einsum("naj,nkj,dk->nad", data.torque_map, jac_c, dirs)
+        force = np.einsum("naj,nkj->nak", data.torque_map, jac_c)
+        pose = np.concatenate([disp, data.theta[:, 3:]], axis=1)
+        cols = [force]
+        for m in range(6):
+            cols.append(force * pose[:, None, m:m + 1])
+        along = force @ dirs.T
         x = disp @ dirs.T
     ax = np.abs(x)
     for feat in (ax, x * ax / HARNESS_REF_MM, x * x / HARNESS_REF_MM):
