@@ -360,37 +360,61 @@ def clamp_displacement(data: GapData, clamp_mm) -> tuple[np.ndarray, np.ndarray]
     return disp, jac
 
 
-def _harness(data: GapData, clamp_mm=None) -> np.ndarray:
+def _plate_force(data: GapData, clamp_mm=None) -> tuple[np.ndarray, np.ndarray]:
+    """Where a force acts on the plate and what it does: the point's displacement from rest
+    (n, 3, mm, {B}) and the wrench change per N of force along x, y, z of {B} (n, 6, 3). At
+    the plate's centre (``clamp_mm`` None) the force reaches joints 1..3 as J_p^T f (virtual
+    work) and the wrench as G J_p^T f; at a clamp off the centre (plate frame, mm) it also
+    turns the gimbal: J_c^T f on all six joints, J_c the clamp's motion per joint angle."""
+    from delta6.core.model import forward_kinematics
+    if clamp_mm is None:
+        rest = forward_kinematics(data.params, np.zeros((1, 3)))[0]
+        disp = data.position_mm - rest * 1e3
+        force = np.einsum("naj,nkj->nak", data.torque_map[:, :, :3], plate_jacobian(data))
+    else:
+        disp, jac_c = clamp_displacement(data, clamp_mm)
+        force = np.einsum("naj,nkj->nak", data.torque_map, jac_c)
+    return disp, force
+
+
+def cable_stretch_features(x: np.ndarray, slack_mm: float) -> np.ndarray:
+    """The one-sided features of a slack cable stretched by ``x`` (mm, (n,)) along its own
+    direction: the stretch beyond the slack, and its square over ``HARNESS_REF_MM`` (a pull
+    that grows with the stretch, linearly or ever harder), both zero while the cable is slack.
+    (n, 2)."""
+    r = np.maximum(np.asarray(x, float) - slack_mm, 0.0)
+    return np.stack([r, r * r / HARNESS_REF_MM], axis=-1)
+
+
+def _harness(data: GapData, clamp_mm=None, cable=None) -> np.ndarray:
     # A cable or harness pulls on the plate with a force that depends on where the plate is:
     # affine in its pose's displacement from rest, the plate centre's (dp, mm) and the
     # gimbal's angles (q4..6, rad: a clamp off the centre moves with the tilt). The force f
     # reaches joints 1..3 as J^T f (virtual work) and the wrench as G J^T f. (The moment such
-    # a clamp puts on the gimbal is left out: on joints 4..6 it looks like their own spring
-    # rates and zeros, and in mixes it took those effects' shares.)
+    # a clamp puts on the gimbal is left out while the clamp is unknown: on joints 4..6 it
+    # looks like their own spring rates and zeros, and in mixes it took those effects'
+    # shares.)
     # A slack cable only pulls once taut, and ever harder as it stretches: along each
     # direction d of a fixed set, a force along d that is one-sided in x = d . dp.
-    from delta6.core.model import forward_kinematics
-    jac = plate_jacobian(data)                                         # (n, 3, 3)
-    rest = forward_kinematics(data.params, np.zeros((1, 3)))[0]
-    pose = np.concatenate([data.position_mm - rest * 1e3, data.theta[:, 3:]], axis=1)
-    g = data.torque_map[:, :, :3]                                      # (n, 6, 3)
-    force = np.einsum("naj,nkj->nak", g, jac)                          # per N of f_k
+    # With the clamp's offset known (``harness_clamp``), the displacement is the clamp's own
+    # (the plate centre's plus the tilt's share), and the force, affine part included, turns
+    # the gimbal too. With a cable's direction and slack found (``cable_search``), the
+    # one-sided part is that one cable: a pull (any direction) growing with its stretch
+    # beyond the slack, and zero while it is slack, whatever the pose.
+    disp, force = _plate_force(data, clamp_mm)
+    pose = np.concatenate([disp, data.theta[:, 3:]], axis=1)
+    cols = [force]                                                     # preload, N
+    for m in range(6):                                                 # per mm or rad
+        cols.append(force * pose[:, None, m:m + 1])
+    if cable is not None:
+        direction, slack = cable
+        feats = cable_stretch_features(disp @ np.asarray(direction, float), slack)
+        for i in range(feats.shape[1]):
+            cols.append(force * feats[:, None, i:i + 1])
+        return np.concatenate(cols, axis=-1)
     dirs = np.asarray(HARNESS_DIRECTIONS)                              # (D, 3)
-    if clamp_mm is None:
-        cols = [force]                                                 # preload, N
-        for m in range(6):                                             # per mm or rad
-            cols.append(force * pose[:, None, m:m + 1])
-        along = force @ dirs.T                                         # (n, 6, D) per N
-        x = pose[:, :3] @ dirs.T                                       # (n, D) mm
-    else:
-        disp, jac_c = clamp_displacement(data, clamp_mm)
-        force = np.einsum("naj,nkj->nak", data.torque_map, jac_c)
-        pose = np.concatenate([disp, data.theta[:, 3:]], axis=1)
-        cols = [force]
-        for m in range(6):
-            cols.append(force * pose[:, None, m:m + 1])
-        along = force @ dirs.T
-        x = disp @ dirs.T
+    along = force @ dirs.T                                             # (n, 6, D) per N
+    x = disp @ dirs.T                                                  # (n, D) mm
     ax = np.abs(x)
     for feat in (ax, x * ax / HARNESS_REF_MM, x * x / HARNESS_REF_MM):
         cols.append(along * feat[:, None, :])
@@ -434,10 +458,83 @@ HARNESS_CLAMP_MIN_MM = 1.0
 HARNESS_CLAMP_MAX_MM = 100.0
 
 
-def harness_with_clamp(term: Term, clamp_mm) -> Term:
-    """The harness family with its one-sided terms at a clamp ``clamp_mm`` off the centre."""
-    return dataclasses.replace(term, build=functools.partial(_harness, clamp_mm=tuple(
-        float(v) for v in clamp_mm)))
+def harness_with_clamp(term: Term, clamp_mm, cable=None) -> Term:
+    """The harness family with its displacement at a clamp ``clamp_mm`` off the centre (None:
+    the centre) and, with ``cable`` (direction in {B}, slack in mm: ``cable_search``), its
+    one-sided part that one cable's."""
+    clamp = None if clamp_mm is None else tuple(float(v) for v in clamp_mm)
+    if cable is None:
+        return dataclasses.replace(term, build=functools.partial(_harness, clamp_mm=clamp))
+    cable = (tuple(float(v) for v in cable[0]), float(cable[1]))
+    return dataclasses.replace(
+        term, build=functools.partial(_harness, clamp_mm=clamp, cable=cable),
+        param_names=term.param_names[:HARNESS_AFFINE] + HARNESS_CABLE_PARAMS,
+        prior_sd=term.prior_sd[:HARNESS_AFFINE] + (0.05,) * len(HARNESS_CABLE_PARAMS),
+        plausible=_harness_cable_plausible)
+
+
+def sphere_directions(n: int) -> np.ndarray:
+    """``n`` unit vectors spread evenly over the sphere (a Fibonacci lattice), (n, 3)."""
+    i = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * i / n
+    phi = np.pi * (1.0 + 5 ** 0.5) * i
+    r = np.sqrt(1.0 - z * z)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+#: Directions a slack cable's stretch is sought along: neighbours about 9 degrees apart, so
+#: that the one found is within 5 degrees of the cable's (a hinge 5 degrees off stretches
+#: within 0.4 % of the cable's own).
+HARNESS_CABLE_DIRECTIONS = sphere_directions(500)
+#: Slacks sought (mm): from taut at rest to about half the plate's travel in a push (the
+#: stretch's square follows a slack between two of them).
+HARNESS_CABLE_SLACKS_MM = (0.0, 1.0, 2.0, 3.0, 4.5, 6.5, 9.0)
+#: The search reads at most this many samples of a log (evenly spread): the cable's
+#: direction and slack are two angles and a length, not a fit that needs every sample.
+HARNESS_CABLE_SEARCH_SAMPLES = 4_000
+
+
+def cable_search(data: GapData, clamp_mm=None) -> tuple[np.ndarray, float, float]:
+    """The slack cable that best explains the residual alone: its stretch direction ({B})
+    and slack (mm) among ``HARNESS_CABLE_DIRECTIONS`` x ``HARNESS_CABLE_SLACKS_MM``, and the
+    share of the residual's squared error it removes (in-sample, FS-normalised). The pull of
+    each candidate is fitted freely (three components per feature); its stretch is the
+    clamp's displacement along the direction (``clamp_mm`` as in :func:`_plate_force`)."""
+    step = max(1, -(-len(data) // HARNESS_CABLE_SEARCH_SAMPLES))
+    rows = slice(None, None, step)
+    view = GapData(design=data.design, params=data.params, t=data.t[rows],
+                   theta=data.theta[rows], reference=data.reference[rows],
+                   temp_c=None, fs=data.fs, ref_temp_c=data.ref_temp_c, step=data.step)
+    disp, force = _plate_force(view, clamp_mm)
+    a = force / data.fs[None, :, None]                                  # (n, 6, 3)
+    y = view.residual / data.fs
+    m = np.einsum("nak,nal->nkl", a, a).reshape(len(view), 9)
+    v = np.einsum("nak,na->nk", a, y)
+    total = float((y * y).sum())
+    best = (-np.inf, 0, 0.0)
+    dirs = HARNESS_CABLE_DIRECTIONS
+    pairs = ((0, 0), (0, 1), (1, 1))
+    for slack in HARNESS_CABLE_SLACKS_MM:
+        for lo in range(0, len(dirs), 100):
+            x = disp @ dirs[lo:lo + 100].T                              # (n, D) mm
+            g = cable_stretch_features(x.T, slack)                      # (D, n, 2)
+            gg = np.stack([g[..., f] * g[..., h] for f, h in pairs], axis=1)   # (D, 3, n)
+            gm = (gg @ m).reshape(len(x.T), 3, 3, 3)                    # (D, pair, k, l)
+            b = (np.swapaxes(g, 1, 2) @ v).reshape(len(x.T), 6)         # (D, f*3 + k)
+            gram = np.empty((len(x.T), 6, 6))
+            for p, (f, h) in enumerate(pairs):
+                gram[:, 3 * f:3 * f + 3, 3 * h:3 * h + 3] = gm[:, p]
+                gram[:, 3 * h:3 * h + 3, 3 * f:3 * f + 3] = np.swapaxes(gm[:, p], 1, 2)
+            scale = np.sqrt(np.maximum(np.einsum("dii->di", gram), 1e-300))
+            gram = gram / (scale[:, :, None] * scale[:, None, :])
+            gram += 1e-9 * np.eye(6)
+            coef = np.linalg.solve(gram, (b / scale)[..., None])[..., 0]
+            gains = np.einsum("di,di->d", coef, b / scale)
+            k = int(np.argmax(gains))
+            if gains[k] > best[0]:
+                best = (float(gains[k]), lo + k, slack)
+    gain, index, slack = best
+    return dirs[index].copy(), float(slack), gain / total if total > 0 else 0.0
 
 
 def _dwell_samples(data: GapData) -> np.ndarray:
@@ -515,6 +612,23 @@ def _harness_plausible(coef):
     return [("preload_n", f[0], 3.0), ("stiffness_n_per_mm", f[1:4], 0.5),
             ("stiffness_n_per_rad", f[4:], 0.5 * 100.0),
             ("one_sided_n_per_mm", one_sided, 0.5)]
+
+
+#: The single cable's parameters (``harness_with_clamp`` with a cable): its pull (x, y, z in
+#: {B}) per mm of stretch beyond the slack, and per mm of stretch times the stretch over the
+#: reference displacement.
+HARNESS_CABLE_PARAMS = tuple(f"cable_{kind}_{a}_n_per_mm" for kind in ("stretch", "stretch_sq")
+                             for a in "xyz")
+
+
+def _harness_cable_plausible(coef):
+    # The affine part as the family's; the cable's pull at most 0.5 N/mm at the reference
+    # stretch.
+    checks = _harness_plausible(np.concatenate([coef[:HARNESS_AFFINE],
+                                                np.zeros(len(_ONE_SIDED)
+                                                         * len(HARNESS_DIRECTIONS))]))
+    pull = np.abs(coef[HARNESS_AFFINE:].reshape(2, 3)).sum(axis=0)
+    return checks[:-1] + [("one_sided_n_per_mm", pull, 0.5)]
 
 
 def _thermal_plausible(coef):
