@@ -177,6 +177,12 @@ def harness_second_pass(data: GapData, problem: selection.Problem, terms, *, see
     if "harness" not in problem.terms:
         return None, None, None, first
     direction, slack, _ = terms_mod.cable_search(data, clamp)
+    if clamp is None:
+        # No clamp from the first pass: sought with the cable (a clamp kept at the centre
+        # when none explains more).
+        clamp, direction, slack, _ = terms_mod.cable_clamp_search(data, direction)
+        if not np.linalg.norm(clamp) > 0:
+            clamp = None
     cable = (direction, slack)
     if not follows_better(data, problem, terms, clamp, significant=not was_kept, seed=seed,
                           min_gain=min_gain, confidence=confidence, cable=cable):

@@ -494,17 +494,23 @@ HARNESS_CABLE_SLACKS_MM = (0.0, 1.0, 2.0, 3.0, 4.5, 6.5, 9.0)
 HARNESS_CABLE_SEARCH_SAMPLES = 4_000
 
 
-def cable_search(data: GapData, clamp_mm=None) -> tuple[np.ndarray, float, float]:
+def _search_view(data: GapData) -> GapData:
+    step = max(1, -(-len(data) // HARNESS_CABLE_SEARCH_SAMPLES))
+    rows = slice(None, None, step)
+    return GapData(design=data.design, params=data.params, t=data.t[rows],
+                   theta=data.theta[rows], reference=data.reference[rows],
+                   temp_c=None, fs=data.fs, ref_temp_c=data.ref_temp_c, step=data.step)
+
+
+def cable_search(data: GapData, clamp_mm=None, directions=None
+                 ) -> tuple[np.ndarray, float, float]:
     """The slack cable that best explains the residual alone: its stretch direction ({B})
     and slack (mm) among ``HARNESS_CABLE_DIRECTIONS`` x ``HARNESS_CABLE_SLACKS_MM``, and the
     share of the residual's squared error it removes (in-sample, FS-normalised). The pull of
     each candidate is fitted freely (three components per feature); its stretch is the
     clamp's displacement along the direction (``clamp_mm`` as in :func:`_plate_force`)."""
-    step = max(1, -(-len(data) // HARNESS_CABLE_SEARCH_SAMPLES))
-    rows = slice(None, None, step)
-    view = GapData(design=data.design, params=data.params, t=data.t[rows],
-                   theta=data.theta[rows], reference=data.reference[rows],
-                   temp_c=None, fs=data.fs, ref_temp_c=data.ref_temp_c, step=data.step)
+    view = data if len(data) <= HARNESS_CABLE_SEARCH_SAMPLES and data.temp_c is None \
+        else _search_view(data)
     disp, force = _plate_force(view, clamp_mm)
     a = force / data.fs[None, :, None]                                  # (n, 6, 3)
     y = view.residual / data.fs
@@ -512,7 +518,7 @@ def cable_search(data: GapData, clamp_mm=None) -> tuple[np.ndarray, float, float
     v = np.einsum("nak,na->nk", a, y)
     total = float((y * y).sum())
     best = (-np.inf, 0, 0.0)
-    dirs = HARNESS_CABLE_DIRECTIONS
+    dirs = HARNESS_CABLE_DIRECTIONS if directions is None else np.asarray(directions, float)
     pairs = ((0, 0), (0, 1), (1, 1))
     for slack in HARNESS_CABLE_SLACKS_MM:
         for lo in range(0, len(dirs), 100):
@@ -535,6 +541,37 @@ def cable_search(data: GapData, clamp_mm=None) -> tuple[np.ndarray, float, float
                 best = (float(gains[k]), lo + k, slack)
     gain, index, slack = best
     return dirs[index].copy(), float(slack), gain / total if total > 0 else 0.0
+
+
+#: Clamp offsets tried for a cable when the first pass gives none (mm, across the cable:
+#: the part along it neither moves the hinge nor turns the gimbal), and the directions kept
+#: near the cable's (degrees).
+HARNESS_CABLE_CLAMP_RADII_MM = (8.0, 16.0, 25.0, 35.0, 50.0)
+HARNESS_CABLE_CLAMP_ANGLES = 8
+HARNESS_CABLE_NEAR_DEG = 20.0
+
+
+def cable_clamp_search(data: GapData, direction) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """The clamp offset (plate frame, mm; at rest it is {B}'s) across a cable's stretch
+    ``direction`` that, with the direction and slack searched again near it, explains most of
+    the residual: (clamp, direction, slack, share removed). A cable clamped off the centre
+    stretches with the tilt too; when the first pass's family cannot be fitted (a log that
+    pushes one axis at a time), its affine fit does not give the clamp."""
+    u = np.asarray(direction, float) / np.linalg.norm(direction)
+    e1 = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    near = HARNESS_CABLE_DIRECTIONS[HARNESS_CABLE_DIRECTIONS @ u
+                                    >= np.cos(np.radians(HARNESS_CABLE_NEAR_DEG))]
+    view = _search_view(data)
+    best = (np.zeros(3),) + cable_search(view, None, near)
+    for radius in HARNESS_CABLE_CLAMP_RADII_MM:
+        for angle in np.arange(HARNESS_CABLE_CLAMP_ANGLES) * 2 * np.pi / HARNESS_CABLE_CLAMP_ANGLES:
+            clamp = radius * (np.cos(angle) * e1 + np.sin(angle) * e2)
+            found = cable_search(view, clamp, near)
+            if found[2] > best[3]:
+                best = (clamp,) + found
+    return best
 
 
 def _dwell_samples(data: GapData) -> np.ndarray:
