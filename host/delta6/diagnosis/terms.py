@@ -483,8 +483,8 @@ def sphere_directions(n: int) -> np.ndarray:
 
 
 #: Directions a slack cable's stretch is sought along: neighbours about 9 degrees apart, so
-#: that the one found is within 5 degrees of the cable's (a hinge 5 degrees off stretches
-#: within 0.4 % of the cable's own).
+#: that one is within 7 degrees of the cable's (a hinge 7 degrees off stretches within
+#: 0.75 % of the cable's own along the cable, and its pull is fitted in any direction).
 HARNESS_CABLE_DIRECTIONS = sphere_directions(500)
 #: Slacks sought (mm): from taut at rest to about half the plate's travel in a push (the
 #: stretch's square follows a slack between two of them).
