@@ -505,17 +505,24 @@ def _search_view(data: GapData) -> GapData:
 def cable_search(data: GapData, clamp_mm=None, directions=None
                  ) -> tuple[np.ndarray, float, float]:
     """The slack cable that best explains the residual alone: its stretch direction ({B})
-    and slack (mm) among ``HARNESS_CABLE_DIRECTIONS`` x ``HARNESS_CABLE_SLACKS_MM``, and the
-    share of the residual's squared error it removes (in-sample, FS-normalised). The pull of
-    each candidate is fitted freely (three components per feature); its stretch is the
-    clamp's displacement along the direction (``clamp_mm`` as in :func:`_plate_force`)."""
+    and slack (mm) among ``HARNESS_CABLE_DIRECTIONS`` (or ``directions``) x
+    ``HARNESS_CABLE_SLACKS_MM``, and the share of the residual's squared error it removes
+    (in-sample, FS-normalised). The pull of each candidate is fitted freely (three components
+    per feature); its stretch is the clamp's displacement along the direction (``clamp_mm``
+    as in :func:`_plate_force`)."""
     view = data if len(data) <= HARNESS_CABLE_SEARCH_SAMPLES and data.temp_c is None \
         else _search_view(data)
     disp, force = _plate_force(view, clamp_mm)
-    a = force / data.fs[None, :, None]                                  # (n, 6, 3)
-    y = view.residual / data.fs
-    m = np.einsum("nak,nal->nkl", a, a).reshape(len(view), 9)
-    v = np.einsum("nak,na->nk", a, y)
+    return _best_cable(disp, force, view.residual / view.fs, view.fs, directions)
+
+
+def _best_cable(disp, force, y, fs, directions=None) -> tuple[np.ndarray, float, float]:
+    """:func:`cable_search` on the clamp's displacement ``disp`` (n, 3, mm), the wrench per N
+    of force there ``force`` (n, 6, 3), the residual ``y`` (n, 6) and the full scale ``fs``
+    it is normalised by."""
+    fs_force = force / fs[None, :, None]
+    m = np.einsum("nak,nal->nkl", fs_force, fs_force).reshape(len(y), 9)
+    v = np.einsum("nak,na->nk", fs_force, y)
     total = float((y * y).sum())
     best = (-np.inf, 0, 0.0)
     dirs = HARNESS_CABLE_DIRECTIONS if directions is None else np.asarray(directions, float)
@@ -557,6 +564,7 @@ def cable_clamp_search(data: GapData, direction) -> tuple[np.ndarray, np.ndarray
     the residual: (clamp, direction, slack, share removed). A cable clamped off the centre
     stretches with the tilt too; when the first pass's family cannot be fitted (a log that
     pushes one axis at a time), its affine fit does not give the clamp."""
+    from delta6.core.model import rotation
     u = np.asarray(direction, float) / np.linalg.norm(direction)
     e1 = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
     e1 /= np.linalg.norm(e1)
@@ -564,11 +572,27 @@ def cable_clamp_search(data: GapData, direction) -> tuple[np.ndarray, np.ndarray
     near = HARNESS_CABLE_DIRECTIONS[HARNESS_CABLE_DIRECTIONS @ u
                                     >= np.cos(np.radians(HARNESS_CABLE_NEAR_DEG))]
     view = _search_view(data)
-    best = (np.zeros(3),) + cable_search(view, None, near)
+    y = view.residual / view.fs
+    # What does not depend on the clamp, once: the centre's displacement and Jacobian, the
+    # gimbal's rotation and its change per angle (as in ``clamp_displacement``).
+    centre, at_centre = _plate_force(view, None)
+    jac_p = plate_jacobian(view)
+    q = view.theta[:, 3:]
+    turn = rotation(q)
+    turns = [rotation(q + np.eye(3)[i] * _FK_STEP) for i in range(3)]
+    best = (np.zeros(3),) + _best_cable(centre, at_centre, y, view.fs, near)
+    angles = np.arange(HARNESS_CABLE_CLAMP_ANGLES) * 2 * np.pi / HARNESS_CABLE_CLAMP_ANGLES
     for radius in HARNESS_CABLE_CLAMP_RADII_MM:
-        for angle in np.arange(HARNESS_CABLE_CLAMP_ANGLES) * 2 * np.pi / HARNESS_CABLE_CLAMP_ANGLES:
+        for angle in angles:
             clamp = radius * (np.cos(angle) * e1 + np.sin(angle) * e2)
-            found = cable_search(view, clamp, near)
+            c = clamp * 1e-3
+            turned = turn @ c
+            jac = np.empty((len(view), 3, 6))
+            jac[:, :, :3] = jac_p
+            for i in range(3):
+                jac[:, :, 3 + i] = (turns[i] @ c - turned) / _FK_STEP
+            force = np.einsum("naj,nkj->nak", view.torque_map, jac)
+            found = _best_cable(centre + (turned - c) * 1e3, force, y, view.fs, near)
             if found[2] > best[3]:
                 best = (clamp,) + found
     return best
