@@ -27,7 +27,8 @@ error                           1..4 of a turn, any phase)
 harness             torque      a parallel elastic path (a cable to the plate): a force on
                                 the plate affine in the plate's pose, plus one-sided terms
                                 (a slack cable that only pulls once taut), through the
-                                mechanism to the joints
+                                mechanism to the joints (second pass: at the clamp, all
+                                six joints, one cable of searched direction and slack)
 ==================  ==========  =======================================================
 
 Every term returns *columns*: the wrench change (N, N*m) per unit of each parameter, per
