@@ -25,3 +25,24 @@ def test_the_cable_of_a_second_pass_is_reported():
     (line,) = [x for x in verdict_lines(result) if "one cable" in x]
     assert "-0.32, -0.27, -0.91" in line and "slack of 2 mm" in line
     assert not any("one cable" in x for x in verdict_lines(_result(None)))
+
+
+def test_a_fragment_of_the_leftover_is_told_apart_from_an_absorber():
+    result = {**_result(None), "partial": [
+        {"name": "joint_friction", "share_of_gap": 0.02, "fragment": True,
+         "leftover_share": 0.07},
+        {"name": "encoder_offset", "share_of_gap": 0.12, "fragment": False,
+         "leftover_share": 0.4}]}
+    lines = verdict_lines(result)
+    (fragment,) = [x for x in lines if "joint_friction" in x]
+    (absorber,) = [x for x in lines if "encoder_offset" in x]
+    assert "fragment" in fragment and "7 %" in fragment
+    assert "12 %" in absorber and "fragment" not in absorber
+
+
+def test_a_minor_family_reports_what_it_removes_alone():
+    result = {**_result(None), "minor": [
+        {"name": "encoder_offset", "share_of_gap": 0.03, "share_with_traded": 0.03,
+         "share_alone": 0.012}]}
+    (line,) = [x for x in verdict_lines(result) if "encoder_offset" in x]
+    assert "3.0 % of the gap" in line and "1.2 % alone" in line

@@ -134,14 +134,22 @@ def verdict_lines(result: dict) -> list[str]:
     for g in result["groups"]:
         lines.append(f"- Group verdict: **{g['text']}** (the log cannot tell them apart).")
     for p in result["partial"]:
+        if p.get("fragment"):
+            lines.append(f"- Not named: {p['name']} explains less of the gap, alone and in "
+                         "the model, than the structured leftover "
+                         f"({100 * p['leftover_share']:.0f} %): it may be a fragment of it (a "
+                         "neighbour's misfit, or part of an effect the vocabulary lacks).")
+            continue
         lines.append(f"- Not named: {p['name']} carries only {100 * p['share_of_gap']:.0f} % "
                      "of the gap while a structured leftover remains: it may be absorbing part "
                      "of an effect the vocabulary lacks.")
     for m in result.get("minor", []):
         share = m.get("share_with_traded", m["share_of_gap"])
+        alone = m.get("share_alone")
+        also = "" if alone is None else f" and removes {100 * alone:.1f} % alone"
         lines.append(f"- Not named: {m['name']} carries only {100 * share:.1f} % "
-                     "of the gap (with the families it trades with): in the ladder, but too "
-                     "little to tell it from its neighbours.")
+                     f"of the gap (with the families it trades with){also}: in the ladder, "
+                     "but too little to tell it from its neighbours.")
     for f in result.get("below_noise", []):
         lines.append(f"- Not named: {f['name']} removes only "
                      f"{100 * f['share_of_noise_floor']:.0f} % of the noise floor's squared "

@@ -36,6 +36,13 @@ PARTIAL_SHARE = 0.30
 #: but is not named (``minor``): in a mix, neighbouring families trade that much among
 #: themselves, so such a name says little about which effect is there.
 NAME_SHARE = 0.015
+#: A family carrying less than this share of the gap in the final model (with the families
+#: it trades with) is named only when it removes at least as much on its own: a small name
+#: needs more evidence than a large one. Under it both ways, a family explains too little,
+#: by itself or beside its neighbours, to be told from their trading (an encoder offset
+#: correcting the constant parts of its neighbours' fits removes nothing alone). It is the
+#: share under which the issue's figures call a name weak.
+SMALL_SHARE = 0.05
 #: Logs up to this many samples keep their columns in memory (no second pass).
 KEEP_COLUMNS_SAMPLES = 30_000
 
@@ -72,6 +79,56 @@ def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float,
         rest = [n for n in chosen if n not in members]
         out[name] = float((selection.heldout_block_sse(problem, rest).sum() - full) / base_sse)
     return out
+
+
+def minor_families(steps: list[dict], traded: dict, alone: dict, eligible) -> list[dict]:
+    """The ladder's families of ``eligible`` (named so far) that carry less than
+    ``NAME_SHARE`` of the gap with the families they trade with (``traded``, from
+    :func:`group_shares` with refinements), or less than ``SMALL_SHARE`` both so and on
+    their own (``alone``: the share each removes alone), in ladder order."""
+    return [{"name": s["added"], "share_of_gap": s["share_of_gap"],
+             "share_with_traded": traded[s["added"]], "share_alone": alone[s["added"]]}
+            for s in steps if s["added"] in eligible
+            and (traded[s["added"]] < NAME_SHARE
+                 or max(traded[s["added"]], alone[s["added"]]) < SMALL_SHARE)]
+
+
+def partial_families(steps: list[dict], carried: dict, traded: dict, alone: dict,
+                     missing: float, spared) -> list[dict]:
+    """The partial rule: the ladder's families (but ``spared``) that carry less than
+    ``PARTIAL_SHARE`` of the gap (``carried``: :func:`group_shares`) when the final model
+    leaves ``missing`` of the analytical model's held-out squared error structured beyond
+    the white noise, and that is sizeable (``MISSING_SHARE``: the vocabulary misses
+    something); or, whatever its size, when the family explains less than it, both in the
+    final model with the families it trades with (``traded``: with refinements) and on its
+    own (``alone``: the share it removes alone): it could be a fragment of that leftover (a
+    neighbour's misfit it picks up, or part of an effect the vocabulary lacks), and its name
+    would say nothing the leftover verdict does not. ``missing`` is 0 for a white
+    leftover; each entry gives it (``leftover_share``)."""
+    out = []
+    for s in steps:
+        name = s["added"]
+        if name in spared or carried[name] >= PARTIAL_SHARE:
+            continue
+        fragment = max(traded[name], alone[name]) < missing
+        if missing >= MISSING_SHARE or fragment:
+            out.append({"name": name, "share_of_gap": s["share_of_gap"],
+                        "fragment": bool(fragment and missing < MISSING_SHARE),
+                        "leftover_share": missing})
+    return out
+
+
+def first_explanation(alone: dict, base_sse: np.ndarray, steps: list[dict]) -> set:
+    """The family forward selection took first (the single best explanation of the gap) when
+    it removes at least ``PARTIAL_SHARE`` of the held-out error on its own: no absorber of an
+    effect the vocabulary lacks, even with a structured leftover (a sensor latency whose
+    formulation the family follows only in part leaves its misfit structured, and a
+    neighbour sharing its features, friction's speed terms, takes part of its share in the
+    final model). Empty when it removes less."""
+    if not steps:
+        return set()
+    name = steps[0]["added"]
+    return {name} if selection.gain(base_sse, alone[name]) >= PARTIAL_SHARE else set()
 
 
 def harness_clamp(problem: selection.Problem, *, seed: int, min_gain: float,
@@ -354,6 +411,8 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         if progress:
             progress("not named, below the noise floor: "
                      + ", ".join(f["name"] for f in faint))
+        group_verdicts = verdicts.groups(problem, kept, info,
+                                         faint={f["name"] for f in faint})
     floor = verdicts.noise_floor_sse(problem)
     group_verdicts = [g for g in group_verdicts
                       if verdicts.above_noise(g["share_of_gap"] * base_sse.sum(), floor)]
@@ -432,25 +491,26 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     left_verdict = leftover.analyse(data, leftover_fs)
     # When a sizeable structured leftover shows the vocabulary misses something, a family that
     # carries only a small share of the gap is as likely absorbing part of the missing effect
-    # as being there: it stays in the ladder (the correction works) but is not named. What is
-    # missing is the leftover beyond the white noise (noise is no missing effect), and a family
-    # its own signature confirms (backlash's dwell) shows what no absorber shows.
+    # as being there, and so is one that explains less than that leftover whatever its size:
+    # it stays in the ladder (the correction works) but is not named. What is missing is the
+    # leftover beyond the white noise (noise is no missing effect). A family its own
+    # signature confirms (backlash's dwell) shows what no absorber shows, and the single best
+    # explanation, removing a large share on its own, is none either.
+    missing = missing_share(problem, left, base_total) if left_verdict["structured"] else 0.0
+    confirmed = {n for n, v in info["signature"].items() if v["confirmed"]}
+    traded = group_shares(problem, chosen, base_total, refinements=True) if chosen else {}
+    alone_share = {n: selection.gain(base_sse, alone[n]) for n in chosen}
     partial = []
-    if left_verdict["structured"] and missing_share(problem, left, base_total) >= MISSING_SHARE:
-        own = {n for n, v in info["signature"].items() if v["confirmed"]}
-        carried = group_shares(problem, chosen, base_total)
-        partial = [{"name": s["added"], "share_of_gap": s["share_of_gap"]} for s in steps
-                   if carried[s["added"]] < PARTIAL_SHARE and s["added"] not in own]
+    if chosen and missing > 0:
+        partial = partial_families(
+            steps, group_shares(problem, chosen, base_total), traded, alone_share, missing,
+            confirmed | first_explanation(alone, base_sse, steps))
     unnamed = {p["name"] for p in partial}
     # A family that carries too little of the gap, with the families it trades with, to
     # tell it from its neighbours' trading is not named either (a family its own signature
     # confirms is spared, as above).
-    confirmed = {n for n, v in info["signature"].items() if v["confirmed"]}
-    traded = group_shares(problem, chosen, base_total, refinements=True) if chosen else {}
-    minor = [{"name": s["added"], "share_of_gap": s["share_of_gap"],
-              "share_with_traded": traded[s["added"]]} for s in steps
-             if s["added"] in kept and s["added"] not in unnamed
-             and s["added"] not in confirmed and traded[s["added"]] < NAME_SHARE]
+    minor = minor_families(steps, traded, alone_share,
+                           [n for n in kept if n not in unnamed and n not in confirmed])
     named_rest = [n for n in chosen if n in kept and n not in unnamed
                   and n not in {m["name"] for m in minor}]
     if minor and not named_rest and chosen:

@@ -23,12 +23,17 @@ from delta6.diagnosis import selection
 GROUP_MIN_GAIN = 0.10
 
 
-def groups(problem: selection.Problem, kept: list[str], info: dict) -> list[dict]:
+def groups(problem: selection.Problem, kept: list[str], info: dict,
+           faint=frozenset()) -> list[dict]:
     """Group verdicts: per group with a member dropped by the backward test after forward
     selection found it significant, the members (kept and dropped) and their joint share of
-    the analytical model's held-out squared error."""
+    the analytical model's held-out squared error. A dropped member in ``faint`` (one that
+    removes less than the noise criterion in the final model, :func:`drop_faint`) is no
+    member: the log shows nothing of it beyond what its neighbours explain, and the ladder
+    does not model it."""
     gains = info.get("forward_gain", {})
-    dropped = [n for n in info.get("dropped", []) if gains.get(n, 1.0) >= GROUP_MIN_GAIN]
+    dropped = [n for n in info.get("dropped", []) if gains.get(n, 1.0) >= GROUP_MIN_GAIN
+               and n not in faint]
     by_group: dict[str, list[str]] = {}
     for name in info.get("forward", []):
         group = problem.terms[name].group
