@@ -19,6 +19,14 @@ def test_no_clamp_line_without_a_second_pass():
     assert not any("clamped" in x for x in verdict_lines(_result(None)))
 
 
+def test_the_cable_of_a_second_pass_is_reported():
+    result = _result(None)
+    result["harness_cable"] = {"direction": [-0.32, -0.27, -0.91], "slack_mm": 2.0}
+    (line,) = [x for x in verdict_lines(result) if "one cable" in x]
+    assert "-0.32, -0.27, -0.91" in line and "slack of 2 mm" in line
+    assert not any("one cable" in x for x in verdict_lines(_result(None)))
+
+
 def test_a_fragment_of_the_leftover_is_told_apart_from_an_absorber():
     result = {**_result(None), "partial": [
         {"name": "joint_friction", "share_of_gap": 0.02, "fragment": True,

@@ -164,6 +164,11 @@ def verdict_lines(result: dict) -> list[str]:
                      + ", ".join(f"{v:+.1f}" for v in clamp) + " mm (x, y, z in the plate's "
                      "frame; only the part across its pull is determined): its hinge was fitted "
                      "in the clamp's own displacement.")
+    cable = result.get("harness_cable")
+    if cable is not None:
+        lines.append("- The harness's one-sided part is one cable: stretched along "
+                     + ", ".join(f"{v:+.2f}" for v in cable["direction"]) + " (x, y, z in "
+                     f"the base frame), taut beyond a slack of {cable['slack_mm']:g} mm.")
     for name, test in result["signature_tests"].items():
         if test["confirmed"]:
             lines.append(f"- {name} confirmed by its own signature: on the {test['samples']} "

@@ -195,22 +195,57 @@ def selected(problem: selection.Problem, names: list[str], seed: int, *, min_gai
 
 def follows_better(data: GapData, problem: selection.Problem, terms, clamp, *,
                    significant: bool = False, seed: int = 0, min_gain: float = 0.0,
-                   confidence: float = selection.CONFIDENCE) -> bool:
-    """Whether the harness family with its hinge at the estimated clamp ``clamp`` removes more
-    of the held-out error, alone, than the first pass's (a pass over the harness's columns
-    only): a clamp near the centre, or one the affine fit estimated poorly, can follow the
-    data worse than the plate centre's displacement does. With ``significant`` (a family
-    the first pass did not keep), more by the forward test's rule: the clamp must remove more
-    than ``min_gain`` of what the centre's hinge leaves, at the bootstrap's lower quantile."""
+                   confidence: float = selection.CONFIDENCE, cable=None) -> bool:
+    """Whether the harness family with its displacement at the estimated clamp ``clamp``
+    (None: the centre) and, with ``cable`` (``terms.cable_search``), its one-sided part that
+    one cable's, removes more of the held-out error, alone, than the first pass's (a pass
+    over the harness's columns only): a clamp near the centre, or one the affine fit
+    estimated poorly, can follow the data worse than the plate centre's displacement does.
+    With ``significant`` (a family the first pass did not keep), it must also pass the
+    forward test on its own: remove more than ``min_gain`` of the analytical model's held-out
+    error at the bootstrap's lower quantile (the first pass's family may have fitted worse
+    than nothing: a log that pushes one axis at a time stretches a slack cable in a few
+    pushes only, and a set of hinges along fixed directions extrapolates to the others)."""
     harness = next(t for t in terms if t.name == "harness")
-    trial = selection.build_problem(data, [terms_mod.harness_with_clamp(harness, clamp)],
-                                    keep_columns=False)
+    trial = selection.build_problem(
+        data, [terms_mod.harness_with_clamp(harness, clamp, cable)], keep_columns=False)
     at_clamp = selection.heldout_block_sse(trial, ["harness"])
     at_centre = selection.heldout_block_sse(problem, ["harness"])
+    if not at_clamp.sum() < at_centre.sum():
+        return False
     if not significant:
-        return bool(at_clamp.sum() < at_centre.sum())
-    boot = selection.stratified_gain(at_centre, at_clamp, np.random.default_rng(seed))
+        return True
+    base = selection.heldout_block_sse(problem, [])
+    boot = selection.stratified_gain(base, at_clamp, np.random.default_rng(seed))
     return bool(float(np.quantile(boot, 1 - confidence)) > min_gain)
+
+
+def harness_second_pass(data: GapData, problem: selection.Problem, terms, *, seed: int,
+                        min_gain: float, confidence: float, min_share: float, progress=None):
+    """The harness family of the second pass, or None: the clamp's offset
+    (:func:`harness_clamp`, None: the centre) and the slack cable that best explains the
+    residual with its stretch there (``terms.cable_search``), when, alone, it follows the data
+    better than the first pass's family (:func:`follows_better`; for a family the first pass
+    did not keep, also by the forward test's rule). Returns the family, the clamp, the
+    cable (direction, slack in mm) and the first pass's selection."""
+    clamp, was_kept, first = harness_clamp(problem, seed=seed, min_gain=min_gain,
+                                           confidence=confidence, min_share=min_share,
+                                           progress=progress)
+    if "harness" not in problem.terms:
+        return None, None, None, first
+    direction, slack, _ = terms_mod.cable_search(data, clamp)
+    if clamp is None:
+        # No clamp from the first pass: sought with the cable (a clamp kept at the centre
+        # when none explains more).
+        clamp, direction, slack, _ = terms_mod.cable_clamp_search(data, direction)
+        if not np.linalg.norm(clamp) > 0:
+            clamp = None
+    cable = (direction, slack)
+    if not follows_better(data, problem, terms, clamp, significant=not was_kept, seed=seed,
+                          min_gain=min_gain, confidence=confidence, cable=cable):
+        return None, None, None, first
+    harness = next(t for t in terms if t.name == "harness")
+    return terms_mod.harness_with_clamp(harness, clamp, cable), clamp, cable, first
 
 
 def diagnose(log: LogData, design: Design, **kwargs) -> dict:
@@ -248,26 +283,24 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
         problem = selection.build_problem(data, terms, progress=progress,
                                           signatures=signatures, keep_columns=keep,
                                           cache=cache)
-        clamp, was_kept, first = harness_clamp(problem, seed=seed, min_gain=min_gain,
-                                               confidence=confidence, min_share=min_share,
-                                               progress=progress)
-        if clamp is not None and not follows_better(
-                data, problem, terms, clamp, significant=not was_kept, seed=seed,
-                min_gain=min_gain, confidence=confidence):
-            clamp = None
-        if clamp is not None:
-            # Second pass: the harness's hinge in the clamp's own displacement. It stands
-            # only when its selection keeps the harness family, the reason for it (a hinge
-            # in the wrong place can leave the family below the forward test).
+        second_term, clamp, cable, first = harness_second_pass(
+            data, problem, terms, seed=seed, min_gain=min_gain, confidence=confidence,
+            min_share=min_share, progress=progress)
+        if second_term is not None:
+            # Second pass: the harness's displacement at the clamp, its one-sided part the
+            # cable found. It stands only when its selection keeps the harness family, the
+            # reason for it (a hinge in the wrong place can leave the family below the
+            # forward test).
             if progress:
-                progress("harness clamp {:.0f} mm off the centre: second pass".format(
-                    float(np.linalg.norm(clamp))))
-            second_terms = [terms_mod.harness_with_clamp(t, clamp) if t.name == "harness"
-                            else t for t in terms]
+                progress("harness: a cable {:.0f} mm off the centre, slack {:g} mm: second "
+                         "pass".format(0.0 if clamp is None else float(np.linalg.norm(clamp)),
+                                       cable[1]))
+            second_terms = [second_term if t.name == "harness" else t for t in terms]
             second_cache = None
             if cache is not None:
                 Path(scratch, "second").mkdir()
-                second_cache = stream.ColumnCache(Path(scratch, "second"), cache.width)
+                second_cache = stream.ColumnCache(
+                    Path(scratch, "second"), sum(len(t.param_names) for t in second_terms))
             second = selection.build_problem(data, second_terms, progress=progress,
                                              signatures=signatures, keep_columns=keep,
                                              cache=second_cache)
@@ -281,7 +314,7 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
                 problem, terms, cache, first = second, second_terms, second_cache, \
                     second_selected
             else:
-                clamp = None
+                clamp, cable = None, None
                 _drop(second_cache)
                 if progress:
                     progress("second pass dropped: the harness is not kept with it")
@@ -290,6 +323,8 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
                          seed=seed, progress=progress, min_gain=min_gain,
                          confidence=confidence, min_share=min_share, first=first)
         result["harness_clamp_mm"] = None if clamp is None else [float(v) for v in clamp]
+        result["harness_cable"] = None if cable is None else {
+            "direction": [float(v) for v in cable[0]], "slack_mm": float(cable[1])}
         return result
 
 

@@ -27,7 +27,8 @@ error                           1..4 of a turn, any phase)
 harness             torque      a parallel elastic path (a cable to the plate): a force on
                                 the plate affine in the plate's pose, plus one-sided terms
                                 (a slack cable that only pulls once taut), through the
-                                mechanism to the joints
+                                mechanism to the joints (second pass: at the clamp, all
+                                six joints, one cable of searched direction and slack)
 ==================  ==========  =======================================================
 
 Every term returns *columns*: the wrench change (N, N*m) per unit of each parameter, per
@@ -360,35 +361,61 @@ def clamp_displacement(data: GapData, clamp_mm) -> tuple[np.ndarray, np.ndarray]
     return disp, jac
 
 
-def _harness(data: GapData, clamp_mm=None) -> np.ndarray:
+def _plate_force(data: GapData, clamp_mm=None) -> tuple[np.ndarray, np.ndarray]:
+    """Where a force acts on the plate and what it does: the point's displacement from rest
+    (n, 3, mm, {B}) and the wrench change per N of force along x, y, z of {B} (n, 6, 3). At
+    the plate's centre (``clamp_mm`` None) the force reaches joints 1..3 as J_p^T f (virtual
+    work) and the wrench as G J_p^T f; at a clamp off the centre (plate frame, mm) it also
+    turns the gimbal: J_c^T f on all six joints, J_c the clamp's motion per joint angle."""
+    from delta6.core.model import forward_kinematics
+    if clamp_mm is None:
+        rest = forward_kinematics(data.params, np.zeros((1, 3)))[0]
+        disp = data.position_mm - rest * 1e3
+        force = np.einsum("naj,nkj->nak", data.torque_map[:, :, :3], plate_jacobian(data))
+    else:
+        disp, jac_c = clamp_displacement(data, clamp_mm)
+        force = np.einsum("naj,nkj->nak", data.torque_map, jac_c)
+    return disp, force
+
+
+def cable_stretch_features(x: np.ndarray, slack_mm: float) -> np.ndarray:
+    """The one-sided features of a slack cable stretched by ``x`` (mm, (n,)) along its own
+    direction: the stretch beyond the slack, and its square over ``HARNESS_REF_MM`` (a pull
+    that grows with the stretch, linearly or ever harder), both zero while the cable is slack.
+    (n, 2)."""
+    r = np.maximum(np.asarray(x, float) - slack_mm, 0.0)
+    return np.stack([r, r * r / HARNESS_REF_MM], axis=-1)
+
+
+def _harness(data: GapData, clamp_mm=None, cable=None) -> np.ndarray:
     # A cable or harness pulls on the plate with a force that depends on where the plate is:
     # affine in its pose's displacement from rest, the plate centre's (dp, mm) and the
     # gimbal's angles (q4..6, rad: a clamp off the centre moves with the tilt). The force f
     # reaches joints 1..3 as J^T f (virtual work) and the wrench as G J^T f. (The moment such
-    # a clamp puts on the gimbal is left out: on joints 4..6 it looks like their own spring
-    # rates and zeros, and in mixes it took those effects' shares.)
+    # a clamp puts on the gimbal is left out while the clamp is unknown: on joints 4..6 it
+    # looks like their own spring rates and zeros, and in mixes it took those effects'
+    # shares.)
     # A slack cable only pulls once taut, and ever harder as it stretches: along each
     # direction d of a fixed set, a force along d that is one-sided in x = d . dp.
-    from delta6.core.model import forward_kinematics
-    jac = plate_jacobian(data)                                         # (n, 3, 3)
-    rest = forward_kinematics(data.params, np.zeros((1, 3)))[0]
-    pose = np.concatenate([data.position_mm - rest * 1e3, data.theta[:, 3:]], axis=1)
-    g = data.torque_map[:, :, :3]                                      # (n, 6, 3)
-    force = np.einsum("naj,nkj->nak", g, jac)                          # per N of f_k
+    # With the clamp's offset known (``harness_clamp``), the displacement is the clamp's own
+    # (the plate centre's plus the tilt's share), and the force, affine part included, turns
+    # the gimbal too. With a cable's direction and slack found (``cable_search``), the
+    # one-sided part is that one cable: a pull (any direction) growing with its stretch
+    # beyond the slack, and zero while it is slack, whatever the pose.
+    disp, force = _plate_force(data, clamp_mm)
+    pose = np.concatenate([disp, data.theta[:, 3:]], axis=1)
     cols = [force]                                                     # preload, N
     for m in range(6):                                                 # per mm or rad
         cols.append(force * pose[:, None, m:m + 1])
+    if cable is not None:
+        direction, slack = cable
+        feats = cable_stretch_features(disp @ np.asarray(direction, float), slack)
+        for i in range(feats.shape[1]):
+            cols.append(force * feats[:, None, i:i + 1])
+        return np.concatenate(cols, axis=-1)
     dirs = np.asarray(HARNESS_DIRECTIONS)                              # (D, 3)
-    if clamp_mm is None:
-        along = force @ dirs.T                                         # (n, 6, D) per N
-        x = pose[:, :3] @ dirs.T                                       # (n, D) mm
-    else:
-        # With the clamp's offset known (``harness_clamp``), the hinge is in the clamp's own
-        # displacement (the plate centre's plus the tilt's share), and its pull turns the
-        # gimbal too.
-        disp, jac_c = clamp_displacement(data, clamp_mm)
-        along = np.einsum("naj,nkj,dk->nad", data.torque_map, jac_c, dirs)
-        x = disp @ dirs.T
+    along = force @ dirs.T                                             # (n, 6, D) per N
+    x = disp @ dirs.T                                                  # (n, D) mm
     ax = np.abs(x)
     for feat in (ax, x * ax / HARNESS_REF_MM, x * x / HARNESS_REF_MM):
         cols.append(along * feat[:, None, :])
@@ -432,10 +459,144 @@ HARNESS_CLAMP_MIN_MM = 1.0
 HARNESS_CLAMP_MAX_MM = 100.0
 
 
-def harness_with_clamp(term: Term, clamp_mm) -> Term:
-    """The harness family with its one-sided terms at a clamp ``clamp_mm`` off the centre."""
-    return dataclasses.replace(term, build=functools.partial(_harness, clamp_mm=tuple(
-        float(v) for v in clamp_mm)))
+def harness_with_clamp(term: Term, clamp_mm, cable=None) -> Term:
+    """The harness family with its displacement at a clamp ``clamp_mm`` off the centre (None:
+    the centre) and, with ``cable`` (direction in {B}, slack in mm: ``cable_search``), its
+    one-sided part that one cable's."""
+    clamp = None if clamp_mm is None else tuple(float(v) for v in clamp_mm)
+    if cable is None:
+        return dataclasses.replace(term, build=functools.partial(_harness, clamp_mm=clamp))
+    cable = (tuple(float(v) for v in cable[0]), float(cable[1]))
+    return dataclasses.replace(
+        term, build=functools.partial(_harness, clamp_mm=clamp, cable=cable),
+        param_names=term.param_names[:HARNESS_AFFINE] + HARNESS_CABLE_PARAMS,
+        prior_sd=term.prior_sd[:HARNESS_AFFINE] + (0.05,) * len(HARNESS_CABLE_PARAMS),
+        plausible=_harness_cable_plausible)
+
+
+def sphere_directions(n: int) -> np.ndarray:
+    """``n`` unit vectors spread evenly over the sphere (a Fibonacci lattice), (n, 3)."""
+    i = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * i / n
+    phi = np.pi * (1.0 + 5 ** 0.5) * i
+    r = np.sqrt(1.0 - z * z)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+#: Directions a slack cable's stretch is sought along: neighbours about 9 degrees apart, so
+#: that one is within 7 degrees of the cable's (a hinge 7 degrees off stretches within
+#: 0.75 % of the cable's own along the cable, and its pull is fitted in any direction).
+HARNESS_CABLE_DIRECTIONS = sphere_directions(500)
+#: Slacks sought (mm): from taut at rest to about half the plate's travel in a push (the
+#: stretch's square follows a slack between two of them).
+HARNESS_CABLE_SLACKS_MM = (0.0, 1.0, 2.0, 3.0, 4.5, 6.5, 9.0)
+#: The search reads at most this many samples of a log (evenly spread): the cable's
+#: direction and slack are two angles and a length, not a fit that needs every sample.
+HARNESS_CABLE_SEARCH_SAMPLES = 4_000
+
+
+def _search_view(data: GapData) -> GapData:
+    step = max(1, -(-len(data) // HARNESS_CABLE_SEARCH_SAMPLES))
+    rows = slice(None, None, step)
+    return GapData(design=data.design, params=data.params, t=data.t[rows],
+                   theta=data.theta[rows], reference=data.reference[rows],
+                   temp_c=None, fs=data.fs, ref_temp_c=data.ref_temp_c, step=data.step)
+
+
+def cable_search(data: GapData, clamp_mm=None, directions=None
+                 ) -> tuple[np.ndarray, float, float]:
+    """The slack cable that best explains the residual alone: its stretch direction ({B})
+    and slack (mm) among ``HARNESS_CABLE_DIRECTIONS`` (or ``directions``) x
+    ``HARNESS_CABLE_SLACKS_MM``, and the share of the residual's squared error it removes
+    (in-sample, FS-normalised). The pull of each candidate is fitted freely (three components
+    per feature); its stretch is the clamp's displacement along the direction (``clamp_mm``
+    as in :func:`_plate_force`)."""
+    view = data if len(data) <= HARNESS_CABLE_SEARCH_SAMPLES and data.temp_c is None \
+        else _search_view(data)
+    disp, force = _plate_force(view, clamp_mm)
+    return _best_cable(disp, force, view.residual / view.fs, view.fs, directions)
+
+
+def _best_cable(disp, force, y, fs, directions=None) -> tuple[np.ndarray, float, float]:
+    """:func:`cable_search` on the clamp's displacement ``disp`` (n, 3, mm), the wrench per N
+    of force there ``force`` (n, 6, 3), the residual ``y`` (n, 6) and the full scale ``fs``
+    it is normalised by."""
+    fs_force = force / fs[None, :, None]
+    m = np.einsum("nak,nal->nkl", fs_force, fs_force).reshape(len(y), 9)
+    v = np.einsum("nak,na->nk", fs_force, y)
+    total = float((y * y).sum())
+    best = (-np.inf, 0, 0.0)
+    dirs = HARNESS_CABLE_DIRECTIONS if directions is None else np.asarray(directions, float)
+    pairs = ((0, 0), (0, 1), (1, 1))
+    for slack in HARNESS_CABLE_SLACKS_MM:
+        for lo in range(0, len(dirs), 100):
+            x = disp @ dirs[lo:lo + 100].T                              # (n, D) mm
+            g = cable_stretch_features(x.T, slack)                      # (D, n, 2)
+            gg = np.stack([g[..., f] * g[..., h] for f, h in pairs], axis=1)   # (D, 3, n)
+            gm = (gg @ m).reshape(len(x.T), 3, 3, 3)                    # (D, pair, k, l)
+            b = (np.swapaxes(g, 1, 2) @ v).reshape(len(x.T), 6)         # (D, f*3 + k)
+            gram = np.empty((len(x.T), 6, 6))
+            for p, (f, h) in enumerate(pairs):
+                gram[:, 3 * f:3 * f + 3, 3 * h:3 * h + 3] = gm[:, p]
+                gram[:, 3 * h:3 * h + 3, 3 * f:3 * f + 3] = np.swapaxes(gm[:, p], 1, 2)
+            scale = np.sqrt(np.maximum(np.einsum("dii->di", gram), 1e-300))
+            gram = gram / (scale[:, :, None] * scale[:, None, :])
+            gram += 1e-9 * np.eye(6)
+            coef = np.linalg.solve(gram, (b / scale)[..., None])[..., 0]
+            gains = np.einsum("di,di->d", coef, b / scale)
+            k = int(np.argmax(gains))
+            if gains[k] > best[0]:
+                best = (float(gains[k]), lo + k, slack)
+    gain, index, slack = best
+    return dirs[index].copy(), float(slack), gain / total if total > 0 else 0.0
+
+
+#: Clamp offsets tried for a cable when the first pass gives none (mm, across the cable:
+#: the part along it neither moves the hinge nor turns the gimbal), and the directions kept
+#: near the cable's (degrees).
+HARNESS_CABLE_CLAMP_RADII_MM = (8.0, 16.0, 25.0, 35.0, 50.0)
+HARNESS_CABLE_CLAMP_ANGLES = 8
+HARNESS_CABLE_NEAR_DEG = 20.0
+
+
+def cable_clamp_search(data: GapData, direction) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """The clamp offset (plate frame, mm; at rest it is {B}'s) across a cable's stretch
+    ``direction`` that, with the direction and slack searched again near it, explains most of
+    the residual: (clamp, direction, slack, share removed). A cable clamped off the centre
+    stretches with the tilt too; when the first pass's family cannot be fitted (a log that
+    pushes one axis at a time), its affine fit does not give the clamp."""
+    from delta6.core.model import rotation
+    u = np.asarray(direction, float) / np.linalg.norm(direction)
+    e1 = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    near = HARNESS_CABLE_DIRECTIONS[HARNESS_CABLE_DIRECTIONS @ u
+                                    >= np.cos(np.radians(HARNESS_CABLE_NEAR_DEG))]
+    view = _search_view(data)
+    y = view.residual / view.fs
+    # What does not depend on the clamp, once: the centre's displacement and Jacobian, the
+    # gimbal's rotation and its change per angle (as in ``clamp_displacement``).
+    centre, at_centre = _plate_force(view, None)
+    jac_p = plate_jacobian(view)
+    q = view.theta[:, 3:]
+    turn = rotation(q)
+    turns = [rotation(q + np.eye(3)[i] * _FK_STEP) for i in range(3)]
+    best = (np.zeros(3),) + _best_cable(centre, at_centre, y, view.fs, near)
+    angles = np.arange(HARNESS_CABLE_CLAMP_ANGLES) * 2 * np.pi / HARNESS_CABLE_CLAMP_ANGLES
+    for radius in HARNESS_CABLE_CLAMP_RADII_MM:
+        for angle in angles:
+            clamp = radius * (np.cos(angle) * e1 + np.sin(angle) * e2)
+            c = clamp * 1e-3
+            turned = turn @ c
+            jac = np.empty((len(view), 3, 6))
+            jac[:, :, :3] = jac_p
+            for i in range(3):
+                jac[:, :, 3 + i] = (turns[i] @ c - turned) / _FK_STEP
+            force = np.einsum("naj,nkj->nak", view.torque_map, jac)
+            found = _best_cable(centre + (turned - c) * 1e3, force, y, view.fs, near)
+            if found[2] > best[3]:
+                best = (clamp,) + found
+    return best
 
 
 def _dwell_samples(data: GapData) -> np.ndarray:
@@ -513,6 +674,23 @@ def _harness_plausible(coef):
     return [("preload_n", f[0], 3.0), ("stiffness_n_per_mm", f[1:4], 0.5),
             ("stiffness_n_per_rad", f[4:], 0.5 * 100.0),
             ("one_sided_n_per_mm", one_sided, 0.5)]
+
+
+#: The single cable's parameters (``harness_with_clamp`` with a cable): its pull (x, y, z in
+#: {B}) per mm of stretch beyond the slack, and per mm of stretch times the stretch over the
+#: reference displacement.
+HARNESS_CABLE_PARAMS = tuple(f"cable_{kind}_{a}_n_per_mm" for kind in ("stretch", "stretch_sq")
+                             for a in "xyz")
+
+
+def _harness_cable_plausible(coef):
+    # The affine part as the family's; the cable's pull at most 0.5 N/mm at the reference
+    # stretch.
+    checks = _harness_plausible(np.concatenate([coef[:HARNESS_AFFINE],
+                                                np.zeros(len(_ONE_SIDED)
+                                                         * len(HARNESS_DIRECTIONS))]))
+    pull = np.abs(coef[HARNESS_AFFINE:].reshape(2, 3)).sum(axis=0)
+    return checks[:-1] + [("one_sided_n_per_mm", pull, 0.5)]
 
 
 def _thermal_plausible(coef):
