@@ -153,10 +153,22 @@ def test_fitted_friction_opposes_the_motion_at_every_speed(late_fit, late_rig):
     assert np.all(torque >= -1e-12)
 
 
-@pytest.mark.parametrize("bad", [["thermal_drift"], ["warp_drive"]])
+@pytest.mark.parametrize("bad", [["thermal_drift"], ["warp_drive"], ["harness"],
+                                 ["nonlinear_spring"], ["encoder_periodic_error"]])
 def test_uncorrectable_or_unknown_effects_are_refused(bad):
-    with pytest.raises(UserError):
+    with pytest.raises(UserError) as err:
         check_effects(bad)
+    assert bad[0] in str(err.value)
+
+
+def test_every_family_the_diagnosis_names_is_corrected_or_says_why_not():
+    """A named effect the device does not correct must leave a line in the file's
+    ``fit.not_applied``, never vanish."""
+    from delta6.core.calibration import CORRECTED, NOT_APPLIED
+    from delta6.diagnosis.terms import TERMS
+    names = {t.name for t in TERMS}
+    assert names <= set(CORRECTED) | set(NOT_APPLIED), names - set(CORRECTED) - set(NOT_APPLIED)
+    assert not set(CORRECTED) & set(NOT_APPLIED)
 
 
 def test_a_log_longer_than_one_streamed_piece_is_calibrated(baseline):

@@ -251,9 +251,8 @@ def _describe(checks) -> str:
 
 def check_effects(effects) -> None:
     for e in effects:
-        if e == "thermal_drift":
-            raise UserError("thermal_drift cannot be corrected on the device: "
-                            + NOT_APPLIED["thermal_drift"])
+        if e in NOT_APPLIED and e != LATENCY:
+            raise UserError(f"{e} cannot be corrected on the device: {NOT_APPLIED[e]}")
         if e not in CORRECTED and e != LATENCY:
             raise UserError(f"unknown effect {e!r} (one of {', '.join(CORRECTED + (LATENCY,))})")
 

@@ -33,6 +33,12 @@ NOT_APPLIED = {
                       "not of the unit: fitted, reported, not applied",
     "thermal_drift": "needs the unit's temperature; no gain shown with the chip's sensor: "
                      "left out",
+    "nonlinear_spring": "no device form yet (the spring torque would need its curve per "
+                        "joint): reported by the diagnosis, not applied",
+    "encoder_periodic_error": "no device form yet (a harmonic table over each shaft angle): "
+                              "reported by the diagnosis, not applied",
+    "harness": "a force from outside the unit (a cable to the plate) that changes with how "
+               "it is routed: reported by the diagnosis, not applied",
 }
 #: Play radii of the hysteresis operators, encoder counts (0.006, 0.025, 0.098 rad).
 DEFAULT_HYSTERESIS_RADII = (16, 64, 256)
