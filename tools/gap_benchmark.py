@@ -24,7 +24,8 @@ ROOT = Path(__file__).resolve().parents[1]
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--design", default=str(ROOT / "designs" / "delta6.toml"))
-    parser.add_argument("--seed", type=int, default=None, help="base seed (default: fresh)")
+    parser.add_argument("--seed", type=int, default=None,
+                        help="base seed (default: the documented run's, in docs/diagnosis.md)")
     parser.add_argument("--duration", type=float, default=400.0, help="seconds per run")
     parser.add_argument("--pairs", type=int, default=4)
     parser.add_argument("--none", type=int, default=4, dest="n_none")
