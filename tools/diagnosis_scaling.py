@@ -72,9 +72,9 @@ def main() -> int:
             _, cpu, peak_kb = proc.stderr.strip().splitlines()[-1].split()
             rows.append((n, seconds, float(cpu), int(peak_kb) / 1024.0))
             print(f"{n:>9} samples: {seconds:7.1f} s wall, {float(cpu):7.1f} s CPU, peak "
-                  f"{rows[-1][3]:7.0f} MB", flush=True)
+                  f"{rows[-1][3]:7.0f} MiB", flush=True)
             path.unlink()
-    print("\n| samples | wall time, s | CPU time, s | peak memory, MB |\n|---|---|---|---|")
+    print("\n| samples | wall time, s | CPU time, s | peak memory, MiB |\n|---|---|---|---|")
     for n, seconds, cpu, mb in rows:
         print(f"| {n:.0e} | {seconds:.0f} | {cpu:.0f} | {mb:.0f} |")
     return 0

@@ -93,6 +93,20 @@ def test_a_smooth_function_of_the_angle_is_found_below_the_noise(snr, level, pha
     assert result["explained_var"] == pytest.approx((level * snr) ** 2, rel=0.5)
 
 
+def test_a_stretch_beyond_the_others_angles_does_not_wipe_out_the_structure():
+    """The last stretch sweeps angles no other stretch reaches: the polynomial fitted on the
+    others, extrapolated there, would cost more than the structure gains elsewhere and the
+    explained variance would come out 0 though the structure is plain."""
+    rng = np.random.default_rng(5)
+    n = 20 * 3000
+    angle = 0.5 * np.sin(np.arange(n) / 40.0)
+    angle[-3000:] = np.linspace(0.5, 1.2, 3000)
+    tau = 0.5 * np.cos(2.5 * angle) + 0.2 * rng.standard_normal(n)
+    result = leftover.angle_test(tau, angle)
+    assert result["p"] <= LEVEL
+    assert result["explained_var"] > 0.5 * np.var(0.5 * np.cos(2.5 * angle[:-3000]))
+
+
 def _rows(amounts, structured, best, angle):
     return [({"joint": j + 1, "structured": s, "best": b, "angle_structured": a}, x)
             for j, (x, s, b, a) in enumerate(zip(amounts, structured, best, angle))]

@@ -18,6 +18,7 @@ from delta6.diagnosis.run import (
     diagnose,
     first_explanation,
     minor_families,
+    names_together,
     partial_families,
 )
 from delta6.diagnosis.terms import TERMS
@@ -85,11 +86,27 @@ def test_the_first_explanation_is_spared_when_it_removes_a_large_share_alone():
     steps = steps_of({"a": 0.2, "b": 0.1})
     strong = {"a": np.full(60, 1.0 - PARTIAL_SHARE - 0.05), "b": np.full(60, 0.9)}
     weak = {"a": np.full(60, 1.0 - PARTIAL_SHARE + 0.05), "b": np.full(60, 0.9)}
-    assert first_explanation(strong, base, steps) == {"a"}
-    # Only the first step: the later one, however large alone, may be absorbing.
-    assert first_explanation(strong, base, steps[::-1]) == set()
-    assert first_explanation(weak, base, steps) == set()
-    assert first_explanation(strong, base, []) == set()
+    chosen = [s["added"] for s in steps]
+    assert first_explanation(strong, base, ["a", "b"], chosen) == {"a"}
+    # Only forward selection's first pick: the later one, however large alone, may be
+    # absorbing.
+    assert first_explanation(strong, base, ["b", "a"], chosen) == set()
+    assert first_explanation(weak, base, ["a", "b"], chosen) == set()
+    assert first_explanation(strong, base, [], chosen) == set()
+    # The first pick the backward test took out spares no later family.
+    assert first_explanation(strong, base, ["a", "b"], ["b"]) == set()
+
+
+def test_a_lone_small_name_is_not_rescued_by_the_every_name_rule():
+    """The minor rule strikes every name: families struck only for trading are named after
+    all when together they carry the naming share; a small name must carry the small-name
+    share even together."""
+    traded_only = [{"name": "a", "share_with_traded": 0.01, "share_alone": 0.2}]
+    small = [{"name": "a", "share_with_traded": 0.03, "share_alone": 0.02}]
+    assert names_together(traded_only, NAME_SHARE)
+    assert not names_together(traded_only, 0.9 * NAME_SHARE)
+    assert not names_together(small, 0.03)
+    assert names_together(small, SMALL_SHARE)
 
 
 def test_a_latency_under_one_axis_pushes_is_named_though_its_misfit_stays_structured(

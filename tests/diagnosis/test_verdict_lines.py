@@ -1,11 +1,12 @@
 """The verdict lines of the report and of the command's summary name the harness's clamp when
-a second pass fitted the hinge there, and say nothing of it otherwise."""
+a second pass fitted the hinge there and the harness is named, and say nothing of it
+otherwise."""
 from delta6.diagnosis.report import verdict_lines
 
 
-def _result(clamp):
-    return {"groups": [], "partial": [], "implausible": {}, "signature_tests": {},
-            "unexplained": {"verdict": {"structured": False}},
+def _result(clamp, present=("harness",)):
+    return {"present": list(present), "groups": [], "partial": [], "implausible": {},
+            "signature_tests": {}, "unexplained": {"verdict": {"structured": False}},
             "excitation": {"unsupported": []}, "harness_clamp_mm": clamp}
 
 
@@ -17,6 +18,20 @@ def test_the_clamp_of_a_second_pass_is_reported():
 
 def test_no_clamp_line_without_a_second_pass():
     assert not any("clamped" in x for x in verdict_lines(_result(None)))
+
+
+def test_no_clamp_or_cable_line_when_the_harness_is_not_named():
+    result = _result([24.6, -3.4, 0.0], present=["stiffness_mismatch"])
+    result["harness_cable"] = {"direction": [0.0, 0.0, -1.0], "slack_mm": 2.0}
+    result["minor"] = [{"name": "harness", "share_of_gap": 0.01, "share_with_traded": 0.01,
+                        "share_alone": 0.01}]
+    lines = verdict_lines(result)
+    assert not any("clamped" in x or "one cable" in x for x in lines)
+    # Named through a group verdict, it is described.
+    result["groups"] = [{"members": ["harness", "link_compliance"], "named_alone": [],
+                         "share_of_gap": 0.2, "text": "harness and/or link_compliance"}]
+    lines = verdict_lines(result)
+    assert any("clamped" in x for x in lines) and any("one cable" in x for x in lines)
 
 
 def test_the_cable_of_a_second_pass_is_reported():

@@ -118,7 +118,13 @@ def angle_test(tau: np.ndarray, angle: np.ndarray, folds: int = ANGLE_FOLDS,
         coef, *_ = np.linalg.lstsq(grams.sum(0) - grams[k], moments.sum(0) - moments[k],
                                    rcond=None)
         mean = (tau[:a].sum() + tau[b:].sum()) / (n - (b - a))
-        gains[k] = np.sum((tau[a:b] - mean) ** 2) - np.sum((tau[a:b] - basis[a:b] @ coef) ** 2)
+        # A stretch that sweeps angles the others never reach is scored with the fit held at
+        # the edge of what it was fitted on: a polynomial of this degree extrapolated would
+        # cost the stretch more than any structure gains elsewhere.
+        rest = np.concatenate([s[:a], s[b:]])
+        held = np.clip(s[a:b], rest.min(), rest.max()) if len(rest) else s[a:b]
+        fitted = np.stack([held**d for d in range(degree + 1)], axis=1) @ coef
+        gains[k] = np.sum((tau[a:b] - mean) ** 2) - np.sum((tau[a:b] - fitted) ** 2)
     sd = gains.std(ddof=1)
     t = float(gains.mean() / (sd / np.sqrt(folds))) if sd > 0 else 0.0
     # The t test's statistic stops growing with the structure's size once the stretches'

@@ -93,6 +93,16 @@ def minor_families(steps: list[dict], traded: dict, alone: dict, eligible) -> li
                  or max(traded[s["added"]], alone[s["added"]]) < SMALL_SHARE)]
 
 
+def names_together(minor: list[dict], together: float) -> bool:
+    """When the minor rule would strike every name: whether the struck families, carrying
+    ``together`` of the gap all at once (the final model against none), are named after
+    all. By the share that struck them: a small name must stand on its own
+    (``SMALL_SHARE``), and a set of small names together as much; families struck only for
+    trading (under ``NAME_SHARE`` with their neighbours) by that share."""
+    small = any(max(m["share_with_traded"], m["share_alone"]) < SMALL_SHARE for m in minor)
+    return together >= (SMALL_SHARE if small else NAME_SHARE)
+
+
 def partial_families(steps: list[dict], carried: dict, traded: dict, alone: dict,
                      missing: float, spared) -> list[dict]:
     """The partial rule: the ladder's families (but ``spared``) that carry less than
@@ -118,16 +128,18 @@ def partial_families(steps: list[dict], carried: dict, traded: dict, alone: dict
     return out
 
 
-def first_explanation(alone: dict, base_sse: np.ndarray, steps: list[dict]) -> set:
-    """The family forward selection took first (the single best explanation of the gap) when
-    it removes at least ``PARTIAL_SHARE`` of the held-out error on its own: no absorber of an
-    effect the vocabulary lacks, even with a structured leftover (a sensor latency whose
-    formulation the family follows only in part leaves its misfit structured, and a
-    neighbour sharing its features, friction's speed terms, takes part of its share in the
-    final model). Empty when it removes less."""
-    if not steps:
+def first_explanation(alone: dict, base_sse: np.ndarray, forward: list[str],
+                      chosen: list[str]) -> set:
+    """The family forward selection took first (``forward[0]``: the single best explanation
+    of the gap), if the final model ``chosen`` still has it, when it removes at least
+    ``PARTIAL_SHARE`` of the held-out error on its own: no absorber of an effect the
+    vocabulary lacks, even with a structured leftover (a sensor latency whose formulation the
+    family follows only in part leaves its misfit structured, and a neighbour sharing its
+    features, friction's speed terms, takes part of its share in the final model). Empty when
+    it removes less, or when the backward test or the noise rule took it out."""
+    if not forward or forward[0] not in chosen:
         return set()
-    name = steps[0]["added"]
+    name = forward[0]
     return {name} if selection.gain(base_sse, alone[name]) >= PARTIAL_SHARE else set()
 
 
@@ -554,7 +566,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     if chosen and missing > 0:
         partial = partial_families(
             steps, group_shares(problem, chosen, base_total), traded, alone_share, missing,
-            confirmed | first_explanation(alone, base_sse, steps))
+            confirmed | first_explanation(alone, base_sse, info["forward"], chosen))
     unnamed = {p["name"] for p in partial}
     # A family that carries too little of the gap, with the families it trades with, to
     # tell it from its neighbours' trading is not named either (a family its own signature
@@ -566,9 +578,9 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     if minor and not named_rest and chosen:
         # Every name would go: families that trade without a declared group (collinear
         # columns) can each carry little while together they carry the gap. Taking them all
-        # out of the final model is the test, by the same share.
-        together = float((base_sse.sum() - final_sse) / base_total)
-        if together >= NAME_SHARE:
+        # out of the final model is the test, by the share that struck them: a small name
+        # must stand on its own, and a set of small names together as much.
+        if names_together(minor, float((base_sse.sum() - final_sse) / base_total)):
             minor = []
     unnamed |= {m["name"] for m in minor}
     # A group verdict names its members: none of them is a minor name.
