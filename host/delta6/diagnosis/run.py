@@ -291,15 +291,12 @@ def harness_second_pass(data: GapData, problem: selection.Problem, terms, *, see
     if "harness" not in problem.terms:
         return None, None, None, first
     target = harness_target(data, problem, first, cache)
-    direction, slack, share = terms_mod.cable_search(data, clamp, target=target)
-    if clamp is None or target is not None:
+    direction, slack, _ = terms_mod.cable_search(data, clamp, target=target)
+    if clamp is None:
         # No clamp from the first pass: sought with the cable (a clamp kept at the centre
-        # when none explains more). In a mix the affine fit's clamp is the harness's only in
-        # part (a slack cable's pull is hardly affine): the one the cable itself follows
-        # better, when it does.
-        found = terms_mod.cable_clamp_search(data, direction, target=target)
-        if clamp is None or found[3] > share:
-            clamp, direction, slack, _ = found
+        # when none explains more).
+        clamp, direction, slack, _ = terms_mod.cable_clamp_search(data, direction,
+                                                                  target=target)
         if not np.linalg.norm(clamp) > 0:
             clamp = None
     cable = (direction, slack)
