@@ -7,7 +7,7 @@ import pytest
 
 from delta6 import twin
 from delta6.diagnosis import run as run_mod
-from delta6.diagnosis import selection
+from delta6.diagnosis import selection, stream
 from delta6.diagnosis import terms as family
 from delta6.diagnosis.data import GapData
 from delta6.link.logfile import LogData
@@ -66,3 +66,21 @@ def test_the_cable_is_sought_in_what_the_other_families_leave(baseline, seed):
     assert 0.0 <= slack <= 6.5 and share > 0.5
     # Nothing else kept: the residual itself, as before.
     assert run_mod.harness_target(data, problem, _kept(["harness"])) is None
+
+
+def test_a_long_log_reads_the_search_rows_from_its_column_cache(baseline, tmp_path):
+    """A long log keeps its columns on disk, not in memory: the search's rows read from the
+    cache give the same target (to float32), and without a cache there is none."""
+    harness = twin.make_effect("harness", seed=402, formulation="cable", magnitude=0.75)
+    hysteresis = twin.make_effect("spring_hysteresis", seed=412, magnitude=0.9)
+    data, in_memory = _problem(baseline, [harness, hysteresis], 422,
+                               ("harness", "spring_hysteresis"))
+    terms = [t for t in family.TERMS if t.name in ("harness", "spring_hysteresis")]
+    cache = stream.ColumnCache(tmp_path, sum(len(t.param_names) for t in terms))
+    on_disk = selection.build_problem(data, terms, keep_columns=False, cache=cache,
+                                      piece_samples=1000)
+    kept = _kept(["spring_hysteresis", "harness"])
+    want = run_mod.harness_target(data, in_memory, kept)
+    got = run_mod.harness_target(data, on_disk, kept, cache)
+    assert np.abs(got - want).max() < 1e-6 * np.abs(want).max()
+    assert run_mod.harness_target(data, on_disk, kept) is None
