@@ -167,7 +167,10 @@ def harness_clamp(problem: selection.Problem, *, seed: int, min_gain: float,
                                          first.rng())
         if not float(np.quantile(boot, 1 - confidence)) > min_gain:
             return None, False, first
-    clamp = terms_mod.harness_clamp(harness_affine(problem, first))
+    cols = problem.cols(["harness"])[:terms_mod.HARNESS_AFFINE]
+    gram = problem.gram[:, cols][:, :, cols].sum(axis=0)
+    clamp = terms_mod.harness_clamp(selection.solve(gram, problem.xty[:, cols].sum(axis=0),
+                                                    problem.penalty[cols]))
     size = float(np.linalg.norm(clamp))
     if not terms_mod.HARNESS_CLAMP_MIN_MM <= size <= terms_mod.HARNESS_CLAMP_MAX_MM:
         return None, was_kept, first
@@ -276,6 +279,21 @@ def harness_target(data: GapData, problem: selection.Problem, first: "Selected",
     return view - x @ coef
 
 
+def _with_others(data: GapData, others: np.ndarray, clamp, cable) -> float:
+    """The share of the residual at the cable search's samples that the harness family with
+    ``clamp`` and ``cable`` explains together with the other families' columns ``others``
+    there (in-sample: the candidates compared have as many parameters)."""
+    view = terms_mod._search_view(data)
+    y = (view.residual / view.fs).reshape(-1)
+    own = terms_mod._harness(view, clamp, cable) / view.fs[None, :, None]
+    x = np.concatenate([others, own], axis=2).reshape(len(y), -1)
+    gram = x.T @ x
+    coef = selection.solve(gram, x.T @ y)
+    left = y - x @ coef
+    total = float(y @ y)
+    return 1.0 - float(left @ left) / total if total > 0 else 0.0
+
+
 def harness_second_pass(data: GapData, problem: selection.Problem, terms, *, seed: int,
                         min_gain: float, confidence: float, min_share: float, progress=None,
                         cache=None):
@@ -291,7 +309,24 @@ def harness_second_pass(data: GapData, problem: selection.Problem, terms, *, see
     if "harness" not in problem.terms:
         return None, None, None, first
     target = harness_target(data, problem, first, cache)
-    direction, slack, _ = terms_mod.cable_search(data, clamp, target=target)
+    direction, slack, _ = terms_mod.cable_search(data, clamp)
+    if target is not None:
+        # In a mix the cable is also sought in what the other families leave, and the clamp
+        # also read from the affine fit beside them (``harness_affine``). Either can go
+        # wrong: a gimbal spring-rate family kept beside a lone cable takes the part of its
+        # stretch that the tilt gives. The clamp and cable that, with the other families,
+        # explain the most of the residual stand.
+        others = problem.cols([n for n in first.kept if n != "harness"])
+        x = _rows(problem, cache, terms_mod.search_rows(len(data)), len(data), others)
+        candidates = [(clamp, (direction, slack))]
+        candidates.append((clamp, terms_mod.cable_search(data, clamp, target=target)[:2]))
+        beside = terms_mod.harness_clamp(harness_affine(problem, first))
+        if terms_mod.HARNESS_CLAMP_MIN_MM <= float(np.linalg.norm(beside)) \
+                <= terms_mod.HARNESS_CLAMP_MAX_MM:
+            candidates.append((beside, terms_mod.cable_search(data, beside,
+                                                              target=target)[:2]))
+        shares = [_with_others(data, x, c, cable) for c, cable in candidates]
+        clamp, (direction, slack) = candidates[int(np.argmax(shares))]
     if clamp is None:
         # No clamp from the first pass: sought with the cable (a clamp kept at the centre
         # when none explains more).
