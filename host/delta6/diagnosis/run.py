@@ -177,6 +177,19 @@ def harness_clamp(problem: selection.Problem, *, seed: int, min_gain: float,
     return clamp, was_kept, first
 
 
+def harness_affine(problem: selection.Problem, first: "Selected") -> np.ndarray:
+    """The harness family's affine coefficients (``terms.HARNESS_AFFINE``), its one-sided
+    terms left out, fitted with the other families the first pass kept: alone, in a mix, its
+    tilt terms take the gimbal joints' own errors (a spring rate's error there is a torque
+    growing with the tilt, as a clamp off the centre gives), and the clamp follows them."""
+    others = [n for n in first.kept if n != "harness"]
+    cols = np.concatenate([problem.cols(others),
+                           problem.cols(["harness"])[:terms_mod.HARNESS_AFFINE]])
+    gram = problem.gram[:, cols][:, :, cols].sum(axis=0)
+    coef = selection.solve(gram, problem.xty[:, cols].sum(axis=0), problem.penalty[cols])
+    return coef[len(cols) - terms_mod.HARNESS_AFFINE:]
+
+
 @dataclass(frozen=True)
 class Selected:
     """A pass's selection (:func:`select_plausible`'s results) and the random generator's
@@ -232,8 +245,58 @@ def follows_better(data: GapData, problem: selection.Problem, terms, clamp, *,
     return bool(float(np.quantile(boot, 1 - confidence)) > min_gain)
 
 
+def _rows(problem: selection.Problem, cache, rows: slice, n: int, cols: np.ndarray):
+    """Columns ``cols`` of ``problem`` at the samples ``rows`` of a log of ``n``: from the
+    columns kept in memory, or read row by row from the first pass's ``cache`` (a few thousand
+    rows, not the log). None when neither holds them."""
+    if problem.x is not None:
+        return problem.x[rows][:, :, cols]
+    if cache is None:
+        return None
+    row = 6 * cache.width
+    out = [np.fromfile(cache.path, dtype=np.float32, count=row, offset=i * row * 4)
+           .reshape(6, cache.width)[:, cols] for i in range(*rows.indices(n))]
+    return np.asarray(out, dtype=float)
+
+
+def harness_target(data: GapData, problem: selection.Problem, first: "Selected", cache=None):
+    """What a harness's cable is to explain at the cable search's samples
+    (``terms.search_rows``, FS-normalised): the residual less the other families the first
+    pass kept, fitted jointly with the harness family (their fit alone would take part of
+    the cable). In a mix the raw residual is mostly the other effects', and the cable that
+    best follows it is not the harness's. None (the raw residual) when the first pass kept
+    no other family, or their columns are not at hand."""
+    others = [n for n in first.kept if n != "harness"]
+    if not others:
+        return None
+    names = others + ["harness"]
+    coef = selection.fit(problem, names)[:len(problem.cols(others))]
+    rows = terms_mod.search_rows(len(data))
+    x = _rows(problem, cache, rows, len(data), problem.cols(others))
+    if x is None:
+        return None
+    view = data.residual[rows] / data.fs
+    return view - x @ coef
+
+
+def _with_others(data: GapData, others: np.ndarray, clamp, cable) -> float:
+    """The share of the residual at the cable search's samples that the harness family with
+    ``clamp`` and ``cable`` explains together with the other families' columns ``others``
+    there (in-sample: the candidates compared have as many parameters)."""
+    view = terms_mod._search_view(data)
+    y = (view.residual / view.fs).reshape(-1)
+    own = terms_mod._harness(view, clamp, cable) / view.fs[None, :, None]
+    x = np.concatenate([others, own], axis=2).reshape(len(y), -1)
+    gram = x.T @ x
+    coef = selection.solve(gram, x.T @ y)
+    left = y - x @ coef
+    total = float(y @ y)
+    return 1.0 - float(left @ left) / total if total > 0 else 0.0
+
+
 def harness_second_pass(data: GapData, problem: selection.Problem, terms, *, seed: int,
-                        min_gain: float, confidence: float, min_share: float, progress=None):
+                        min_gain: float, confidence: float, min_share: float, progress=None,
+                        cache=None):
     """The harness family of the second pass, or None: the clamp's offset
     (:func:`harness_clamp`, None: the centre) and the slack cable that best explains the
     residual with its stretch there (``terms.cable_search``), when, alone, it follows the data
@@ -245,11 +308,30 @@ def harness_second_pass(data: GapData, problem: selection.Problem, terms, *, see
                                            progress=progress)
     if "harness" not in problem.terms:
         return None, None, None, first
+    target = harness_target(data, problem, first, cache)
     direction, slack, _ = terms_mod.cable_search(data, clamp)
+    if target is not None:
+        # In a mix the cable is also sought in what the other families leave, and the clamp
+        # also read from the affine fit beside them (``harness_affine``). Either can go
+        # wrong: a gimbal spring-rate family kept beside a lone cable takes the part of its
+        # stretch that the tilt gives. The clamp and cable that, with the other families,
+        # explain the most of the residual stand.
+        others = problem.cols([n for n in first.kept if n != "harness"])
+        x = _rows(problem, cache, terms_mod.search_rows(len(data)), len(data), others)
+        candidates = [(clamp, (direction, slack))]
+        candidates.append((clamp, terms_mod.cable_search(data, clamp, target=target)[:2]))
+        beside = terms_mod.harness_clamp(harness_affine(problem, first))
+        if terms_mod.HARNESS_CLAMP_MIN_MM <= float(np.linalg.norm(beside)) \
+                <= terms_mod.HARNESS_CLAMP_MAX_MM:
+            candidates.append((beside, terms_mod.cable_search(data, beside,
+                                                              target=target)[:2]))
+        shares = [_with_others(data, x, c, cable) for c, cable in candidates]
+        clamp, (direction, slack) = candidates[int(np.argmax(shares))]
     if clamp is None:
         # No clamp from the first pass: sought with the cable (a clamp kept at the centre
         # when none explains more).
-        clamp, direction, slack, _ = terms_mod.cable_clamp_search(data, direction)
+        clamp, direction, slack, _ = terms_mod.cable_clamp_search(data, direction,
+                                                                  target=target)
         if not np.linalg.norm(clamp) > 0:
             clamp = None
     cable = (direction, slack)
@@ -297,7 +379,7 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
                                           cache=cache)
         second_term, clamp, cable, first = harness_second_pass(
             data, problem, terms, seed=seed, min_gain=min_gain, confidence=confidence,
-            min_share=min_share, progress=progress)
+            min_share=min_share, progress=progress, cache=cache)
         if second_term is not None:
             # Second pass: the harness's displacement at the clamp, its one-sided part the
             # cable found. It stands only when its selection keeps the harness family, the

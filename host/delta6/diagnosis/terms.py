@@ -495,26 +495,33 @@ HARNESS_CABLE_SLACKS_MM = (0.0, 1.0, 2.0, 3.0, 4.5, 6.5, 9.0)
 HARNESS_CABLE_SEARCH_SAMPLES = 4_000
 
 
+def search_rows(n: int) -> slice:
+    """The samples (of a log of ``n``) the cable's search reads: at most
+    ``HARNESS_CABLE_SEARCH_SAMPLES``, evenly spread."""
+    return slice(None, None, max(1, -(-n // HARNESS_CABLE_SEARCH_SAMPLES)))
+
+
 def _search_view(data: GapData) -> GapData:
-    step = max(1, -(-len(data) // HARNESS_CABLE_SEARCH_SAMPLES))
-    rows = slice(None, None, step)
+    rows = search_rows(len(data))
     return GapData(design=data.design, params=data.params, t=data.t[rows],
                    theta=data.theta[rows], reference=data.reference[rows],
                    temp_c=None, fs=data.fs, ref_temp_c=data.ref_temp_c, step=data.step)
 
 
-def cable_search(data: GapData, clamp_mm=None, directions=None
+def cable_search(data: GapData, clamp_mm=None, directions=None, target=None
                  ) -> tuple[np.ndarray, float, float]:
     """The slack cable that best explains the residual alone: its stretch direction ({B})
     and slack (mm) among ``HARNESS_CABLE_DIRECTIONS`` (or ``directions``) x
     ``HARNESS_CABLE_SLACKS_MM``, and the share of the residual's squared error it removes
     (in-sample, FS-normalised). The pull of each candidate is fitted freely (three components
     per feature); its stretch is the clamp's displacement along the direction (``clamp_mm``
-    as in :func:`_plate_force`)."""
-    view = data if len(data) <= HARNESS_CABLE_SEARCH_SAMPLES and data.temp_c is None \
-        else _search_view(data)
+    as in :func:`_plate_force`). ``target``: what the cable is to explain at the search's
+    samples (``search_rows``; FS-normalised, (n, 6)), default the residual; in a mix, the
+    harness's part of it (:func:`delta6.diagnosis.run.harness_target`)."""
+    view = _search_view(data)
     disp, force = _plate_force(view, clamp_mm)
-    return _best_cable(disp, force, view.residual / view.fs, view.fs, directions)
+    y = view.residual / view.fs if target is None else target
+    return _best_cable(disp, force, y, view.fs, directions)
 
 
 def _best_cable(disp, force, y, fs, directions=None) -> tuple[np.ndarray, float, float]:
@@ -559,12 +566,14 @@ HARNESS_CABLE_CLAMP_ANGLES = 8
 HARNESS_CABLE_NEAR_DEG = 20.0
 
 
-def cable_clamp_search(data: GapData, direction) -> tuple[np.ndarray, np.ndarray, float, float]:
+def cable_clamp_search(data: GapData, direction, target=None
+                       ) -> tuple[np.ndarray, np.ndarray, float, float]:
     """The clamp offset (plate frame, mm; at rest it is {B}'s) across a cable's stretch
     ``direction`` that, with the direction and slack searched again near it, explains most of
     the residual: (clamp, direction, slack, share removed). A cable clamped off the centre
     stretches with the tilt too; when the first pass's family cannot be fitted (a log that
-    pushes one axis at a time), its affine fit does not give the clamp."""
+    pushes one axis at a time), its affine fit does not give the clamp. ``target``: as in
+    :func:`cable_search`."""
     from delta6.core.model import rotation
     u = np.asarray(direction, float) / np.linalg.norm(direction)
     e1 = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
@@ -573,7 +582,7 @@ def cable_clamp_search(data: GapData, direction) -> tuple[np.ndarray, np.ndarray
     near = HARNESS_CABLE_DIRECTIONS[HARNESS_CABLE_DIRECTIONS @ u
                                     >= np.cos(np.radians(HARNESS_CABLE_NEAR_DEG))]
     view = _search_view(data)
-    y = view.residual / view.fs
+    y = view.residual / view.fs if target is None else target
     # What does not depend on the clamp, once: the centre's displacement and Jacobian, the
     # gimbal's rotation and its change per angle (as in ``clamp_displacement``).
     centre, at_centre = _plate_force(view, None)
