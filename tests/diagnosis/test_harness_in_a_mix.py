@@ -84,3 +84,23 @@ def test_a_long_log_reads_the_search_rows_from_its_column_cache(baseline, tmp_pa
     got = run_mod.harness_target(data, on_disk, kept, cache)
     assert np.abs(got - want).max() < 1e-6 * np.abs(want).max()
     assert run_mod.harness_target(data, on_disk, kept) is None
+
+
+def test_the_second_pass_picks_the_cable_sought_beside_the_other_families(baseline):
+    """The whole second pass on the cable-beside-hysteresis mix: of its candidates (the cable
+    in the whole residual, the cable in what the hysteresis leaves), the one explaining most
+    with the hysteresis stands, and its pull is the cable's."""
+    harness = twin.make_effect("harness", seed=402, formulation="cable", magnitude=0.75,
+                               attach_offset_mm=0.0)
+    pull = harness.p("direction") / np.linalg.norm(harness.p("direction"))
+    hysteresis = twin.make_effect("spring_hysteresis", seed=412, magnitude=0.9)
+    data, problem = _problem(baseline, [harness, hysteresis], 422,
+                             ("harness", "spring_hysteresis"))
+    terms = [t for t in family.TERMS if t.name in ("harness", "spring_hysteresis")]
+    found, _, cable, first = run_mod.harness_second_pass(
+        data, problem, terms, seed=0, min_gain=selection.MIN_GAIN,
+        confidence=selection.CONFIDENCE, min_share=selection.MIN_SHARE)
+    assert "harness" in first.kept and "spring_hysteresis" in first.kept
+    assert found is not None and found.name == "harness"
+    direction, _ = cable
+    assert np.degrees(np.arccos(np.clip(np.asarray(direction) @ pull, -1, 1))) < 8.0

@@ -31,6 +31,14 @@ def test_a_group_verdict_is_one_name_carrying_its_members_share():
     assert weak_names(r, per_member=True) == 2
 
 
+def test_a_negative_share_does_not_make_a_group_weak():
+    """A member whose error cancels another's has a negative share: it takes nothing from
+    the group's statement about the others."""
+    r = verdict(["a"], {"a": -0.5, "b": 0.2}, groups=[("a", "b")])
+    assert weak_names(r) == 1                      # a, named alone
+    assert weak_names(r, per_member=True) == 1
+
+
 def test_a_member_named_alone_is_not_counted_again_through_its_group():
     r = verdict(["backlash"], {"backlash": 0.01}, groups=[("backlash", "spring_hysteresis")])
     assert weak_names(r, per_member=True) == 2     # backlash alone, hysteresis via the group

@@ -121,8 +121,9 @@ def angle_test(tau: np.ndarray, angle: np.ndarray, folds: int = ANGLE_FOLDS,
         # A stretch that sweeps angles the others never reach is scored with the fit held at
         # the edge of what it was fitted on: a polynomial of this degree extrapolated would
         # cost the stretch more than any structure gains elsewhere.
-        rest = np.concatenate([s[:a], s[b:]])
-        held = np.clip(s[a:b], rest.min(), rest.max()) if len(rest) else s[a:b]
+        lo = min(s[:a].min(initial=np.inf), s[b:].min(initial=np.inf))
+        hi = max(s[:a].max(initial=-np.inf), s[b:].max(initial=-np.inf))
+        held = np.clip(s[a:b], lo, hi) if lo <= hi else s[a:b]
         fitted = np.stack([held**d for d in range(degree + 1)], axis=1) @ coef
         gains[k] = np.sum((tau[a:b] - mean) ** 2) - np.sum((tau[a:b] - fitted) ** 2)
     sd = gains.std(ddof=1)

@@ -299,16 +299,18 @@ def _named(r: dict) -> set:
 
 def weak_names(r: dict, per_member: bool = False) -> int:
     """Names in a run's verdict that carry under ``FALSE_NAME_SHARE`` of the gap. A group
-    verdict ("backlash and/or hysteresis, together N % of the gap") is one name, weak when its
-    members together carry under the share; ``per_member``: each member not named alone
-    counts as a name of its own (the stricter count, also reported)."""
+    verdict ("backlash and/or hysteresis, together N % of the gap") is one name, true when any
+    member is there: weak when its members' positive shares (a member named alone included:
+    the statement is about all of them) sum to under the share; ``per_member``: each member
+    not named alone counts as a name of its own (the stricter count, also reported)."""
     shares = r["shares"]
     weak = sum(1 for n in r["present"] if shares.get(n, 0.0) < FALSE_NAME_SHARE)
     for g in r.get("groups", []):
         added = [m for m in g["members"] if m not in r["present"]]
         if per_member:
             weak += sum(1 for m in added if shares.get(m, 0.0) < FALSE_NAME_SHARE)
-        elif added and sum(shares.get(m, 0.0) for m in g["members"]) < FALSE_NAME_SHARE:
+        elif added and sum(max(shares.get(m, 0.0), 0.0)
+                           for m in g["members"]) < FALSE_NAME_SHARE:
             weak += 1
     return weak
 
