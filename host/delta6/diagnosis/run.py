@@ -41,7 +41,7 @@ NAME_SHARE = 0.015
 #: needs more evidence than a large one. Under it both ways, a family explains too little,
 #: by itself or beside its neighbours, to be told from their trading (an encoder offset
 #: correcting the constant parts of its neighbours' fits removes nothing alone). It is the
-#: share under which the issue's figures call a name weak.
+#: share under which the blind benchmark calls a name weak.
 SMALL_SHARE = 0.05
 #: Logs up to this many samples keep their columns in memory (no second pass).
 KEEP_COLUMNS_SAMPLES = 30_000
