@@ -254,27 +254,41 @@ def _rows(problem: selection.Problem, cache, rows: slice, n: int, cols: np.ndarr
     if cache is None:
         return None
     row = 6 * cache.width
-    out = [np.fromfile(cache.path, dtype=np.float32, count=row, offset=i * row * 4)
-           .reshape(6, cache.width)[:, cols] for i in range(*rows.indices(n))]
+    out = []
+    with open(cache.path, "rb") as f:
+        for i in range(*rows.indices(n)):
+            f.seek(i * row * 4)
+            out.append(np.fromfile(f, dtype=np.float32, count=row).reshape(6, cache.width)[:, cols])
     return np.asarray(out, dtype=float)
 
 
-def harness_target(data: GapData, problem: selection.Problem, first: "Selected", cache=None):
+def others_at_search(data: GapData, problem: selection.Problem, first: "Selected", cache=None):
+    """The columns of the families the first pass kept beside the harness at the cable
+    search's samples (``terms.search_rows``), or None: no such family, or their columns
+    not at hand."""
+    others = [n for n in first.kept if n != "harness"]
+    if not others:
+        return None
+    return _rows(problem, cache, terms_mod.search_rows(len(data)), len(data),
+                 problem.cols(others))
+
+
+def harness_target(data: GapData, problem: selection.Problem, first: "Selected", cache=None,
+                   x=None):
     """What a harness's cable is to explain at the cable search's samples
     (``terms.search_rows``, FS-normalised): the residual less the other families the first
     pass kept, fitted jointly with the harness family (their fit alone would take part of
     the cable). In a mix the raw residual is mostly the other effects', and the cable that
     best follows it is not the harness's. None (the raw residual) when the first pass kept
-    no other family, or their columns are not at hand."""
+    no other family, or their columns are not at hand. ``x``: those columns
+    (:func:`others_at_search`) when already read."""
     others = [n for n in first.kept if n != "harness"]
-    if not others:
-        return None
-    names = others + ["harness"]
-    coef = selection.fit(problem, names)[:len(problem.cols(others))]
-    rows = terms_mod.search_rows(len(data))
-    x = _rows(problem, cache, rows, len(data), problem.cols(others))
+    if x is None:
+        x = others_at_search(data, problem, first, cache)
     if x is None:
         return None
+    coef = selection.fit(problem, others + ["harness"])[:len(problem.cols(others))]
+    rows = terms_mod.search_rows(len(data))
     view = data.residual[rows] / data.fs
     return view - x @ coef
 
@@ -308,7 +322,8 @@ def harness_second_pass(data: GapData, problem: selection.Problem, terms, *, see
                                            progress=progress)
     if "harness" not in problem.terms:
         return None, None, None, first
-    target = harness_target(data, problem, first, cache)
+    x = others_at_search(data, problem, first, cache)
+    target = harness_target(data, problem, first, x=x)
     direction, slack, _ = terms_mod.cable_search(data, clamp)
     if target is not None:
         # In a mix the cable is also sought in what the other families leave, and the clamp
@@ -316,8 +331,6 @@ def harness_second_pass(data: GapData, problem: selection.Problem, terms, *, see
         # wrong: a gimbal spring-rate family kept beside a lone cable takes the part of its
         # stretch that the tilt gives. The clamp and cable that, with the other families,
         # explain the most of the residual stand.
-        others = problem.cols([n for n in first.kept if n != "harness"])
-        x = _rows(problem, cache, terms_mod.search_rows(len(data)), len(data), others)
         candidates = [(clamp, (direction, slack))]
         candidates.append((clamp, terms_mod.cable_search(data, clamp, target=target)[:2]))
         beside = terms_mod.harness_clamp(harness_affine(problem, first))
