@@ -181,3 +181,55 @@ def test_a_group_verdict_names_no_member_lost_in_the_noise(hysteresis_problem):
     # nothing of it the hysteresis does not explain, and the ladder does not model it.
     assert verdicts.groups(problem, ["spring_hysteresis"], info,
                            faint={"joint_friction"}) == []
+
+
+def _stiffening_log(baseline, effects, seed):
+    r = twin.simulate(baseline, effects, duration_s=240.0, rate_hz=50.0, seed=seed,
+                      record_temp=True)
+    return LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c)
+
+
+def test_the_tied_fit_is_the_fit_of_the_stiffening_in_its_physical_form(baseline):
+    """heldout_block_sse_tied works on Gram summaries; it must equal building the columns of a
+    stiffening spring with the nominal rate at rest (|u| and u^2 times the nominal torque,
+    nothing taken out) and fitting them in place of both families."""
+    from dataclasses import replace
+
+    from delta6.diagnosis.terms import NONLINEAR_REF_RAD, NONLINEAR_STRAIGHT_PART, _torque_columns
+    log = _stiffening_log(baseline, [twin.make_effect("nonlinear_spring", seed=5,
+                                                      formulation="progressive")], 5)
+    data = GapData.from_log(log, baseline)
+
+    def physical(d):
+        u = d.theta / NONLINEAR_REF_RAD
+        tau = d.params.k * d.theta
+        return _torque_columns(d, np.stack([tau * np.abs(u), tau * u**2], axis=-1))
+
+    spring = TERM_BY_NAME["nonlinear_spring"]
+    raw = replace(spring, name="physical", build=physical, refines=None, straight_part=None)
+    names = ["encoder_offset", "stiffness_mismatch", "nonlinear_spring"]
+    problem = selection.build_problem(data, [TERM_BY_NAME[n] for n in names] + [raw])
+    tied = selection.heldout_block_sse_tied(problem, names, "nonlinear_spring",
+                                            "stiffness_mismatch", NONLINEAR_STRAIGHT_PART)
+    explicit = selection.heldout_block_sse(problem, ["encoder_offset", "physical"])
+    np.testing.assert_allclose(tied, explicit, rtol=1e-6, atol=1e-12)
+    # And it is a different model from both families free (the rate error is tied).
+    free = selection.heldout_block_sse(problem, names)
+    assert not np.allclose(tied, free, rtol=1e-6)
+
+
+def test_a_stiffening_spring_alone_names_no_rate_error_and_a_real_one_is_kept(baseline):
+    """A cubic stiffening spring (nominal rate at rest) leaves its straight-line part to the
+    spring-rate family: without the rule both were named. With a rate error of its own
+    beside the spring, both are named."""
+    spring = twin.make_effect("nonlinear_spring", seed=7, formulation="cubic", magnitude=0.8)
+    verdict = diagnose(_stiffening_log(baseline, [spring], 7), baseline, seed=0)
+    assert verdict["present"] == ["nonlinear_spring"]
+    assert [s["name"] for s in verdict["straight_part"]] == ["stiffness_mismatch"]
+    assert verdict["straight_part"][0]["share_of_noise_floor"] < verdicts.NOISE_SHARE
+    # Unnamed, not dropped: the ladder keeps the straight part (the correction works).
+    assert "stiffness_mismatch" in [s["added"] for s in verdict["ladder"]]
+    rate = twin.make_effect("stiffness_mismatch", seed=8, magnitude=0.5)
+    both = diagnose(_stiffening_log(baseline, [spring, rate], 7), baseline, seed=0)
+    assert set(both["present"]) == {"nonlinear_spring", "stiffness_mismatch"}
+    assert both["straight_part"] == []

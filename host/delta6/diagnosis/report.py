@@ -150,6 +150,11 @@ def verdict_lines(result: dict) -> list[str]:
         lines.append(f"- Not named: {m['name']} carries only {100 * share:.1f} % "
                      f"of the gap (with the families it trades with){also}: in the ladder, "
                      "but too little to tell it from its neighbours.")
+    for sp in result.get("straight_part", []):
+        lines.append(f"- Not named: {sp['name']} is the straight-line part of "
+                     f"{sp['straight_part_of']} (a stiffening with the nominal rate at rest "
+                     "leaves the same error, within the noise): the log shows no part of its "
+                     "own.")
     for f in result.get("below_noise", []):
         lines.append(f"- Not named: {f['name']} removes only "
                      f"{100 * f['share_of_noise_floor']:.0f} % of the noise floor's squared "

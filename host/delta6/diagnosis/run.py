@@ -628,6 +628,11 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         if names_together(minor, float((base_sse.sum() - final_sse) / base_total)):
             minor = []
     unnamed |= {m["name"] for m in minor}
+    # A spring-rate error named beside a stiffening spring may be nothing but the straight
+    # part the spring's columns leave out: it is named only with a share beyond that.
+    straight = verdicts.straight_parts(
+        problem, chosen, [n for n in chosen if n in kept and n not in unnamed])
+    unnamed |= {s["name"] for s in straight}
     # A group verdict names its members: none of them is a minor name.
     group_verdicts = [g for g in group_verdicts
                       if not set(g["named_alone"]) & {m["name"] for m in minor}]
@@ -640,6 +645,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         "present": present,
         "partial": partial,
         "minor": minor,
+        "straight_part": straight,
         "below_noise": faint,
         "groups": group_verdicts,
         "ladder": steps,

@@ -94,6 +94,11 @@ class Term:
     #: The family this one refines (it contains its shape and more: a stiffening spring
     #: is a spring-rate error plus curvature); named first when both are named.
     refines: str | None = None
+    #: Per own parameter of a joint, the ``refines`` family's parameter of that joint that
+    #: the own column leaves out by construction (its straight-line part): adding it back
+    #: gives the refinement's physical form (a stiffening spring with the nominal rate at
+    #: rest), against which the refined family must show a part of its own to be named.
+    straight_part: tuple[float, ...] | None = None
 
     def summarize(self, coef: np.ndarray) -> dict:
         out = {name: float(v) for name, v in zip(self.param_names, coef)}
@@ -284,6 +289,9 @@ def _thermal(data: GapData) -> np.ndarray:
 #: Reference deflection of the nonlinear-spring family, rad (about the joint limit): its
 #: parameters are the extra torque there as a fraction of the nominal spring torque.
 NONLINEAR_REF_RAD = 0.5
+#: The straight-line part taken out of the stiffening spring's |u| and u^2 columns (their
+#: least-squares slope for u uniform in [-1, 1]): E[u^2 |u|] / E[u^2], E[u^4] / E[u^2].
+NONLINEAR_STRAIGHT_PART = (0.75, 0.6)
 #: Harmonics of a shaft turn in the encoder family.
 ENCODER_HARMONICS = (1, 2, 3, 4)
 #: Finite-difference step of the plate position's Jacobian, rad.
@@ -299,7 +307,8 @@ def _nonlinear_spring(data: GapData) -> np.ndarray:
     # is 0.25 * p1 + 0.4 * p2.
     u = data.theta / NONLINEAR_REF_RAD
     tau = data.params.k * data.theta
-    feats = np.stack([tau * (np.abs(u) - 0.75), tau * (u**2 - 0.6)], axis=-1)
+    lin_abs, lin_sq = NONLINEAR_STRAIGHT_PART
+    feats = np.stack([tau * (np.abs(u) - lin_abs), tau * (u**2 - lin_sq)], axis=-1)
     return _torque_columns(data, feats)
 
 
@@ -760,7 +769,7 @@ TERMS: tuple[Term, ...] = (
          tuple(f"{kind}_{j}" for j in JOINTS for kind in ("abs_quadratic", "cubic")), "1",
          _nonlinear_spring, prior_sd=_per_joint(0.05, 2),
          plausible=_each([("rate_change_at_ref", slice(0, 12), 0.6)]),
-         refines="stiffness_mismatch"),
+         refines="stiffness_mismatch", straight_part=NONLINEAR_STRAIGHT_PART),
     Term("encoder_periodic_error", "angle",
          tuple(f"{kind}{h}_{j}_rad" for j in JOINTS for h in ENCODER_HARMONICS
                for kind in ("sin", "cos")), "rad", _encoder_periodic,

@@ -180,3 +180,30 @@ def order_refinements(problem: selection.Problem, present: list[str], chosen: li
             out.remove(name)
             out.insert(out.index(base), name)
     return out
+
+
+def straight_parts(problem: selection.Problem, chosen: list[str],
+                   named: list[str]) -> list[dict]:
+    """Refined families of ``named`` that are nothing but the straight-line part of a named
+    refinement (``Term.straight_part``). A stiffening spring's columns leave their
+    straight-line part to the spring-rate family, which then fits a rate error whether one is
+    there or not. The test puts the refinement in its physical form (a stiffening spring
+    with the nominal rate at rest: its columns plus that straight part) in place of both:
+    if the final model ``chosen`` loses less than the noise criterion that way (as for a
+    family below the noise, :func:`drop_faint`), the log shows no rate error of its own."""
+    base = selection.heldout_block_sse(problem, []).sum()
+    floor = noise_floor_sse(problem)
+    full = selection.heldout_block_sse(problem, chosen).sum()
+    out = []
+    for name in named:
+        term = problem.terms[name]
+        if term.straight_part is None or term.refines not in named:
+            continue
+        tied = selection.heldout_block_sse_tied(problem, chosen, name, term.refines,
+                                                term.straight_part).sum()
+        if not above_noise(tied - full, floor):
+            out.append({"name": term.refines, "straight_part_of": name,
+                        "share_of_gap": float((tied - full) / base) if base > 0 else 0.0,
+                        "share_of_noise_floor": float((tied - full) / floor)
+                        if floor > 0 else 0.0})
+    return out
