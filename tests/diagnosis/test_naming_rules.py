@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from delta6 import twin
 from delta6.diagnosis import run as run_module
@@ -233,3 +235,41 @@ def test_a_stiffening_spring_alone_names_no_rate_error_and_a_real_one_is_kept(ba
     both = diagnose(_stiffening_log(baseline, [spring, rate], 7), baseline, seed=0)
     assert set(both["present"]) == {"nonlinear_spring", "stiffness_mismatch"}
     assert both["straight_part"] == []
+
+
+def _encoder_coefficients(curve) -> np.ndarray:
+    """The encoder family's coefficients (six joints alike) that fit an angle error curve
+    over the joint range."""
+    from delta6.diagnosis.terms import ENCODER_HARMONICS, NONLINEAR_REF_RAD
+    q = np.linspace(-NONLINEAR_REF_RAD, NONLINEAR_REF_RAD, 201)
+    basis = np.stack([f for h in ENCODER_HARMONICS
+                      for f in (np.sin(h * q), np.cos(h * q) - 1.0)], axis=1)
+    one = np.linalg.lstsq(basis, curve(q), rcond=None)[0]
+    return np.tile(one, 6)
+
+
+def _bend(coef) -> float:
+    checks = TERM_BY_NAME["encoder_periodic_error"].plausibility(coef)
+    return {c["quantity"]: c for c in checks}["angle_error_beyond_line_rad"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(amplitude=st.floats(0.0, 0.017), phases=st.lists(st.floats(0.0, 6.3), min_size=4,
+                                                         max_size=4))
+def test_a_magnets_periodic_error_never_bends_beyond_the_encoder_limit(amplitude, phases):
+    """Any magnet error up to a degree in its first harmonic, falling as 1/h, with any
+    phases: within the encoder family's bend limit, so a real encoder error stays plausible."""
+    def curve(q):
+        return sum(amplitude / h * (np.sin(h * q + p) - np.sin(p))
+                   for h, p in zip((1, 2, 3, 4), phases))
+    bend = _bend(_encoder_coefficients(curve))
+    assert bend["largest"] <= bend["limit"]
+
+
+def test_a_stiffening_springs_curve_is_no_encoder_error():
+    """The angle-equivalent curve of a stiffening spring of 8 % at the reference deflection
+    (the torque k q s (q / q_ref)^2 divided by the rate k) bends beyond the limit: fitted by
+    the encoder family, it is implausible, and the family leaves it to nonlinear_spring."""
+    from delta6.diagnosis.terms import NONLINEAR_REF_RAD
+    bend = _bend(_encoder_coefficients(lambda q: 0.08 * q * (q / NONLINEAR_REF_RAD) ** 2))
+    assert bend["largest"] > bend["limit"]

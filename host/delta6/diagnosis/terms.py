@@ -294,6 +294,13 @@ NONLINEAR_REF_RAD = 0.5
 NONLINEAR_STRAIGHT_PART = (0.75, 0.6)
 #: Harmonics of a shaft turn in the encoder family.
 ENCODER_HARMONICS = (1, 2, 3, 4)
+#: Largest part of an encoder's periodic error beyond a straight line over the joint range
+#: (+-NONLINEAR_REF_RAD), rad. Over that sixth of a turn harmonic h bends away from its line
+#: by at most 0.08, 0.31, 0.62, 0.95 times its amplitude (h = 1..4); a magnet's error of
+#: about a degree (0.017 rad) in the first harmonic, falling as 1/h above it, bends by 0.012
+#: at most with every phase aligned. A bend beyond that is a curve in the joint's torque
+#: (a stiffening spring), not the encoder's.
+ENCODER_BENT_LIMIT_RAD = 0.012
 #: Finite-difference step of the plate position's Jacobian, rad.
 _FK_STEP = 1e-6
 
@@ -667,7 +674,10 @@ def _encoder_plausible(coef):
     basis = np.stack([f for h in ENCODER_HARMONICS
                       for f in (np.sin(h * q), np.cos(h * q) - 1.0)], axis=1)   # (101, 2H)
     curves = basis @ coef.reshape(6, -1).T                                        # (101, 6)
-    return [("angle_error_rad", np.abs(curves).max(axis=0), 0.03)]
+    line = np.stack([np.ones_like(q), q], axis=1)
+    bent = curves - line @ np.linalg.lstsq(line, curves, rcond=None)[0]
+    return [("angle_error_rad", np.abs(curves).max(axis=0), 0.03),
+            ("angle_error_beyond_line_rad", np.abs(bent).max(axis=0), ENCODER_BENT_LIMIT_RAD)]
 
 
 #: The harness family's parameters, in ``_harness``'s column order (the pose, then the
