@@ -291,3 +291,15 @@ def test_any_settings_map_each_parameter_onto_one_diagnosis_coefficient(baseline
         assert m.shape[1] == len(family.param_names) == len(family.values(cal))
         assert np.all((m == 0) | (m == 1)) and np.all(m.sum(axis=0) == 1)
         assert len(family.prior_sd) == m.shape[1] and min(family.prior_sd) > 0
+
+
+def test_members_folded_into_a_group_verdict_are_fitted_after_its_named_member():
+    from delta6.calibration.fit import with_folded_members
+    diagnosis = {"present": ["stiffness_mismatch", "joint_friction", "link_compliance"],
+                 "groups": [{"members": ["joint_friction", "backlash", "spring_hysteresis"],
+                             "named_alone": ["joint_friction"], "folded": ["backlash"]}]}
+    assert with_folded_members(diagnosis) == ["stiffness_mismatch", "joint_friction",
+                                              "backlash", "link_compliance"]
+    # A group verdict from the backward test (nothing folded) adds nothing.
+    diagnosis["groups"][0].pop("folded")
+    assert with_folded_members(diagnosis) == diagnosis["present"]

@@ -273,3 +273,36 @@ def test_a_stiffening_springs_curve_is_no_encoder_error():
     from delta6.diagnosis.terms import NONLINEAR_REF_RAD
     bend = _bend(_encoder_coefficients(lambda q: 0.08 * q * (q / NONLINEAR_REF_RAD) ** 2))
     assert bend["largest"] > bend["limit"]
+
+
+def test_a_small_member_beside_a_larger_one_is_named_in_the_group(hysteresis_problem):
+    """Friction named beside hysteresis with under 5 % of the gap of its own: the two trade,
+    and the verdict says "and/or" with the hysteresis named alone; both stay in the ladder."""
+    problem = hysteresis_problem
+    chosen = ["spring_hysteresis", "joint_friction"]
+    present, groups = verdicts.fold_small_members(
+        problem, chosen, chosen, {"spring_hysteresis": 0.6, "joint_friction": 0.01}, [],
+        SMALL_SHARE)
+    assert present == ["spring_hysteresis"]
+    (g,) = groups
+    assert g["members"] == chosen and g["named_alone"] == ["spring_hysteresis"]
+    assert g["folded"] == ["joint_friction"]
+    base = selection.heldout_block_sse(problem, []).sum()
+    together = (base - selection.heldout_block_sse(problem, chosen).sum()) / base
+    assert g["share_of_gap"] == pytest.approx(together)
+    assert "spring_hysteresis and/or joint_friction" in g["text"]
+    # A member with a share of its own keeps its name; a lone member is never folded.
+    assert verdicts.fold_small_members(problem, chosen, chosen,
+                                       {"spring_hysteresis": 0.6, "joint_friction": 0.08}, [],
+                                       SMALL_SHARE) == (chosen, [])
+    assert verdicts.fold_small_members(problem, ["joint_friction"], chosen,
+                                       {"joint_friction": 0.01}, [], SMALL_SHARE) \
+        == (["joint_friction"], [])
+    # An existing verdict for the group takes the folded member in (one verdict per group).
+    earlier = {"group": g["group"], "members": ["spring_hysteresis", "backlash"],
+               "named_alone": ["spring_hysteresis"], "share_of_gap": 0.5, "text": "x"}
+    _, merged = verdicts.fold_small_members(
+        problem, chosen, chosen, {"spring_hysteresis": 0.6, "joint_friction": 0.01}, [earlier],
+        SMALL_SHARE)
+    assert len(merged) == 1
+    assert merged[0]["members"] == ["spring_hysteresis", "backlash", "joint_friction"]

@@ -269,6 +269,19 @@ def check_rig_latency(value) -> float:
     return latency
 
 
+def with_folded_members(diagnosis: dict) -> list[str]:
+    """The diagnosis's named effects and the group members it folded into a group verdict
+    (named "and/or", little of their own beside a larger member, `verdicts.fold_small_members`),
+    each after the member its group names alone: the calibration fits them as when they were
+    named alone."""
+    present = list(diagnosis["present"])
+    for g in diagnosis["groups"]:
+        lead = [n for n in present if n in g["named_alone"]]
+        at = present.index(lead[-1]) + 1 if lead else len(present)
+        present[at:at] = [m for m in g.get("folded", []) if m not in present]
+    return present
+
+
 def calibrate(log, design: Design, *, effects=None, name: str | None = None,
               source: str = "", settings: Calibration | None = None, seed: int = 0,
               rig_latency_s: float | None = None, progress=None) -> CalibrationFit:
@@ -287,7 +300,7 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
     notes = []
     if effects is None:
         diagnosis = diagnose_data(data, seed=seed, progress=progress)
-        present = diagnosis["present"]
+        present = with_folded_members(diagnosis)
         chosen = [e for e in present if e in CORRECTED]
         notes += [f"{e}: {NOT_APPLIED[e]}" for e in present if e in NOT_APPLIED
                   and not (e == LATENCY and given)]

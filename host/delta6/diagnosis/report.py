@@ -132,7 +132,10 @@ def verdict_lines(result: dict) -> list[str]:
     """The verdicts beyond "present", as Markdown lines (also used by the command's summary)."""
     lines = []
     for g in result["groups"]:
-        lines.append(f"- Group verdict: **{g['text']}** (the log cannot tell them apart).")
+        lines.append(f"- Group verdict: **{g['text']}** (the log cannot tell them apart)."
+                     + (f" {', '.join(g['folded'])}: under 5 % of the gap of its own beside "
+                        f"{', '.join(g['named_alone'])}, named only in the group."
+                        if g.get("folded") else ""))
     for p in result["partial"]:
         if p.get("fragment"):
             lines.append(f"- Not named: {p['name']} explains less of the gap, alone and in "

@@ -636,9 +636,14 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     # A group verdict names its members: none of them is a minor name.
     group_verdicts = [g for g in group_verdicts
                       if not set(g["named_alone"]) & {m["name"] for m in minor}]
-    for step in steps:
-        step["named"] = step["added"] not in unnamed
     present = [n for n in chosen if n in kept and n not in unnamed]
+    # Members of a group named beside a larger one with little of their own say "and/or".
+    present, group_verdicts = verdicts.fold_small_members(
+        problem, present, chosen, {s["added"]: s["share_of_gap"] for s in steps},
+        group_verdicts, SMALL_SHARE)
+    folded = {n for g in group_verdicts for n in g.get("folded", [])}
+    for step in steps:
+        step["named"] = step["added"] not in unnamed and step["added"] not in folded
     present = verdicts.order_refinements(problem, present, chosen, coef_all)
     result = {
         "baseline_heldout_p99_pct": baseline_p99,

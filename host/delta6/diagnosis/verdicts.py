@@ -51,9 +51,53 @@ def groups(problem: selection.Problem, kept: list[str], info: dict,
         out.append({"group": label, "members": members,
                     "named_alone": [m for m in members if m in kept],
                     "share_of_gap": float(share),
-                    "text": f"{label}: {' and/or '.join(members)}, together "
-                            f"{100 * share:.0f} % of the gap"})
+                    "text": group_text(label, members, float(share))})
     return out
+
+
+def group_text(label: str, members: list[str], share: float) -> str:
+    return f"{label}: {' and/or '.join(members)}, together {100 * share:.0f} % of the gap"
+
+
+def fold_small_members(problem: selection.Problem, present: list[str], chosen: list[str],
+                       own: dict, groups_found: list[dict], below: float
+                       ) -> tuple[list[str], list[dict]]:
+    """Named members of a group that carry under ``below`` of the gap of their own (``own``:
+    what taking each out of the final model ``chosen`` costs) beside a named member of the
+    same group that carries more: their share is what the group's members trade, and the
+    log tells the effect apart from its neighbours no better than for a member the backward
+    test dropped. They leave ``present`` for the group verdict (one is made, or the group's
+    verdict takes them), which keeps them in the ladder and says "and/or"; the member that
+    carries most stays named alone. Returns the new ``present`` and group verdicts."""
+    present = list(present)
+    out = [dict(g) for g in groups_found]
+    by_label: dict[str, list[str]] = {}
+    for name in present:
+        label = problem.terms[name].group
+        if label is not None:
+            by_label.setdefault(label, []).append(name)
+    base = selection.heldout_block_sse(problem, []).sum()
+    for label, named in by_label.items():
+        if len(named) < 2:
+            continue
+        lead = max(named, key=lambda n: own.get(n, 0.0))
+        small = [n for n in named if n != lead and own.get(n, 0.0) < below]
+        if not small:
+            continue
+        for n in small:
+            present.remove(n)
+        verdict = next((g for g in out if g["group"] == label), None)
+        members = list(dict.fromkeys((verdict["members"] if verdict else []) + named))
+        rest = [n for n in chosen if n not in members]
+        share = float((selection.heldout_block_sse(problem, rest).sum()
+                       - selection.heldout_block_sse(problem, chosen).sum()) / base) \
+            if base > 0 else 0.0
+        folded = {"group": label, "members": members,
+                  "named_alone": [n for n in members if n in present],
+                  "share_of_gap": share, "text": group_text(label, members, share),
+                  "folded": small}
+        out = [g for g in out if g["group"] != label] + [folded]
+    return present, out
 
 
 def standard_errors(problem: selection.Problem, names, coef: np.ndarray) -> np.ndarray:
