@@ -298,6 +298,10 @@ def test_a_small_member_beside_a_larger_one_is_named_in_the_group(hysteresis_pro
     assert verdicts.fold_small_members(problem, ["joint_friction"], chosen,
                                        {"joint_friction": 0.01}, [], SMALL_SHARE) \
         == (["joint_friction"], [])
+    # A member its own signature confirms keeps its name (backlash's dwell).
+    assert verdicts.fold_small_members(
+        problem, chosen, chosen, {"spring_hysteresis": 0.6, "joint_friction": 0.01}, [],
+        SMALL_SHARE, spared={"joint_friction"}) == (chosen, [])
     # An existing verdict for the group takes the folded member in (one verdict per group).
     earlier = {"group": g["group"], "members": ["spring_hysteresis", "backlash"],
                "named_alone": ["spring_hysteresis"], "share_of_gap": 0.5, "text": "x"}

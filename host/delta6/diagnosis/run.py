@@ -640,7 +640,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     # Members of a group named beside a larger one with little of their own say "and/or".
     present, group_verdicts = verdicts.fold_small_members(
         problem, present, chosen, {s["added"]: s["share_of_gap"] for s in steps},
-        group_verdicts, SMALL_SHARE)
+        group_verdicts, SMALL_SHARE, spared=confirmed)
     folded = {n for g in group_verdicts for n in g.get("folded", [])}
     for step in steps:
         step["named"] = step["added"] not in unnamed and step["added"] not in folded

@@ -60,7 +60,7 @@ def group_text(label: str, members: list[str], share: float) -> str:
 
 
 def fold_small_members(problem: selection.Problem, present: list[str], chosen: list[str],
-                       own: dict, groups_found: list[dict], below: float
+                       own: dict, groups_found: list[dict], below: float, spared=frozenset()
                        ) -> tuple[list[str], list[dict]]:
     """Named members of a group that carry under ``below`` of the gap of their own (``own``:
     what taking each out of the final model ``chosen`` costs) beside a named member of the
@@ -68,7 +68,9 @@ def fold_small_members(problem: selection.Problem, present: list[str], chosen: l
     log tells the effect apart from its neighbours no better than for a member the backward
     test dropped. They leave ``present`` for the group verdict (one is made, or the group's
     verdict takes them), which keeps them in the ladder and says "and/or"; the member that
-    carries most stays named alone. Returns the new ``present`` and group verdicts."""
+    carries most stays named alone, and so does one its own signature confirms (``spared``:
+    backlash's dwell, which its neighbours do not show). Returns the new ``present`` and
+    group verdicts."""
     present = list(present)
     out = [dict(g) for g in groups_found]
     by_label: dict[str, list[str]] = {}
@@ -81,7 +83,8 @@ def fold_small_members(problem: selection.Problem, present: list[str], chosen: l
         if len(named) < 2:
             continue
         lead = max(named, key=lambda n: own.get(n, 0.0))
-        small = [n for n in named if n != lead and own.get(n, 0.0) < below]
+        small = [n for n in named if n != lead and n not in spared
+                 and own.get(n, 0.0) < below]
         if not small:
             continue
         for n in small:
