@@ -293,13 +293,19 @@ def test_any_settings_map_each_parameter_onto_one_diagnosis_coefficient(baseline
         assert len(family.prior_sd) == m.shape[1] and min(family.prior_sd) > 0
 
 
-def test_members_folded_into_a_group_verdict_are_fitted_after_its_named_member():
-    from delta6.calibration.fit import with_folded_members
+def test_effects_named_in_a_wider_statement_are_fitted_where_they_were_named():
+    from delta6.calibration.fit import effects_to_fit
     diagnosis = {"present": ["stiffness_mismatch", "joint_friction", "link_compliance"],
                  "groups": [{"members": ["joint_friction", "backlash", "spring_hysteresis"],
                              "named_alone": ["joint_friction"], "folded": ["backlash"]}]}
-    assert with_folded_members(diagnosis) == ["stiffness_mismatch", "joint_friction",
-                                              "backlash", "link_compliance"]
+    assert effects_to_fit(diagnosis) == ["stiffness_mismatch", "joint_friction", "backlash",
+                                         "link_compliance"]
     # A group verdict from the backward test (nothing folded) adds nothing.
     diagnosis["groups"][0].pop("folded")
-    assert with_folded_members(diagnosis) == diagnosis["present"]
+    assert effects_to_fit(diagnosis) == diagnosis["present"]
+    # A stiffening spring's straight part is a rate error the board corrects.
+    spring = {"present": ["nonlinear_spring", "encoder_offset"], "groups": [],
+              "straight_part": [{"name": "stiffness_mismatch",
+                                 "straight_part_of": "nonlinear_spring"}]}
+    assert effects_to_fit(spring) == ["nonlinear_spring", "stiffness_mismatch",
+                                      "encoder_offset"]
