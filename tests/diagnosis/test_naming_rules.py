@@ -231,6 +231,7 @@ def test_a_stiffening_spring_alone_names_no_rate_error_and_a_real_one_is_kept(ba
     assert verdict["straight_part"][0]["share_of_noise_floor"] < verdicts.NOISE_SHARE
     # Unnamed, not dropped: the ladder keeps the straight part (the correction works).
     assert "stiffness_mismatch" in [s["added"] for s in verdict["ladder"]]
+    assert all(s["named"] == (s["added"] in verdict["present"]) for s in verdict["ladder"])
     rate = twin.make_effect("stiffness_mismatch", seed=8, magnitude=0.5)
     both = diagnose(_stiffening_log(baseline, [spring, rate], 7), baseline, seed=0)
     assert set(both["present"]) == {"nonlinear_spring", "stiffness_mismatch"}
@@ -310,3 +311,23 @@ def test_a_small_member_beside_a_larger_one_is_named_in_the_group(hysteresis_pro
         SMALL_SHARE)
     assert len(merged) == 1
     assert merged[0]["members"] == ["spring_hysteresis", "backlash", "joint_friction"]
+
+
+def test_a_lugre_friction_names_the_hysteresis_it_trades_with_only_in_the_group(baseline):
+    """A LuGre friction alone (its bristles give a small hysteresis-like loop): the hysteresis
+    family takes 2.4 % of the gap of its own beside the friction's 17 %. Before the rule both
+    were named; now the friction is, and the hysteresis only in the group's "and/or"."""
+    friction = twin.make_effect("joint_friction", seed=41, formulation="lugre", magnitude=0.9)
+    r = twin.simulate(baseline, [friction], duration_s=240.0, rate_hz=50.0, seed=41,
+                      record_temp=True)
+    verdict = diagnose(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c),
+                       baseline, seed=0)
+    assert verdict["present"] == ["joint_friction"]
+    (group,) = verdict["groups"]
+    assert group["folded"] == ["spring_hysteresis"]
+    assert group["named_alone"] == ["joint_friction"]
+    assert set(group["members"]) == {"joint_friction", "spring_hysteresis"}
+    # No name both present and folded; the ladder's flag is "in present"; the ladder keeps it.
+    assert not set(verdict["present"]) & set(group["folded"])
+    assert {s["added"]: s["named"] for s in verdict["ladder"]} == {
+        "joint_friction": True, "spring_hysteresis": False}

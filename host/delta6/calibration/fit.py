@@ -361,6 +361,8 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
         "rate_hz": 1.0 / sample_period(data.t), "created_by": f"delta6 {__version__} calibrate",
         "effects_chosen_by": chosen_by,
         "diagnosis_present": list(diagnosis["present"]) if diagnosis else [],
+        # ... and what it names only in a group's "and/or" or as a spring's straight part.
+        "diagnosis_effects": effects_to_fit(diagnosis) if diagnosis else [],
         "heldout": f"last {HELDOUT_BLOCKS} of {N_BLOCKS} time blocks (one buffer block); "
                    "the parameters below are refitted on the whole log",
         "not_applied": notes,

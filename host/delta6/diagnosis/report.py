@@ -133,8 +133,8 @@ def verdict_lines(result: dict) -> list[str]:
     lines = []
     for g in result["groups"]:
         lines.append(f"- Group verdict: **{g['text']}** (the log cannot tell them apart)."
-                     + (f" {', '.join(g['folded'])}: under 5 % of the gap of its own beside "
-                        f"{', '.join(g['named_alone'])}, named only in the group."
+                     + (f" Named only in the group, each with under 5 % of the gap of its own "
+                        f"beside {', '.join(g['named_alone'])}: {', '.join(g['folded'])}."
                         if g.get("folded") else ""))
     for p in result["partial"]:
         if p.get("fragment"):

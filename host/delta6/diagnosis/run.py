@@ -641,9 +641,8 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     present, group_verdicts = verdicts.fold_small_members(
         problem, present, chosen, {s["added"]: s["share_of_gap"] for s in steps},
         group_verdicts, SMALL_SHARE, spared=confirmed)
-    folded = {n for g in group_verdicts for n in g.get("folded", [])}
     for step in steps:
-        step["named"] = step["added"] not in unnamed and step["added"] not in folded
+        step["named"] = step["added"] in present
     present = verdicts.order_refinements(problem, present, chosen, coef_all)
     result = {
         "baseline_heldout_p99_pct": baseline_p99,

@@ -299,7 +299,8 @@ ENCODER_HARMONICS = (1, 2, 3, 4)
 #: by at most 0.08, 0.31, 0.62, 0.95 times its amplitude (h = 1..4); a magnet's error of
 #: about a degree (0.017 rad) in the first harmonic, falling as 1/h above it, bends by 0.012
 #: at most with every phase aligned. A bend beyond that is a curve in the joint's torque
-#: (a stiffening spring), not the encoder's.
+#: (a stiffening spring of about 7 % or more bends by 0.17-0.35 times its stiffening), not
+#: the encoder's.
 ENCODER_BENT_LIMIT_RAD = 0.012
 #: Finite-difference step of the plate position's Jacobian, rad.
 _FK_STEP = 1e-6

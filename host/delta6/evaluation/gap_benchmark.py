@@ -210,7 +210,8 @@ def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> d
         "shares": shares,
         "present": verdict["present"],
         "groups": [{"members": g["members"], "share_of_gap": g["share_of_gap"],
-                    "text": g["text"]} for g in verdict["groups"]],
+                    "text": g["text"], "folded": g.get("folded", [])}
+                   for g in verdict["groups"]],
         "partial": verdict["partial"],
         "minor": verdict["minor"],
         "straight_part": verdict.get("straight_part", []),
