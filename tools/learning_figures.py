@@ -16,6 +16,12 @@ learning curve), and writes `results.json` and `tables.md`. Models and calibrati
 the output folder are reused (delete them to retrain).
 ``--budget-minutes`` bounds the wall-clock training time of each model (the best checkpoint so
 far is kept; the tables say when a budget stopped a model).
+
+``--only calibration-rows`` recomputes just the rows that depend on the calibration fit (the
+calibrated model and the hybrid, on the learning curve and on the second unit) with the same
+runs, seeds and prefixes, and writes `calibration-rows.json` and `calibration-rows.md`: what to
+re-run when the calibration's fit changes (delete the folder's `unit1-*s.toml` and
+`mlp-hybrid-default*.onnx` first, or they are reused).
 """
 from __future__ import annotations
 
@@ -105,6 +111,47 @@ def train_one(name: str, log: LogData, design, kind: str, preset_name: str, base
     return path
 
 
+def hybrid_model(cal: LogData, design, seconds: int, out: Path, budget: float | None,
+                 calibration) -> Path:
+    """The default MLP trained as a residual over ``calibration`` on the first ``seconds`` of the
+    calibration run (the whole run for the longest)."""
+    whole = seconds == CURVE_SECONDS[-1]
+    return train_one("mlp-hybrid-default" if whole else f"mlp-hybrid-default-{seconds}s",
+                     cal if whole else head(cal, seconds), design, "mlp", "default",
+                     "calibration", out, budget, calibration)
+
+
+def calibration_rows(cal: LogData, same: LogData, second: LogData, design, fs, out: Path,
+                     budget: float | None) -> dict:
+    """The calibrated model and the hybrid fitted on each prefix of the calibration run, on the
+    same unit's evaluation run (the learning curve) and, for the whole run, on the second unit."""
+    results = {"full_scale": fs.tolist(), "curve": [], "second_unit": []}
+    for seconds in CURVE_SECONDS:
+        calibration = calibration_of(cal, design, seconds, out)
+        hybrid = LearnedEstimator(hybrid_model(cal, design, seconds, out, budget, calibration),
+                                  design=design, calibration=calibration)
+        for name, predict in (("calibrated", CalibratedModel(design, calibration).predict),
+                              ("mlp-hybrid-default", hybrid.predict)):
+            results["curve"].append({"estimator": name, "seconds": seconds,
+                                     **row(predict(same), same, fs)})
+            if seconds == CURVE_SECONDS[-1]:
+                results["second_unit"].append({"estimator": name,
+                                               **row(predict(second), second, fs)})
+    return results
+
+
+def calibration_tables(results: dict) -> str:
+    lines = ["Calibration-dependent rows, % FS (p99 | max)", "",
+             "| estimator | run | unit | p99 " + " | ".join(AXES) + " | max "
+             + " | ".join(AXES) + " |", "|---|---|---|" + "---|" * 12]
+    for unit, rows in (("same", results["curve"]), ("second", results["second_unit"])):
+        for r in rows:
+            seconds = r.get("seconds", CURVE_SECONDS[-1])
+            lines.append(f"| {r['estimator']} | {seconds} s | {unit} | "
+                         + " | ".join(f"{v:.2f}" for v in r["p99_pct"] + r["max_pct"]) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def row(estimate, log: LogData, fs) -> dict:
     t = accuracy.percentiles(estimate, log.wrench, fs, (95, 99, 100))
     return {"p95_pct": t["p95"], "p99_pct": t["p99"], "max_pct": t["p100"]}
@@ -115,6 +162,9 @@ def main() -> int:
     parser.add_argument("--out", default="build/learning", type=Path)
     parser.add_argument("--budget-minutes", type=float, default=8.0)
     parser.add_argument("--skip-paper", action="store_true", help="default presets only")
+    parser.add_argument("--only", choices=("calibration-rows",),
+                        help="recompute only the calibrated and hybrid rows of the learning "
+                             "curve and the second unit")
     args = parser.parse_args()
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -122,6 +172,12 @@ def main() -> int:
     fs = full_scale(design)
     paths = runs(design, out)
     cal, same, second = (read_log(paths[k]) for k in ("cal", "same", "second"))
+    if args.only == "calibration-rows":
+        results = calibration_rows(cal, same, second, design, fs, out, args.budget_minutes)
+        (out / "calibration-rows.json").write_text(json.dumps(results, indent=1))
+        (out / "calibration-rows.md").write_text(calibration_tables(results))
+        print(calibration_tables(results))
+        return 0
 
     specs = [(f"{kind}-default", kind, "default", "none") for kind in
              ("mlp", "gru", "lstm", "transformer")]
@@ -136,8 +192,8 @@ def main() -> int:
     calibrations = {seconds: calibration_of(cal, design, seconds, out)
                     for seconds in CURVE_SECONDS}
     unit_cal = calibrations[2000]
-    models["mlp-hybrid-default"] = train_one("mlp-hybrid-default", cal, design, "mlp", "default",
-                                             "calibration", out, args.budget_minutes, unit_cal)
+    models["mlp-hybrid-default"] = hybrid_model(cal, design, CURVE_SECONDS[-1], out,
+                                                args.budget_minutes, unit_cal)
 
     from delta6.core.model import wrench
     results = {"full_scale": fs.tolist(), "same_unit": [], "second_unit": [], "curve": [],
