@@ -291,3 +291,37 @@ def test_any_settings_map_each_parameter_onto_one_diagnosis_coefficient(baseline
         assert m.shape[1] == len(family.param_names) == len(family.values(cal))
         assert np.all((m == 0) | (m == 1)) and np.all(m.sum(axis=0) == 1)
         assert len(family.prior_sd) == m.shape[1] and min(family.prior_sd) > 0
+
+
+def test_effects_named_in_a_wider_statement_are_fitted_where_they_were_named():
+    from delta6.calibration.fit import effects_to_fit
+    diagnosis = {"present": ["stiffness_mismatch", "joint_friction", "link_compliance"],
+                 "groups": [{"members": ["joint_friction", "backlash", "spring_hysteresis"],
+                             "named_alone": ["joint_friction"], "folded": ["backlash"]}]}
+    assert effects_to_fit(diagnosis) == ["stiffness_mismatch", "joint_friction", "backlash",
+                                         "link_compliance"]
+    # A group verdict from the backward test (nothing folded) adds nothing.
+    diagnosis["groups"][0].pop("folded")
+    assert effects_to_fit(diagnosis) == diagnosis["present"]
+    # A stiffening spring's straight part is a rate error the board corrects.
+    spring = {"present": ["nonlinear_spring", "encoder_offset"], "groups": [],
+              "straight_part": [{"name": "stiffness_mismatch",
+                                 "straight_part_of": "nonlinear_spring"}]}
+    assert effects_to_fit(spring) == ["nonlinear_spring", "stiffness_mismatch",
+                                      "encoder_offset"]
+
+
+def test_a_folded_group_member_is_fitted_from_a_real_verdict(baseline):
+    """End to end: a LuGre friction's verdict names the hysteresis only in the group
+    (tests/diagnosis/test_naming_rules.py); the calibration still fits it, after the
+    friction."""
+    from delta6.calibration.fit import effects_to_fit
+    from delta6.diagnosis.run import diagnose
+    from delta6.link.logfile import LogData
+    friction = twin.make_effect("joint_friction", seed=41, formulation="lugre", magnitude=0.9)
+    r = twin.simulate(baseline, [friction], duration_s=240.0, rate_hz=50.0, seed=41,
+                      record_temp=True)
+    verdict = diagnose(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c),
+                       baseline, seed=0)
+    assert verdict["present"] == ["joint_friction"]
+    assert effects_to_fit(verdict) == ["joint_friction", "spring_hysteresis"]

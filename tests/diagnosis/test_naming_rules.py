@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from delta6 import twin
 from delta6.diagnosis import run as run_module
@@ -181,3 +183,151 @@ def test_a_group_verdict_names_no_member_lost_in_the_noise(hysteresis_problem):
     # nothing of it the hysteresis does not explain, and the ladder does not model it.
     assert verdicts.groups(problem, ["spring_hysteresis"], info,
                            faint={"joint_friction"}) == []
+
+
+def _stiffening_log(baseline, effects, seed):
+    r = twin.simulate(baseline, effects, duration_s=240.0, rate_hz=50.0, seed=seed,
+                      record_temp=True)
+    return LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c)
+
+
+def test_the_tied_fit_is_the_fit_of_the_stiffening_in_its_physical_form(baseline):
+    """heldout_block_sse_tied works on Gram summaries; it must equal building the columns of a
+    stiffening spring with the nominal rate at rest (|u| and u^2 times the nominal torque,
+    nothing taken out) and fitting them in place of both families."""
+    from dataclasses import replace
+
+    from delta6.diagnosis.terms import NONLINEAR_REF_RAD, NONLINEAR_STRAIGHT_PART, _torque_columns
+    log = _stiffening_log(baseline, [twin.make_effect("nonlinear_spring", seed=5,
+                                                      formulation="progressive")], 5)
+    data = GapData.from_log(log, baseline)
+
+    def physical(d):
+        u = d.theta / NONLINEAR_REF_RAD
+        tau = d.params.k * d.theta
+        return _torque_columns(d, np.stack([tau * np.abs(u), tau * u**2], axis=-1))
+
+    spring = TERM_BY_NAME["nonlinear_spring"]
+    raw = replace(spring, name="physical", build=physical, refines=None, straight_part=None)
+    names = ["encoder_offset", "stiffness_mismatch", "nonlinear_spring"]
+    problem = selection.build_problem(data, [TERM_BY_NAME[n] for n in names] + [raw])
+    tied = selection.heldout_block_sse_tied(problem, names, "nonlinear_spring",
+                                            "stiffness_mismatch", NONLINEAR_STRAIGHT_PART)
+    explicit = selection.heldout_block_sse(problem, ["encoder_offset", "physical"])
+    np.testing.assert_allclose(tied, explicit, rtol=1e-6, atol=1e-12)
+    # And it is a different model from both families free (the rate error is tied).
+    free = selection.heldout_block_sse(problem, names)
+    assert not np.allclose(tied, free, rtol=1e-6)
+
+
+def test_a_stiffening_spring_alone_names_no_rate_error_and_a_real_one_is_kept(baseline):
+    """A cubic stiffening spring (nominal rate at rest) leaves its straight-line part to the
+    spring-rate family: without the rule both were named. With a rate error of its own
+    beside the spring, both are named."""
+    spring = twin.make_effect("nonlinear_spring", seed=7, formulation="cubic", magnitude=0.8)
+    verdict = diagnose(_stiffening_log(baseline, [spring], 7), baseline, seed=0)
+    assert verdict["present"] == ["nonlinear_spring"]
+    assert [s["name"] for s in verdict["straight_part"]] == ["stiffness_mismatch"]
+    assert verdict["straight_part"][0]["share_of_noise_floor"] < verdicts.NOISE_SHARE
+    # Unnamed, not dropped: the ladder keeps the straight part (the correction works).
+    assert "stiffness_mismatch" in [s["added"] for s in verdict["ladder"]]
+    assert all(s["named"] == (s["added"] in verdict["present"]) for s in verdict["ladder"])
+    rate = twin.make_effect("stiffness_mismatch", seed=8, magnitude=0.5)
+    both = diagnose(_stiffening_log(baseline, [spring, rate], 7), baseline, seed=0)
+    assert set(both["present"]) == {"nonlinear_spring", "stiffness_mismatch"}
+    assert both["straight_part"] == []
+
+
+def _encoder_coefficients(curve) -> np.ndarray:
+    """The encoder family's coefficients (six joints alike) that fit an angle error curve
+    over the joint range."""
+    from delta6.diagnosis.terms import ENCODER_HARMONICS, NONLINEAR_REF_RAD
+    q = np.linspace(-NONLINEAR_REF_RAD, NONLINEAR_REF_RAD, 201)
+    basis = np.stack([f for h in ENCODER_HARMONICS
+                      for f in (np.sin(h * q), np.cos(h * q) - 1.0)], axis=1)
+    one = np.linalg.lstsq(basis, curve(q), rcond=None)[0]
+    return np.tile(one, 6)
+
+
+def _bend(coef) -> float:
+    checks = TERM_BY_NAME["encoder_periodic_error"].plausibility(coef)
+    return {c["quantity"]: c for c in checks}["angle_error_beyond_line_rad"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(amplitude=st.floats(0.0, 0.017), phases=st.lists(st.floats(0.0, 6.3), min_size=4,
+                                                         max_size=4))
+def test_a_magnets_periodic_error_never_bends_beyond_the_encoder_limit(amplitude, phases):
+    """Any magnet error up to a degree in its first harmonic, falling as 1/h, with any
+    phases: within the encoder family's bend limit, so a real encoder error stays plausible."""
+    def curve(q):
+        return sum(amplitude / h * (np.sin(h * q + p) - np.sin(p))
+                   for h, p in zip((1, 2, 3, 4), phases))
+    bend = _bend(_encoder_coefficients(curve))
+    assert bend["largest"] <= bend["limit"]
+
+
+def test_a_stiffening_springs_curve_is_no_encoder_error():
+    """The angle-equivalent curve of a stiffening spring of 8 % at the reference deflection
+    (the torque k q s (q / q_ref)^2 divided by the rate k) bends beyond the limit: fitted by
+    the encoder family, it is implausible, and the family leaves it to nonlinear_spring."""
+    from delta6.diagnosis.terms import NONLINEAR_REF_RAD
+    bend = _bend(_encoder_coefficients(lambda q: 0.08 * q * (q / NONLINEAR_REF_RAD) ** 2))
+    assert bend["largest"] > bend["limit"]
+
+
+def test_a_small_member_beside_a_larger_one_is_named_in_the_group(hysteresis_problem):
+    """Friction named beside hysteresis with under 5 % of the gap of its own: the two trade,
+    and the verdict says "and/or" with the hysteresis named alone; both stay in the ladder."""
+    problem = hysteresis_problem
+    chosen = ["spring_hysteresis", "joint_friction"]
+    present, groups = verdicts.fold_small_members(
+        problem, chosen, chosen, {"spring_hysteresis": 0.6, "joint_friction": 0.01}, [],
+        SMALL_SHARE)
+    assert present == ["spring_hysteresis"]
+    (g,) = groups
+    assert g["members"] == chosen and g["named_alone"] == ["spring_hysteresis"]
+    assert g["folded"] == ["joint_friction"]
+    base = selection.heldout_block_sse(problem, []).sum()
+    together = (base - selection.heldout_block_sse(problem, chosen).sum()) / base
+    assert g["share_of_gap"] == pytest.approx(together)
+    assert "spring_hysteresis and/or joint_friction" in g["text"]
+    # A member with a share of its own keeps its name; a lone member is never folded.
+    assert verdicts.fold_small_members(problem, chosen, chosen,
+                                       {"spring_hysteresis": 0.6, "joint_friction": 0.08}, [],
+                                       SMALL_SHARE) == (chosen, [])
+    assert verdicts.fold_small_members(problem, ["joint_friction"], chosen,
+                                       {"joint_friction": 0.01}, [], SMALL_SHARE) \
+        == (["joint_friction"], [])
+    # A member its own signature confirms keeps its name (backlash's dwell).
+    assert verdicts.fold_small_members(
+        problem, chosen, chosen, {"spring_hysteresis": 0.6, "joint_friction": 0.01}, [],
+        SMALL_SHARE, spared={"joint_friction"}) == (chosen, [])
+    # An existing verdict for the group takes the folded member in (one verdict per group).
+    earlier = {"group": g["group"], "members": ["spring_hysteresis", "backlash"],
+               "named_alone": ["spring_hysteresis"], "share_of_gap": 0.5, "text": "x"}
+    _, merged = verdicts.fold_small_members(
+        problem, chosen, chosen, {"spring_hysteresis": 0.6, "joint_friction": 0.01}, [earlier],
+        SMALL_SHARE)
+    assert len(merged) == 1
+    assert merged[0]["members"] == ["spring_hysteresis", "backlash", "joint_friction"]
+
+
+def test_a_lugre_friction_names_the_hysteresis_it_trades_with_only_in_the_group(baseline):
+    """A LuGre friction alone (its bristles give a small hysteresis-like loop): the hysteresis
+    family takes 2.4 % of the gap of its own beside the friction's 17 %. Before the rule both
+    were named; now the friction is, and the hysteresis only in the group's "and/or"."""
+    friction = twin.make_effect("joint_friction", seed=41, formulation="lugre", magnitude=0.9)
+    r = twin.simulate(baseline, [friction], duration_s=240.0, rate_hz=50.0, seed=41,
+                      record_temp=True)
+    verdict = diagnose(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c),
+                       baseline, seed=0)
+    assert verdict["present"] == ["joint_friction"]
+    (group,) = verdict["groups"]
+    assert group["folded"] == ["spring_hysteresis"]
+    assert group["named_alone"] == ["joint_friction"]
+    assert set(group["members"]) == {"joint_friction", "spring_hysteresis"}
+    # No name both present and folded; the ladder's flag is "in present"; the ladder keeps it.
+    assert not set(verdict["present"]) & set(group["folded"])
+    assert {s["added"]: s["named"] for s in verdict["ladder"]} == {
+        "joint_friction": True, "spring_hysteresis": False}

@@ -269,6 +269,27 @@ def check_rig_latency(value) -> float:
     return latency
 
 
+def effects_to_fit(diagnosis: dict) -> list[str]:
+    """The diagnosis's named effects, and those it names only in a wider statement: group
+    members it folded into a group verdict (named "and/or", little of their own beside a
+    larger member, `verdicts.fold_small_members`), each after the member its group names
+    alone, and a spring-rate error that is a stiffening spring's straight part
+    (`verdicts.straight_parts`), after the spring. The board applies no stiffening spring,
+    but its straight part is a rate correction it does apply; the calibration fits each of
+    them as when it was named alone."""
+    present = list(diagnosis["present"])
+    for g in diagnosis["groups"]:
+        lead = [n for n in present if n in g["named_alone"]]
+        at = present.index(lead[-1]) + 1 if lead else len(present)
+        present[at:at] = [m for m in g.get("folded", []) if m not in present]
+    for sp in diagnosis.get("straight_part", []):
+        if sp["name"] not in present:
+            of = sp["straight_part_of"]
+            at = present.index(of) + 1 if of in present else len(present)
+            present.insert(at, sp["name"])
+    return present
+
+
 def calibrate(log, design: Design, *, effects=None, name: str | None = None,
               source: str = "", settings: Calibration | None = None, seed: int = 0,
               rig_latency_s: float | None = None, progress=None) -> CalibrationFit:
@@ -287,7 +308,7 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
     notes = []
     if effects is None:
         diagnosis = diagnose_data(data, seed=seed, progress=progress)
-        present = diagnosis["present"]
+        present = effects_to_fit(diagnosis)
         chosen = [e for e in present if e in CORRECTED]
         notes += [f"{e}: {NOT_APPLIED[e]}" for e in present if e in NOT_APPLIED
                   and not (e == LATENCY and given)]
@@ -340,6 +361,8 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
         "rate_hz": 1.0 / sample_period(data.t), "created_by": f"delta6 {__version__} calibrate",
         "effects_chosen_by": chosen_by,
         "diagnosis_present": list(diagnosis["present"]) if diagnosis else [],
+        # ... and what it names only in a group's "and/or" or as a spring's straight part.
+        "diagnosis_effects": effects_to_fit(diagnosis) if diagnosis else [],
         "heldout": f"last {HELDOUT_BLOCKS} of {N_BLOCKS} time blocks (one buffer block); "
                    "the parameters below are refitted on the whole log",
         "not_applied": notes,

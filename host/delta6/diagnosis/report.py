@@ -132,7 +132,10 @@ def verdict_lines(result: dict) -> list[str]:
     """The verdicts beyond "present", as Markdown lines (also used by the command's summary)."""
     lines = []
     for g in result["groups"]:
-        lines.append(f"- Group verdict: **{g['text']}** (the log cannot tell them apart).")
+        lines.append(f"- Group verdict: **{g['text']}** (the log cannot tell them apart)."
+                     + (f" Named only in the group, each with under 5 % of the gap of its own "
+                        f"beside {', '.join(g['named_alone'])}: {', '.join(g['folded'])}."
+                        if g.get("folded") else ""))
     for p in result["partial"]:
         if p.get("fragment"):
             lines.append(f"- Not named: {p['name']} explains less of the gap, alone and in "
@@ -150,6 +153,11 @@ def verdict_lines(result: dict) -> list[str]:
         lines.append(f"- Not named: {m['name']} carries only {100 * share:.1f} % "
                      f"of the gap (with the families it trades with){also}: in the ladder, "
                      "but too little to tell it from its neighbours.")
+    for sp in result.get("straight_part", []):
+        lines.append(f"- Not named: {sp['name']} is the straight-line part of "
+                     f"{sp['straight_part_of']} (a stiffening with the nominal rate at rest "
+                     "leaves the same error, within the noise): the log shows no part of its "
+                     "own.")
     for f in result.get("below_noise", []):
         lines.append(f"- Not named: {f['name']} removes only "
                      f"{100 * f['share_of_noise_floor']:.0f} % of the noise floor's squared "

@@ -628,18 +628,28 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         if names_together(minor, float((base_sse.sum() - final_sse) / base_total)):
             minor = []
     unnamed |= {m["name"] for m in minor}
+    # A spring-rate error named beside a stiffening spring may be nothing but the straight
+    # part the spring's columns leave out: it is named only with a share beyond that.
+    straight = verdicts.straight_parts(
+        problem, chosen, [n for n in chosen if n in kept and n not in unnamed])
+    unnamed |= {s["name"] for s in straight}
     # A group verdict names its members: none of them is a minor name.
     group_verdicts = [g for g in group_verdicts
                       if not set(g["named_alone"]) & {m["name"] for m in minor}]
-    for step in steps:
-        step["named"] = step["added"] not in unnamed
     present = [n for n in chosen if n in kept and n not in unnamed]
+    # Members of a group named beside a larger one with little of their own say "and/or".
+    present, group_verdicts = verdicts.fold_small_members(
+        problem, present, chosen, {s["added"]: s["share_of_gap"] for s in steps},
+        group_verdicts, SMALL_SHARE, spared=confirmed)
+    for step in steps:
+        step["named"] = step["added"] in present
     present = verdicts.order_refinements(problem, present, chosen, coef_all)
     result = {
         "baseline_heldout_p99_pct": baseline_p99,
         "present": present,
         "partial": partial,
         "minor": minor,
+        "straight_part": straight,
         "below_noise": faint,
         "groups": group_verdicts,
         "ladder": steps,

@@ -33,7 +33,7 @@ An effect is called present when two things hold:
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -187,6 +187,33 @@ def heldout_block_sse(problem: Problem, names, coefs: np.ndarray | None = None,
             g = gram[b][np.ix_(cols, cols)]
             sse[b] = yty[b] - 2 * coef @ xty[b, cols] + coef @ g @ coef
     return sse
+
+
+def heldout_block_sse_tied(problem: Problem, names, name: str, base: str,
+                           per_joint) -> np.ndarray:
+    """:func:`heldout_block_sse` of the model ``names`` without the per-joint family ``base``,
+    its part carried by ``name`` instead: each of ``name``'s columns of joint j (m per joint,
+    joint-major) plus ``per_joint[i]`` times ``base``'s column of joint j. The model's
+    columns are linear maps of the problem's, so its Gram summaries are too."""
+    keep = [n for n in names if n != base]
+    cols = problem.cols(keep)
+    own, ref = problem.slices[name], problem.slices[base]
+    assert ref.stop - ref.start == 6, base
+    per_joint = np.asarray(per_joint, dtype=float)
+    m = len(per_joint)
+    src = np.unique(np.concatenate([cols, np.arange(ref.start, ref.stop)]))
+    where = {c: i for i, c in enumerate(src)}
+    a = np.zeros((len(src), len(cols)))
+    a[[where[c] for c in cols], np.arange(len(cols))] = 1.0
+    for k, c in enumerate(cols):
+        if own.start <= c < own.stop:
+            joint, i = divmod(c - own.start, m)
+            a[where[ref.start + joint], k] = per_joint[i]
+    gram = np.einsum("pi,bpq,qj->bij", a, problem.gram[:, src[:, None], src[None, :]], a)
+    tied = replace(problem, y=None, x=None, slices={"tied": slice(0, len(cols))},
+                   gram=gram, xty=problem.xty[:, src] @ a, sub={},
+                   penalty=None if problem.penalty is None else problem.penalty[cols])
+    return heldout_block_sse(tied, ["tied"])
 
 
 def heldout_prediction(problem: Problem, names) -> np.ndarray:

@@ -94,6 +94,11 @@ class Term:
     #: The family this one refines (it contains its shape and more: a stiffening spring
     #: is a spring-rate error plus curvature); named first when both are named.
     refines: str | None = None
+    #: Per own parameter of a joint, the ``refines`` family's parameter of that joint that
+    #: the own column leaves out by construction (its straight-line part): adding it back
+    #: gives the refinement's physical form (a stiffening spring with the nominal rate at
+    #: rest), against which the refined family must show a part of its own to be named.
+    straight_part: tuple[float, ...] | None = None
 
     def summarize(self, coef: np.ndarray) -> dict:
         out = {name: float(v) for name, v in zip(self.param_names, coef)}
@@ -284,8 +289,19 @@ def _thermal(data: GapData) -> np.ndarray:
 #: Reference deflection of the nonlinear-spring family, rad (about the joint limit): its
 #: parameters are the extra torque there as a fraction of the nominal spring torque.
 NONLINEAR_REF_RAD = 0.5
+#: The straight-line part taken out of the stiffening spring's |u| and u^2 columns (their
+#: least-squares slope for u uniform in [-1, 1]): E[u^2 |u|] / E[u^2], E[u^4] / E[u^2].
+NONLINEAR_STRAIGHT_PART = (0.75, 0.6)
 #: Harmonics of a shaft turn in the encoder family.
 ENCODER_HARMONICS = (1, 2, 3, 4)
+#: Largest part of an encoder's periodic error beyond a straight line over the joint range
+#: (+-NONLINEAR_REF_RAD), rad. Over that sixth of a turn harmonic h bends away from its line
+#: by at most 0.08, 0.31, 0.62, 0.95 times its amplitude (h = 1..4); a magnet's error of
+#: about a degree (0.017 rad) in the first harmonic, falling as 1/h above it, bends by 0.012
+#: at most with every phase aligned. A bend beyond that is a curve in the joint's torque
+#: (a stiffening spring of about 7 % or more bends by 0.17-0.35 times its stiffening), not
+#: the encoder's.
+ENCODER_BENT_LIMIT_RAD = 0.012
 #: Finite-difference step of the plate position's Jacobian, rad.
 _FK_STEP = 1e-6
 
@@ -299,7 +315,8 @@ def _nonlinear_spring(data: GapData) -> np.ndarray:
     # is 0.25 * p1 + 0.4 * p2.
     u = data.theta / NONLINEAR_REF_RAD
     tau = data.params.k * data.theta
-    feats = np.stack([tau * (np.abs(u) - 0.75), tau * (u**2 - 0.6)], axis=-1)
+    lin_abs, lin_sq = NONLINEAR_STRAIGHT_PART
+    feats = np.stack([tau * (np.abs(u) - lin_abs), tau * (u**2 - lin_sq)], axis=-1)
     return _torque_columns(data, feats)
 
 
@@ -658,7 +675,10 @@ def _encoder_plausible(coef):
     basis = np.stack([f for h in ENCODER_HARMONICS
                       for f in (np.sin(h * q), np.cos(h * q) - 1.0)], axis=1)   # (101, 2H)
     curves = basis @ coef.reshape(6, -1).T                                        # (101, 6)
-    return [("angle_error_rad", np.abs(curves).max(axis=0), 0.03)]
+    line = np.stack([np.ones_like(q), q], axis=1)
+    bent = curves - line @ np.linalg.lstsq(line, curves, rcond=None)[0]
+    return [("angle_error_rad", np.abs(curves).max(axis=0), 0.03),
+            ("angle_error_beyond_line_rad", np.abs(bent).max(axis=0), ENCODER_BENT_LIMIT_RAD)]
 
 
 #: The harness family's parameters, in ``_harness``'s column order (the pose, then the
@@ -760,7 +780,7 @@ TERMS: tuple[Term, ...] = (
          tuple(f"{kind}_{j}" for j in JOINTS for kind in ("abs_quadratic", "cubic")), "1",
          _nonlinear_spring, prior_sd=_per_joint(0.05, 2),
          plausible=_each([("rate_change_at_ref", slice(0, 12), 0.6)]),
-         refines="stiffness_mismatch"),
+         refines="stiffness_mismatch", straight_part=NONLINEAR_STRAIGHT_PART),
     Term("encoder_periodic_error", "angle",
          tuple(f"{kind}{h}_{j}_rad" for j in JOINTS for h in ENCODER_HARMONICS
                for kind in ("sin", "cos")), "rad", _encoder_periodic,

@@ -51,9 +51,56 @@ def groups(problem: selection.Problem, kept: list[str], info: dict,
         out.append({"group": label, "members": members,
                     "named_alone": [m for m in members if m in kept],
                     "share_of_gap": float(share),
-                    "text": f"{label}: {' and/or '.join(members)}, together "
-                            f"{100 * share:.0f} % of the gap"})
+                    "text": group_text(label, members, float(share))})
     return out
+
+
+def group_text(label: str, members: list[str], share: float) -> str:
+    return f"{label}: {' and/or '.join(members)}, together {100 * share:.0f} % of the gap"
+
+
+def fold_small_members(problem: selection.Problem, present: list[str], chosen: list[str],
+                       own: dict, groups_found: list[dict], below: float, spared=frozenset()
+                       ) -> tuple[list[str], list[dict]]:
+    """Named members of a group that carry under ``below`` of the gap of their own (``own``:
+    what taking each out of the final model ``chosen`` costs) beside a named member of the
+    same group that carries more: their share is what the group's members trade, and the
+    log tells the effect apart from its neighbours no better than for a member the backward
+    test dropped. They leave ``present`` for the group verdict (one is made, or the group's
+    verdict takes them), which keeps them in the ladder and says "and/or"; the member that
+    carries most stays named alone, and so does one its own signature confirms (``spared``:
+    backlash's dwell, which its neighbours do not show). Returns the new ``present`` and
+    group verdicts."""
+    present = list(present)
+    out = [dict(g) for g in groups_found]
+    by_label: dict[str, list[str]] = {}
+    for name in present:
+        label = problem.terms[name].group
+        if label is not None:
+            by_label.setdefault(label, []).append(name)
+    base = selection.heldout_block_sse(problem, []).sum()
+    for label, named in by_label.items():
+        if len(named) < 2:
+            continue
+        lead = max(named, key=lambda n: own.get(n, 0.0))
+        small = [n for n in named if n != lead and n not in spared
+                 and own.get(n, 0.0) < below]
+        if not small:
+            continue
+        for n in small:
+            present.remove(n)
+        verdict = next((g for g in out if g["group"] == label), None)
+        members = list(dict.fromkeys((verdict["members"] if verdict else []) + named))
+        rest = [n for n in chosen if n not in members]
+        share = float((selection.heldout_block_sse(problem, rest).sum()
+                       - selection.heldout_block_sse(problem, chosen).sum()) / base) \
+            if base > 0 else 0.0
+        folded = {"group": label, "members": members,
+                  "named_alone": [n for n in members if n in present],
+                  "share_of_gap": share, "text": group_text(label, members, share),
+                  "folded": small}
+        out = [g for g in out if g["group"] != label] + [folded]
+    return present, out
 
 
 def standard_errors(problem: selection.Problem, names, coef: np.ndarray) -> np.ndarray:
@@ -179,4 +226,31 @@ def order_refinements(problem: selection.Problem, present: list[str], chosen: li
                 & significant_joints(problem, chosen, coef, base):
             out.remove(name)
             out.insert(out.index(base), name)
+    return out
+
+
+def straight_parts(problem: selection.Problem, chosen: list[str],
+                   named: list[str]) -> list[dict]:
+    """Refined families of ``named`` that are nothing but the straight-line part of a named
+    refinement (``Term.straight_part``). A stiffening spring's columns leave their
+    straight-line part to the spring-rate family, which then fits a rate error whether one is
+    there or not. The test puts the refinement in its physical form (a stiffening spring
+    with the nominal rate at rest: its columns plus that straight part) in place of both:
+    if the final model ``chosen`` loses less than the noise criterion that way (as for a
+    family below the noise, :func:`drop_faint`), the log shows no rate error of its own."""
+    base = selection.heldout_block_sse(problem, []).sum()
+    floor = noise_floor_sse(problem)
+    full = selection.heldout_block_sse(problem, chosen).sum()
+    out = []
+    for name in named:
+        term = problem.terms[name]
+        if term.straight_part is None or term.refines not in named:
+            continue
+        tied = selection.heldout_block_sse_tied(problem, chosen, name, term.refines,
+                                                term.straight_part).sum()
+        if not above_noise(tied - full, floor):
+            out.append({"name": term.refines, "straight_part_of": name,
+                        "share_of_gap": float((tied - full) / base) if base > 0 else 0.0,
+                        "share_of_noise_floor": float((tied - full) / floor)
+                        if floor > 0 else 0.0})
     return out

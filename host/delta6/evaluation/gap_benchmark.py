@@ -210,9 +210,11 @@ def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> d
         "shares": shares,
         "present": verdict["present"],
         "groups": [{"members": g["members"], "share_of_gap": g["share_of_gap"],
-                    "text": g["text"]} for g in verdict["groups"]],
+                    "text": g["text"], "folded": g.get("folded", [])}
+                   for g in verdict["groups"]],
         "partial": verdict["partial"],
         "minor": verdict["minor"],
+        "straight_part": verdict.get("straight_part", []),
         "implausible": sorted(verdict["implausible"]),
         "ladder": [{"added": s["added"], "heldout_p99_pct": s["heldout_p99_pct"],
                     "share_of_gap": s["share_of_gap"], "damping": s["damping"],
@@ -516,6 +518,7 @@ def format_extended(summary: dict, results: list[dict]) -> str:
         extra = "".join(f"; group {g['members']}" for g in r["groups"])
         extra += "".join(f"; partial {p['name']}" for p in r["partial"])
         extra += "".join(f"; minor {m['name']}" for m in r.get("minor", []))
+        extra += "".join(f"; straight part {m['name']}" for m in r.get("straight_part", []))
         extra += f"; not plausible {r['implausible']}" if r["implausible"] else ""
         if r["kind"] == "unknown":
             left = r["leftover"]
