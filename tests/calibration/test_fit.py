@@ -317,11 +317,8 @@ def test_a_folded_group_member_is_fitted_from_a_real_verdict(baseline):
     friction."""
     from delta6.calibration.fit import effects_to_fit
     from delta6.diagnosis.run import diagnose
-    from delta6.link.logfile import LogData
-    friction = twin.make_effect("joint_friction", seed=41, formulation="lugre", magnitude=0.9)
-    r = twin.simulate(baseline, [friction], duration_s=240.0, rate_hz=50.0, seed=41,
-                      record_temp=True)
-    verdict = diagnose(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c),
-                       baseline, seed=0)
+
+    from support.twinkit import lugre_friction_log
+    verdict = diagnose(lugre_friction_log(baseline), baseline, seed=0)
     assert verdict["present"] == ["joint_friction"]
     assert effects_to_fit(verdict) == ["joint_friction", "spring_hysteresis"]

@@ -28,6 +28,8 @@ from delta6.link.logfile import LogData
 from delta6.twin.pushes import AxisPushes
 from delta6.twin.streams import stream
 
+from support.twinkit import lugre_friction_log, twin_log
+
 TERM_BY_NAME = {t.name: t for t in TERMS}
 
 
@@ -186,9 +188,7 @@ def test_a_group_verdict_names_no_member_lost_in_the_noise(hysteresis_problem):
 
 
 def _stiffening_log(baseline, effects, seed):
-    r = twin.simulate(baseline, effects, duration_s=240.0, rate_hz=50.0, seed=seed,
-                      record_temp=True)
-    return LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c)
+    return twin_log(baseline, effects, seed)
 
 
 def test_the_tied_fit_is_the_fit_of_the_stiffening_in_its_physical_form(baseline):
@@ -317,11 +317,7 @@ def test_a_lugre_friction_names_the_hysteresis_it_trades_with_only_in_the_group(
     """A LuGre friction alone (its bristles give a small hysteresis-like loop): the hysteresis
     family takes 2.4 % of the gap of its own beside the friction's 17 %. Before the rule both
     were named; now the friction is, and the hysteresis only in the group's "and/or"."""
-    friction = twin.make_effect("joint_friction", seed=41, formulation="lugre", magnitude=0.9)
-    r = twin.simulate(baseline, [friction], duration_s=240.0, rate_hz=50.0, seed=41,
-                      record_temp=True)
-    verdict = diagnose(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c),
-                       baseline, seed=0)
+    verdict = diagnose(lugre_friction_log(baseline), baseline, seed=0)
     assert verdict["present"] == ["joint_friction"]
     (group,) = verdict["groups"]
     assert group["folded"] == ["spring_hysteresis"]
@@ -331,3 +327,28 @@ def test_a_lugre_friction_names_the_hysteresis_it_trades_with_only_in_the_group(
     assert not set(verdict["present"]) & set(group["folded"])
     assert {s["added"]: s["named"] for s in verdict["ladder"]} == {
         "joint_friction": True, "spring_hysteresis": False}
+
+
+def test_a_spring_and_an_encoder_error_form_a_group_apart_from_the_direction_dependent_one():
+    """Both show as a joint torque error smooth in the joint's own angle; the group rules
+    (backward-dropped members, folding, group shares in the partial and minor rules) treat
+    them as one group, and never as members of the direction-dependent group."""
+    spring, encoder = TERM_BY_NAME["nonlinear_spring"], TERM_BY_NAME["encoder_periodic_error"]
+    assert spring.group is not None and spring.group == encoder.group
+    assert spring.group != TERM_BY_NAME["joint_friction"].group
+    assert TERM_BY_NAME["stiffness_mismatch"].group is None
+
+
+def test_the_smooth_group_folds_an_encoder_error_beside_a_spring(baseline):
+    """Folding works for the second group as for the first: on a stiffening spring's log,
+    an encoder error named beside it with little of its own is named in the group."""
+    spring = twin.make_effect("nonlinear_spring", seed=7, formulation="cubic", magnitude=0.8)
+    data = GapData.from_log(_stiffening_log(baseline, [spring], 7), baseline)
+    names = ["nonlinear_spring", "encoder_periodic_error"]
+    problem = selection.build_problem(data, [TERM_BY_NAME[n] for n in names])
+    present, groups = verdicts.fold_small_members(
+        problem, names, names, {"nonlinear_spring": 0.5, "encoder_periodic_error": 0.01}, [],
+        SMALL_SHARE)
+    assert present == ["nonlinear_spring"]
+    assert groups[0]["group"] == TERM_BY_NAME["nonlinear_spring"].group
+    assert groups[0]["folded"] == ["encoder_periodic_error"]

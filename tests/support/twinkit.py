@@ -44,3 +44,18 @@ def reversed_path(path, duration_s: float) -> twin.FunctionPath:
 def residual(result) -> np.ndarray:
     """The analytical model's error against the reference, (N, 6)."""
     return result.model_wrench() - result.wrench
+
+
+def twin_log(design, effects, seed: int, duration_s: float = 240.0):
+    """A twin run as the log `delta6 diagnose` reads (50 Hz, temperature recorded)."""
+    from delta6.link.logfile import LogData
+    r = twin.simulate(design, effects, duration_s=duration_s, rate_hz=50.0, seed=seed,
+                      record_temp=True)
+    return LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c)
+
+
+def lugre_friction_log(design):
+    """A LuGre friction alone, whose verdict names a hysteresis it trades with only in the
+    group (tests/diagnosis/test_naming_rules.py; its calibration, tests/calibration)."""
+    friction = twin.make_effect("joint_friction", seed=41, formulation="lugre", magnitude=0.9)
+    return twin_log(design, [friction], 41)

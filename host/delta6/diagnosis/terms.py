@@ -292,6 +292,10 @@ NONLINEAR_REF_RAD = 0.5
 #: The straight-line part taken out of the stiffening spring's |u| and u^2 columns (their
 #: least-squares slope for u uniform in [-1, 1]): E[u^2 |u|] / E[u^2], E[u^4] / E[u^2].
 NONLINEAR_STRAIGHT_PART = (0.75, 0.6)
+#: A stiffening spring (torque side) and an encoder's periodic error (angle side) both show
+#: as a joint torque error that is a smooth curve in the joint's own angle: over the joint
+#: range four harmonics of a shaft turn and a spring's curvature can stand in for each other.
+SMOOTH_IN_ANGLE = "joint torque smooth in the joint's angle"
 #: Harmonics of a shaft turn in the encoder family.
 ENCODER_HARMONICS = (1, 2, 3, 4)
 #: Largest part of an encoder's periodic error beyond a straight line over the joint range
@@ -780,12 +784,13 @@ TERMS: tuple[Term, ...] = (
          tuple(f"{kind}_{j}" for j in JOINTS for kind in ("abs_quadratic", "cubic")), "1",
          _nonlinear_spring, prior_sd=_per_joint(0.05, 2),
          plausible=_each([("rate_change_at_ref", slice(0, 12), 0.6)]),
-         refines="stiffness_mismatch", straight_part=NONLINEAR_STRAIGHT_PART),
+         refines="stiffness_mismatch", straight_part=NONLINEAR_STRAIGHT_PART,
+         group=SMOOTH_IN_ANGLE),
     Term("encoder_periodic_error", "angle",
          tuple(f"{kind}{h}_{j}_rad" for j in JOINTS for h in ENCODER_HARMONICS
                for kind in ("sin", "cos")), "rad", _encoder_periodic,
          prior_sd=_per_joint(3e-3, 2 * len(ENCODER_HARMONICS)),
-         plausible=_encoder_plausible),
+         plausible=_encoder_plausible, group=SMOOTH_IN_ANGLE),
     Term("harness", "torque",
          tuple(f"force_{a}{unit}" for unit in _POSE_UNITS for a in "xyz")
          + tuple(f"one_sided_{kind}_d{i}_n_per_mm" for kind in _ONE_SIDED

@@ -7,9 +7,10 @@ torques. When forward selection found two members of a group significant one aft
 (the later one removing at least ``GROUP_MIN_GAIN`` of what was left) and the backward test
 then dropped one of them (its share was absorbed by the other), the honest answer names the
 group, "direction-dependent joint torque: backlash and/or spring_hysteresis, together N % of
-the gap", rather than silently keeping one. (The pose-dependent families, offsets, rates,
-geometry, are nested enough that the backward test's choice among them is the better answer;
-they form no group.)
+the gap", rather than silently keeping one. A stiffening spring and an encoder's periodic
+error are the other group: both are a joint torque error smooth in the joint's own angle.
+(The pose-dependent families, offsets, rates, geometry, are nested enough that the backward
+test's choice among them is the better answer; they form no group.)
 """
 from __future__ import annotations
 
