@@ -187,10 +187,6 @@ def test_a_group_verdict_names_no_member_lost_in_the_noise(hysteresis_problem):
                            faint={"joint_friction"}) == []
 
 
-def _stiffening_log(baseline, effects, seed):
-    return twin_log(baseline, effects, seed)
-
-
 def test_the_tied_fit_is_the_fit_of_the_stiffening_in_its_physical_form(baseline):
     """heldout_block_sse_tied works on Gram summaries; it must equal building the columns of a
     stiffening spring with the nominal rate at rest (|u| and u^2 times the nominal torque,
@@ -198,7 +194,7 @@ def test_the_tied_fit_is_the_fit_of_the_stiffening_in_its_physical_form(baseline
     from dataclasses import replace
 
     from delta6.diagnosis.terms import NONLINEAR_REF_RAD, NONLINEAR_STRAIGHT_PART, _torque_columns
-    log = _stiffening_log(baseline, [twin.make_effect("nonlinear_spring", seed=5,
+    log = twin_log(baseline, [twin.make_effect("nonlinear_spring", seed=5,
                                                       formulation="progressive")], 5)
     data = GapData.from_log(log, baseline)
 
@@ -225,7 +221,7 @@ def test_a_stiffening_spring_alone_names_no_rate_error_and_a_real_one_is_kept(ba
     spring-rate family: without the rule both were named. With a rate error of its own
     beside the spring, both are named."""
     spring = twin.make_effect("nonlinear_spring", seed=7, formulation="cubic", magnitude=0.8)
-    verdict = diagnose(_stiffening_log(baseline, [spring], 7), baseline, seed=0)
+    verdict = diagnose(twin_log(baseline, [spring], 7), baseline, seed=0)
     assert verdict["present"] == ["nonlinear_spring"]
     assert [s["name"] for s in verdict["straight_part"]] == ["stiffness_mismatch"]
     assert verdict["straight_part"][0]["share_of_noise_floor"] < verdicts.NOISE_SHARE
@@ -233,7 +229,7 @@ def test_a_stiffening_spring_alone_names_no_rate_error_and_a_real_one_is_kept(ba
     assert "stiffness_mismatch" in [s["added"] for s in verdict["ladder"]]
     assert all(s["named"] == (s["added"] in verdict["present"]) for s in verdict["ladder"])
     rate = twin.make_effect("stiffness_mismatch", seed=8, magnitude=0.5)
-    both = diagnose(_stiffening_log(baseline, [spring, rate], 7), baseline, seed=0)
+    both = diagnose(twin_log(baseline, [spring, rate], 7), baseline, seed=0)
     assert set(both["present"]) == {"nonlinear_spring", "stiffness_mismatch"}
     assert both["straight_part"] == []
 
@@ -330,9 +326,9 @@ def test_a_lugre_friction_names_the_hysteresis_it_trades_with_only_in_the_group(
 
 
 def test_a_spring_and_an_encoder_error_form_a_group_apart_from_the_direction_dependent_one():
-    """Both show as a joint torque error smooth in the joint's own angle; the group rules
-    (backward-dropped members, folding, group shares in the partial and minor rules) treat
-    them as one group, and never as members of the direction-dependent group."""
+    """Both show as a joint torque error smooth in the joint's own angle: one group label
+    (what the group rules key on), not the direction-dependent one; the rate error they
+    refine or mimic is in no group."""
     spring, encoder = TERM_BY_NAME["nonlinear_spring"], TERM_BY_NAME["encoder_periodic_error"]
     assert spring.group is not None and spring.group == encoder.group
     assert spring.group != TERM_BY_NAME["joint_friction"].group
@@ -340,10 +336,10 @@ def test_a_spring_and_an_encoder_error_form_a_group_apart_from_the_direction_dep
 
 
 def test_the_smooth_group_folds_an_encoder_error_beside_a_spring(baseline):
-    """Folding works for the second group as for the first: on a stiffening spring's log,
-    an encoder error named beside it with little of its own is named in the group."""
+    """Folding works for the second group as for the first (the shares are given; the log
+    gives the group's share), and the partial and minor rules weigh the two together."""
     spring = twin.make_effect("nonlinear_spring", seed=7, formulation="cubic", magnitude=0.8)
-    data = GapData.from_log(_stiffening_log(baseline, [spring], 7), baseline)
+    data = GapData.from_log(twin_log(baseline, [spring], 7), baseline)
     names = ["nonlinear_spring", "encoder_periodic_error"]
     problem = selection.build_problem(data, [TERM_BY_NAME[n] for n in names])
     present, groups = verdicts.fold_small_members(
@@ -352,3 +348,16 @@ def test_the_smooth_group_folds_an_encoder_error_beside_a_spring(baseline):
     assert present == ["nonlinear_spring"]
     assert groups[0]["group"] == TERM_BY_NAME["nonlinear_spring"].group
     assert groups[0]["folded"] == ["encoder_periodic_error"]
+    assert groups[0]["named_alone"] == ["nonlinear_spring"]
+    assert groups[0]["share_of_gap"] > 0.5
+    # Group shares: each member carries what taking both out costs, more than its own
+    # share (each stands in for part of the other).
+    base = selection.heldout_block_sse(problem, []).sum()
+    full = selection.heldout_block_sse(problem, names).sum()
+    together = run_module.group_shares(problem, names, base)
+    both = (base - full) / base
+    for n in names:
+        own = (selection.heldout_block_sse(problem, [m for m in names if m != n]).sum()
+               - full) / base
+        assert together[n] == pytest.approx(both)
+        assert both > own

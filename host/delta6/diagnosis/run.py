@@ -60,11 +60,13 @@ def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float,
     """Per family of the final model ``chosen``, the share of the gap it carries for the
     partial rule: its own share (what taking it out costs), or, for a member of a group of
     families that absorb each other (friction, hysteresis and backlash: direction-dependent
-    joint torques), what taking the group's members out together costs. Each member's own
+    joint torques; a stiffening spring and an encoder error: smooth in the joint's angle),
+    what taking the group's members out together costs. Each member's own
     share is then small however large their joint one: every one of them stands in for the
     others' part. With ``refinements``, a family and the one it refines (a stiffening spring
     and a spring-rate error: the first's straight-line part is the second's) count as such
-    a group too."""
+    a group too. The sets are not closed under both links: a stiffening spring trades with
+    the encoder error and the rate error, the rate error with the spring only."""
     if base_sse <= 0:
         return {n: 0.0 for n in chosen}
     full = selection.heldout_block_sse(problem, chosen).sum()

@@ -292,6 +292,8 @@ NONLINEAR_REF_RAD = 0.5
 #: The straight-line part taken out of the stiffening spring's |u| and u^2 columns (their
 #: least-squares slope for u uniform in [-1, 1]): E[u^2 |u|] / E[u^2], E[u^4] / E[u^2].
 NONLINEAR_STRAIGHT_PART = (0.75, 0.6)
+#: Friction, hysteresis and backlash: a joint torque that depends on the direction of motion.
+DIRECTION_DEPENDENT = "direction-dependent joint torque"
 #: A stiffening spring (torque side) and an encoder's periodic error (angle side) both show
 #: as a joint torque error that is a smooth curve in the joint's own angle: over the joint
 #: range four harmonics of a shaft turn and a spring's curvature can stand in for each other.
@@ -749,20 +751,20 @@ TERMS: tuple[Term, ...] = (
          tuple(f"play_{j}_r{r:g}_nm" for j in JOINTS for r in HYSTERESIS_RADII), "N*m",
          _hysteresis, summary=_hysteresis_summary,
          prior_sd=_per_joint(_TORQUE, len(HYSTERESIS_RADII)), plausible=_hysteresis_plausible,
-         group="direction-dependent joint torque"),
+         group=DIRECTION_DEPENDENT),
     Term("joint_friction", "torque",
          tuple(f"{kind}_{j}" for j in JOINTS for kind in
                tuple(f"coulomb_v{v:g}_nm" for v in FRICTION_VELOCITIES_RAD_S)
                + ("viscous_nms_per_rad", "presliding_nm")),
          "N*m, N*m*s/rad", _friction, summary=_friction_summary,
          prior_sd=_per_joint(_TORQUE, len(FRICTION_VELOCITIES_RAD_S) + 2),
-         plausible=_friction_plausible, group="direction-dependent joint torque"),
+         plausible=_friction_plausible, group=DIRECTION_DEPENDENT),
     Term("backlash", "angle",
          tuple(f"{kind}_{j}_rad" for j in JOINTS
                for kind in ("play_dwell", *(f"pickup_r{r:g}_play" for r in BACKLASH_PICKUP_RAD))),
          "rad", _backlash, summary=_backlash_summary,
          prior_sd=_per_joint(_RAD, 1 + len(BACKLASH_PICKUP_RAD)), plausible=_backlash_plausible,
-         signature=_dwell_samples, group="direction-dependent joint torque"),
+         signature=_dwell_samples, group=DIRECTION_DEPENDENT),
     Term("link_compliance", "geometry",
          tuple(f"axial_b{i}_um_per_n" for i in (1, 2, 3))
          + tuple(f"bending_j{i}_rad_per_nm" for i in (1, 2, 3)) + ("tilt_rad_per_nm",),

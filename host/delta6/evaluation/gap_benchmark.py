@@ -36,7 +36,7 @@ from delta6.link.logfile import read_log
 #: (nine effects, random trajectories) ran once on 7,340,000; the extended one on 8,260,000,
 #: and, after the fixes that run called for, once more on 9,410,000; after the second round
 #: of fixes, once on 9,530,000; after the third, once on 10,640,000; after the fourth, once
-#: on 11,720,000.
+#: on 11,720,000; then once per round on 12,830,000, 13,940,000, 15,050,000 and 16,160,000.
 DEFAULT_BASE_SEED = 16_160_000
 DEFAULT_MAGNITUDES = (0.45, 0.7, 0.95)
 #: An effect "carries" a share of the gap when removing it from the twin (same trajectory,
