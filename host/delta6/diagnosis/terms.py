@@ -94,8 +94,8 @@ class Term:
     #: The family this one refines (it contains its shape and more: a stiffening spring
     #: is a spring-rate error plus curvature); named first when both are named.
     refines: str | None = None
-    #: Per own parameter of a joint, the ``refines`` family's parameter of that joint that
-    #: the own column leaves out by construction (its straight-line part): adding it back
+    #: Per own parameter of a joint, how much of the ``refines`` family's parameter of that
+    #: joint the own column leaves out by construction (its straight-line part): adding it back
     #: gives the refinement's physical form (a stiffening spring with the nominal rate at
     #: rest), against which the refined family must show a part of its own to be named.
     straight_part: tuple[float, ...] | None = None
