@@ -7,6 +7,7 @@ import numpy as np
 
 from delta6.core.model import AXES
 from delta6.diagnosis.data import GapData
+from delta6.diagnosis.run import SMALL_SHARE
 
 
 def pyplot():
@@ -133,7 +134,8 @@ def verdict_lines(result: dict) -> list[str]:
     lines = []
     for g in result["groups"]:
         lines.append(f"- Group verdict: **{g['text']}** (the log cannot tell them apart)."
-                     + (f" Named only in the group, each with under 5 % of the gap of its own "
+                     + (f" Named only in the group, each with under {100 * SMALL_SHARE:g} % of "
+                        f"the gap of its own "
                         f"beside {', '.join(g['named_alone'])}: {', '.join(g['folded'])}."
                         if g.get("folded") else ""))
     for p in result["partial"]:

@@ -78,8 +78,7 @@ def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float,
         if refinements:
             members |= {n for n in chosen if problem.terms[n].refines == name
                         or problem.terms[name].refines == n}
-        rest = [n for n in chosen if n not in members]
-        out[name] = float((selection.heldout_block_sse(problem, rest).sum() - full) / base_sse)
+        out[name] = selection.removal_share(problem, chosen, members, base_sse, full)
     return out
 
 
@@ -584,9 +583,8 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     # Each named family's own share of the gap: what taking it out of the final model costs.
     final_sse = selection.heldout_block_sse(problem, chosen).sum() if chosen else 0.0
     for step in steps:
-        rest = [n for n in chosen if n != step["added"]]
-        step["share_of_gap"] = float((selection.heldout_block_sse(problem, rest).sum()
-                                      - final_sse) / base_sse.sum())
+        step["share_of_gap"] = selection.removal_share(problem, chosen, {step["added"]},
+                                                       base_sse.sum(), final_sse)
     leftover_fs = np.subtract(y, final_pred, out=final_pred)    # the prediction is not needed
     del y
     final_pct = 100.0 * leftover_fs

@@ -189,6 +189,17 @@ def heldout_block_sse(problem: Problem, names, coefs: np.ndarray | None = None,
     return sse
 
 
+def removal_share(problem: Problem, model, out, base: float, full: float | None = None
+                  ) -> float:
+    """What taking the families ``out`` out of the model ``model`` costs: the rise of the
+    held-out squared error, as a share of ``base`` (the analytical model's). ``full``: the
+    model's own held-out squared error when already known."""
+    rest = [n for n in model if n not in out]
+    if full is None:
+        full = heldout_block_sse(problem, model).sum()
+    return float((heldout_block_sse(problem, rest).sum() - full) / base)
+
+
 def heldout_block_sse_tied(problem: Problem, names, name: str, base: str,
                            per_joint) -> np.ndarray:
     """:func:`heldout_block_sse` of the model ``names`` without the per-joint family ``base``,

@@ -45,14 +45,11 @@ def groups(problem: selection.Problem, kept: list[str], info: dict,
     for label, members in by_group.items():
         if len(members) < 2 or not any(m in dropped for m in members):
             continue
-        full = kept + [m for m in members if m not in kept]
-        rest = [n for n in full if n not in members]
-        share = (selection.heldout_block_sse(problem, rest).sum()
-                 - selection.heldout_block_sse(problem, full).sum()) / base
+        share = selection.removal_share(
+            problem, kept + [m for m in members if m not in kept], members, base)
         out.append({"group": label, "members": members,
                     "named_alone": [m for m in members if m in kept],
-                    "share_of_gap": float(share),
-                    "text": group_text(label, members, float(share))})
+                    "share_of_gap": share, "text": group_text(label, members, share)})
     return out
 
 
@@ -80,6 +77,7 @@ def fold_small_members(problem: selection.Problem, present: list[str], chosen: l
         if label is not None:
             by_label.setdefault(label, []).append(name)
     base = selection.heldout_block_sse(problem, []).sum()
+    full = selection.heldout_block_sse(problem, chosen).sum()
     for label, named in by_label.items():
         if len(named) < 2:
             continue
@@ -92,9 +90,7 @@ def fold_small_members(problem: selection.Problem, present: list[str], chosen: l
             present.remove(n)
         verdict = next((g for g in out if g["group"] == label), None)
         members = list(dict.fromkeys((verdict["members"] if verdict else []) + named))
-        rest = [n for n in chosen if n not in members]
-        share = float((selection.heldout_block_sse(problem, rest).sum()
-                       - selection.heldout_block_sse(problem, chosen).sum()) / base) \
+        share = selection.removal_share(problem, chosen, members, base, full) \
             if base > 0 else 0.0
         folded = {"group": label, "members": members,
                   "named_alone": [n for n in members if n in present],
