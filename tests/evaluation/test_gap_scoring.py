@@ -2,6 +2,8 @@
 runs."""
 from __future__ import annotations
 
+from dataclasses import asdict
+
 import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
@@ -9,6 +11,9 @@ from hypothesis import strategies as st
 from delta6.diagnosis.leftover import JOINT_SHARE
 from delta6.evaluation.gap_benchmark import (
     FALSE_NAME_SHARE,
+    UNKNOWN_EFFECTS,
+    Case,
+    add_bends,
     beyond_line,
     joint_bends,
     leftover_joints,
@@ -145,3 +150,20 @@ def test_what_bends_is_measured_on_the_joints_the_effect_acts_on(baseline):
     rate = beyond_line(baseline, simulate([twin.make_effect("stiffness_mismatch", seed=5,
                                                             magnitude=1.0)]), clean)
     assert np.all(rate < 5e-6)                             # rounding: under 1 % of that
+
+
+def test_records_without_bends_get_them_measured_again(root):
+    """An earlier run's records are re-scored from the case they keep: the same twin run."""
+    case = Case("unknown", ["encoder_periodic_error"], 7, [0.9],
+                withhold=list(UNKNOWN_EFFECTS), joints=[[3]])
+    record = unknown_run([3], [3])
+    record["case"] = asdict(case)
+    other = unknown_run([3], [3])                     # a harness-like run: no joints recorded
+    other["case"] = asdict(Case("unknown", ["harness"], 8, [0.9]))
+    design = str(root / "designs" / "delta6.toml")
+    assert add_bends([record, other], design, duration_s=40.0) == 1
+    truth = record["truth"][0]
+    assert truth["leftover_joints"] == [3]
+    assert len(truth["beyond_line_nm"]) == 6 and truth["beyond_line_nm"][2] > 0.0
+    assert "leftover_joints" not in other["truth"][0]
+    assert add_bends([record], design, duration_s=40.0) == 0     # measured once

@@ -304,6 +304,29 @@ def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> d
     }
 
 
+def add_bends(results: list[dict], design_path: str, duration_s: float) -> int:
+    """Measure ``beyond_line_nm`` and ``leftover_joints`` for the recorded unknown per-joint
+    runs that lack them (records written before they were measured): each case is simulated
+    again from its record (the same trajectory, noise and effect). Returns how many."""
+    from delta6 import twin
+    design = load(design_path)
+    done = 0
+    for r in results:
+        if r["kind"] != "unknown" or not r["case"].get("joints") \
+                or "leftover_joints" in r["truth"][0]:
+            continue
+        case = Case(**r["case"])
+
+        def simulate(active, case=case):
+            return twin.simulate(design, active, duration_s=duration_s, rate_hz=50.0,
+                                 seed=case.seed, record_temp=True)
+        bend = joint_bends(design, _effects(case)[0], simulate, simulate([]))
+        r["truth"][0]["beyond_line_nm"] = bend.tolist()
+        r["truth"][0]["leftover_joints"] = leftover_joints(r["truth"][0]["joints"], bend)
+        done += 1
+    return done
+
+
 def run(cases: list[Case], design_path: str, duration_s: float, workdir: str, jobs: int = 2,
         progress=None) -> list[dict]:
     results = []
