@@ -91,14 +91,27 @@ def test_the_first_explanation_is_spared_when_it_removes_a_large_share_alone():
     strong = {"a": np.full(60, 1.0 - PARTIAL_SHARE - 0.05), "b": np.full(60, 0.9)}
     weak = {"a": np.full(60, 1.0 - PARTIAL_SHARE + 0.05), "b": np.full(60, 0.9)}
     chosen = [s["added"] for s in steps]
-    assert first_explanation(strong, base, ["a", "b"], chosen) == {"a"}
+    traded = {"a": 0.2, "b": 0.1}
+    assert first_explanation(strong, base, ["a", "b"], chosen, traded) == {"a"}
     # Only forward selection's first pick: the later one, however large alone, may be
     # absorbing.
-    assert first_explanation(strong, base, ["b", "a"], chosen) == set()
-    assert first_explanation(weak, base, ["a", "b"], chosen) == set()
-    assert first_explanation(strong, base, [], chosen) == set()
+    assert first_explanation(strong, base, ["b", "a"], chosen, traded) == set()
+    assert first_explanation(weak, base, ["a", "b"], chosen, traded) == set()
+    assert first_explanation(strong, base, [], chosen, traded) == set()
     # The first pick the backward test took out spares no later family.
-    assert first_explanation(strong, base, ["a", "b"], ["b"]) == set()
+    assert first_explanation(strong, base, ["a", "b"], ["b"], traded) == set()
+
+
+def test_a_first_explanation_the_later_families_took_over_is_not_spared():
+    """Large alone, but carrying under SMALL_SHARE of the gap in the final model with the
+    families it trades with: what it explained, the others now explain."""
+    base = np.ones(60)
+    strong = {"a": np.full(60, 1.0 - PARTIAL_SHARE - 0.05), "b": np.full(60, 0.9)}
+    chosen = ["a", "b"]
+    assert first_explanation(strong, base, chosen, chosen,
+                             {"a": SMALL_SHARE * 0.8, "b": 0.1}) == set()
+    assert first_explanation(strong, base, chosen, chosen,
+                             {"a": SMALL_SHARE, "b": 0.1}) == {"a"}
 
 
 def test_a_lone_small_name_is_not_rescued_by_the_every_name_rule():
