@@ -135,3 +135,18 @@ def test_torques_beyond_the_fixed_point_range_are_refused(baseline):
     stiff = baseline.replace(k_nm_per_rad=[20.0] * 6)
     with pytest.raises(CalibrationRangeError):
         calibration_constants(stiff, C.neutral(stiff))
+
+
+@pytest.mark.parametrize("spring,encoder", [(False, False), (True, False), (False, True),
+                                            (True, True)])
+def test_the_header_holds_curve_tables_only_for_the_curves_present(baseline, spring, encoder):
+    from delta6_codegen import render_calibration
+    cal = random_calibration(baseline, 17)
+    if spring or encoder:
+        cal = with_curves(cal, 17, spring, encoder)
+    text = render_calibration(baseline, cal, "d.toml", "c.toml")
+    assert ("kCurveTorque1" in text) == (spring or encoder)
+    assert ("CurvedCalibrationConstants" in text) == (spring or encoder)
+    assert ("kCurveAngle1" in text) == encoder
+    if not (spring or encoder):
+        assert "const CalibrationConstants kCalibrationConstants DELTA6_FLASH" in text
