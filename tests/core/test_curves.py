@@ -74,13 +74,18 @@ def test_the_spring_table_follows_the_curve_over_the_box(baseline, seed):
     assert np.all(curves.interpolate(tables.torque, tables.knots, np.zeros((1, 6))) == 0)
 
 
-def test_the_torque_table_holds_the_encoder_errors_torque_through_the_rate(baseline):
+def test_the_torque_table_holds_the_spring_at_the_links_angle_and_the_encoder_errors_torque(
+        baseline):
+    """The spring bends with the link: its curve at x count - offset - e(x); the encoder
+    error's torque through the calibrated rate, - k ratio e(x)."""
     cal = C.neutral(baseline).with_(encoder_periodic_rad=_encoder(3), spring_curvature=_spring(3),
-                                    rate_ratio=np.linspace(0.9, 1.1, 6))
+                                    rate_ratio=np.linspace(0.9, 1.1, 6),
+                                    offset_rad=np.linspace(-0.01, 0.01, 6))
     t = curves.curve_tables(baseline, cal)
     q = t.knots[:, None] * ENCODER_COUNT_RAD * np.ones(6)
-    expected = curves.spring_torque(q, baseline.k, cal.spring_curvature) \
-        - baseline.k * cal.rate_ratio * t.angle.T * 2.0 ** -curves.ANGLE_SHIFT
+    e = t.angle.T * 2.0 ** -curves.ANGLE_SHIFT
+    expected = curves.spring_torque(q - cal.offset_rad - e, baseline.k, cal.spring_curvature) \
+        - baseline.k * cal.rate_ratio * e
     np.testing.assert_allclose(t.torque.T * 2.0 ** -curves.TORQUE_SHIFT, expected,
                                atol=0.5 * 2.0 ** -curves.TORQUE_SHIFT)
 

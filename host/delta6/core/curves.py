@@ -9,8 +9,10 @@ Two corrections are smooth curves in a joint's own angle:
   e(q) = sum_h a_h sin(h q) + b_h (cos(h q) - 1), h = 1..4, zero at the rest angle where the
   encoders were zeroed; the link's angle is the encoder's minus e.
 
-Both are evaluated at the count angle q = x * count (x: the signed count from the zero, what
-the board has), so neither depends on anything but one integer per joint. The board evaluates
+The encoder error is a function of the count angle q = x * count (x: the signed count from
+the zero, what the board has); the spring's curve is taken at the link's angle as far as the
+count gives it, q - offset - e(q) (not the backlash's half play: that depends on the direction
+of motion). So each depends on one integer per joint. The board evaluates
 neither a sine nor a polynomial per sample: :func:`curve_tables` tabulates them per joint at
 knots ``KNOT_COUNTS`` counts apart spanning the joint box (the rows of the firmware's coarse
 trig tables), as int16, and both the board and :func:`interpolate` here interpolate linearly
@@ -127,13 +129,17 @@ def curve_tables(design, cal) -> CurveTables | None:
     knots = knot_counts(design)
     q = knots[:, None] * ENCODER_COUNT_RAD * np.ones(6)          # (N, 6)
     angle = None
-    torque = spring_torque(q, design.k, spring)
+    error = np.zeros_like(q)
     if np.any(encoder):
         angle = _quantize(encoder_error(q, encoder).T, ANGLE_SHIFT,
                           "the encoder curve (angle.periodic_rad), rad,")
+        error = angle.T.astype(float) * 2.0 ** -ANGLE_SHIFT
+    # The spring bends with the link: its curve at the link's angle as far as it is a function
+    # of the count (the offset and the encoder error; not the backlash's direction).
+    torque = spring_torque(q - np.asarray(cal.offset_rad, dtype=float) - error, design.k, spring)
+    if angle is not None:
         # The encoder error's torque through the rate, from the tabulated error itself.
-        rate = design.k * np.asarray(cal.rate_ratio, dtype=float)
-        torque = torque - rate * (angle.T.astype(float) * 2.0 ** -ANGLE_SHIFT)
+        torque = torque - design.k * np.asarray(cal.rate_ratio, dtype=float) * error
     return CurveTables(knots=knots, angle=angle,
                        torque=_quantize(torque.T, TORQUE_SHIFT,
                                         "the curves' joint torque, N*m,"))
