@@ -203,8 +203,9 @@ def section_sizes(design, args, out, unit) -> None:
 def section_effects(design, args, out, tmp) -> None:
     fs = full_scale(design)
     lines = ["### single effects: calibrated p99 on an unseen run vs the diagnosis's prediction",
-             "", "| effect | chosen | rig latency fitted, ms | floor p99 (max axis) | predicted p99 "
-             "| calibrated p99 | worst ratio | within 25 % |", "|---|---|---|---|---|---|---|---|"]
+             "", "| effect | chosen | rig latency fitted, ms | floor p99 (max axis) | analytical p99 "
+             "| predicted p99 | calibrated p99 | worst ratio | within 25 % |",
+             "|---|---|---|---|---|---|---|---|---|"]
     rows = []
     for name in args.effects or CORRECTED:
         scenario = name if name in twin.SCENARIOS else None
@@ -223,14 +224,18 @@ def section_effects(design, args, out, tmp) -> None:
         floor = np.asarray(floor_run.gap((99,))["p99"])
         got = np.asarray(tv(CalibratedModel(design, fit.calibration).predict(check),
                             check.wrench, fs)["p99"])
+        analytical = np.asarray(tv(check.model_wrench(), check.wrench, fs)["p99"])
         ratio = got / predicted
         ok = bool(np.all(ratio <= 1.25))
         rows.append({"effect": name, "chosen": list(fit.calibration.effects),
                      "rig_latency_s": fit.latency_s,
-                     "floor": floor.tolist(), "predicted": predicted.tolist(),
+                     "floor": floor.tolist(), "analytical": analytical.tolist(),
+                     "predicted": predicted.tolist(),
                      "calibrated": got.tolist(), "ok": ok})
         lines.append(f"| {name} | {', '.join(fit.calibration.effects) or '-'} | "
-                     f"{1e3 * fit.latency_s:.2f} | {floor.max():.2f} | {' '.join(f'{v:.2f}' for v in predicted)} | "
+                     f"{1e3 * fit.latency_s:.2f} | {floor.max():.2f} | "
+                     f"{' '.join(f'{v:.2f}' for v in analytical)} | "
+                     f"{' '.join(f'{v:.2f}' for v in predicted)} | "
                      f"{' '.join(f'{v:.2f}' for v in got)} | {ratio.max():.2f} | "
                      f"{'yes' if ok else 'NO'} |")
         print(lines[-1], file=sys.stderr, flush=True)
