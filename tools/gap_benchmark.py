@@ -4,10 +4,13 @@
     .venv/bin/python tools/gap_benchmark.py                 # the extended benchmark
     .venv/bin/python tools/gap_benchmark.py --quick         # a few cases of each kind
     .venv/bin/python tools/gap_benchmark.py --seed 123 --out results/
+    .venv/bin/python tools/gap_benchmark.py --rescore results/benchmark.json
 
 Prints progress, the figures (top-1 on single effects, false positives, pairs, parameter
 recovery, predicted vs true shrink, run time), the confusion matrix and the paper scenario's
-ladder; writes benchmark.json and benchmark.md into --out.
+ladder; writes benchmark.json and benchmark.md into --out. ``--rescore`` takes an earlier
+run's benchmark.json, measures what its records lack (the joints an unknown per-joint effect
+bends, by simulating those cases again) and prints the unknown effects' figures both ways.
 """
 from __future__ import annotations
 
@@ -39,10 +42,15 @@ def main() -> int:
                         help="a few cases of each kind (development, not the figures)")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--out", default=str(ROOT / "build" / "gap-benchmark"))
+    parser.add_argument("--rescore", metavar="BENCHMARK_JSON",
+                        help="re-score an earlier run's records (see above) and stop")
     args = parser.parse_args()
 
     from delta6.core.design import load
     from delta6.evaluation import gap_benchmark as bench
+
+    if args.rescore:
+        return rescore(bench, Path(args.rescore), args.design)
 
     seed = bench.DEFAULT_BASE_SEED if args.seed is None else args.seed
     if args.quick:
@@ -81,6 +89,29 @@ def main() -> int:
     print()
     print(text)
     print(f"written: {out / 'benchmark.md'}, {out / 'benchmark.json'}")
+    return 0
+
+
+def rescore(bench, path: Path, design_path: str) -> int:
+    try:
+        payload = json.loads(path.read_text())
+        results, duration = payload["results"], float(payload["settings"]["duration_s"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        print(f"error: {path}: not a gap benchmark's benchmark.json ({exc})", file=sys.stderr)
+        return 2
+    added = bench.add_bends(results, design_path, duration)
+    summary = bench.score_extended(results)
+    print(f"{path}: bends measured for {added} unknown runs; "
+          f"seed {payload['settings'].get('base_seed')}")
+    print(f"unknown effects: leftover right {summary['unknown_leftover_ok']:.0%} of "
+          f"{summary['unknown_runs']} on the joints the effect bends, "
+          f"{summary['unknown_leftover_ok_every_joint']:.0%} on every joint it acts on")
+    for r in results:
+        t = r["truth"][0] if r["kind"] == "unknown" else None
+        if t and "leftover_joints" in t:
+            bends = ", ".join(f"j{j} {1e3 * t['beyond_line_nm'][j - 1]:.3f}" for j in t["joints"])
+            print(f"  {r['case']['seed']} {t['name']}: bends (mN*m) {bends} -> expected "
+                  f"{t['leftover_joints']}, found {r['leftover']['joints']}")
     return 0
 
 

@@ -1,10 +1,26 @@
-"""The blind benchmark's scoring of the extended figures, on constructed verdicts."""
+"""The blind benchmark's scoring of the extended figures, on constructed verdicts and short twin
+runs."""
 from __future__ import annotations
 
+from dataclasses import asdict
+
+import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from delta6.evaluation.gap_benchmark import FALSE_NAME_SHARE, score_extended, weak_names
+from delta6.diagnosis.leftover import JOINT_SHARE
+from delta6.evaluation.gap_benchmark import (
+    FALSE_NAME_SHARE,
+    UNKNOWN_EFFECTS,
+    Case,
+    add_bends,
+    beyond_line,
+    joint_bends,
+    leftover_joints,
+    on_joint,
+    score_extended,
+    weak_names,
+)
 
 
 def verdict(present, shares, groups=()):
@@ -64,3 +80,90 @@ def test_the_mix_figures_use_both_counts():
     assert s["mix_false_names_max"] == 2
     assert s["mix_runs_at_most_one_false_member"] == 0.5
     assert s["mix_false_members_max"] == 2
+
+
+# -- unknown effects: which joints a per-joint effect leaves a leftover on --------------------
+
+def unknown_run(acting, found, leftover=None, shape="even polynomial"):
+    truth = {"name": "encoder_periodic_error", "joints": list(acting)}
+    if leftover is not None:
+        truth["leftover_joints"] = list(leftover)
+    return {"kind": "unknown", "truth": [truth], "present": [], "ladder": [],
+            "baseline_p99": [0.0] * 6, "true_shrink": 0.0, "predicted_shrink": 0.0,
+            "shares": {"encoder_periodic_error": 0.5},
+            "leftover": {"structured": True, "joints": list(found), "shape": shape}}
+
+
+def test_the_leftover_joints_are_those_bending_like_the_largest():
+    bend = np.array([0.08, 0.0, 0.15, 0.0, 0.41, 0.0]) * 1e-3
+    assert leftover_joints([1, 5], bend) == [5]          # j1: 4 % of j5's variance
+    assert leftover_joints([3, 5], bend) == [5]          # j3: 13 % of j5's variance
+    assert leftover_joints([3, 5], bend * [1, 1, 2, 1, 1, 1]) == [3, 5]   # 54 %
+    assert leftover_joints([3, 5], bend) == [j for j in (3, 5)
+                                             if bend[j - 1] >= np.sqrt(JOINT_SHARE) * bend[4]]
+    assert leftover_joints([2], bend) == []               # no bend at all: nothing to find
+
+
+@given(st.lists(st.integers(1, 6), min_size=1, max_size=6, unique=True),
+       st.lists(st.floats(0.0, 1e-2), min_size=6, max_size=6))
+def test_the_leftover_joints_are_acting_joints_led_by_the_largest_bend(acting, bend):
+    bend = np.asarray(bend)
+    chosen = leftover_joints(acting, bend)
+    assert set(chosen) <= set(acting)
+    top = max(bend[j - 1] for j in acting)
+    if top > 0:
+        assert max(acting, key=lambda j: bend[j - 1]) in chosen
+    else:
+        assert chosen == []
+
+
+def test_an_unknown_run_is_scored_on_the_joints_the_effect_bends():
+    ok = score_extended([unknown_run([1, 5], [5], leftover=[5])])
+    assert ok["unknown_leftover_ok"] == 1.0
+    assert ok["unknown_leftover_ok_every_joint"] == 0.0   # j1 is acted on, not found
+    # Records from before the bend was measured: every joint the effect acts on.
+    old = score_extended([unknown_run([1, 5], [5])])
+    assert old["unknown_leftover_ok"] == old["unknown_leftover_ok_every_joint"] == 0.0
+    # Naming a joint the effect leaves straight is wrong too.
+    assert score_extended([unknown_run([1, 5], [1, 5], leftover=[5])])[
+        "unknown_leftover_ok"] == 0.0
+
+
+def test_what_bends_is_measured_on_the_joints_the_effect_acts_on(baseline):
+    """On the twin: an encoder's periodic error on joints 2 and 4 bends each of them; a
+    spring-rate error (a straight line in each joint's angle) bends nowhere."""
+    from delta6 import twin
+
+    def simulate(effects):
+        return twin.simulate(baseline, effects, duration_s=40.0, rate_hz=50.0, seed=3)
+
+    clean = simulate([])
+    encoder = twin.make_effect("encoder_periodic_error", seed=5, joints=[2, 4],
+                               formulation="harmonics", amplitude_rad=0.01)
+    alone = on_joint(encoder, 4)
+    assert alone.joints == (4,)
+    assert np.array_equal(np.nonzero(alone.params["amplitude_rad"])[0], [3])
+    assert np.array_equal(alone.params["mount_angle_rad"], encoder.params["mount_angle_rad"])
+    bend = joint_bends(baseline, encoder, simulate, clean)
+    assert np.all(bend[[1, 3]] > 1e-4)                     # a few tenths of a mN*m
+    assert np.all(bend[[0, 2, 4, 5]] == 0.0)
+    rate = beyond_line(baseline, simulate([twin.make_effect("stiffness_mismatch", seed=5,
+                                                            magnitude=1.0)]), clean)
+    assert np.all(rate < 5e-6)                             # rounding: under 1 % of that
+
+
+def test_records_without_bends_get_them_measured_again(root):
+    """An earlier run's records are re-scored from the case they keep: the same twin run."""
+    case = Case("unknown", ["encoder_periodic_error"], 7, [0.9],
+                withhold=list(UNKNOWN_EFFECTS), joints=[[3]])
+    record = unknown_run([3], [3])
+    record["case"] = asdict(case)
+    other = unknown_run([3], [3])                     # a harness-like run: no joints recorded
+    other["case"] = asdict(Case("unknown", ["harness"], 8, [0.9]))
+    design = str(root / "designs" / "delta6.toml")
+    assert add_bends([record, other], design, duration_s=40.0) == 1
+    truth = record["truth"][0]
+    assert truth["leftover_joints"] == [3]
+    assert len(truth["beyond_line_nm"]) == 6 and truth["beyond_line_nm"][2] > 0.0
+    assert "leftover_joints" not in other["truth"][0]
+    assert add_bends([record], design, duration_s=40.0) == 0     # measured once
