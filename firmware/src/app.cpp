@@ -34,7 +34,7 @@
 // - a calibrated unit: 250 Hz (the calibrated solve is about 51,500 cycles of the 64,000 in a
 //   250 Hz period; a wrench+raw sample about 57,500 with the record);
 // - a calibrated unit with curve tables (a nonlinear spring or an encoder's periodic error):
-//   200 Hz (the tables add about 5,000 cycles to the solve; 250 Hz overruns);
+//   200 Hz (the tables add about 3,500-4,000 cycles a sample; 250 Hz overruns);
 // - with an on-chip residual (over either model): 200 Hz (over a calibration the default
 //   residual adds about 8,500; codegen refuses models too costly for 200 Hz).
 // With the wrench pipeline on (a low-pass filter or a tool frame: about 19,000 more cycles

@@ -105,11 +105,12 @@ def model_text(design: design_mod.Design, design_path: Path, model_path: Path | 
     model = residualmodel.load(model_path)
     residualmodel.check_base(model, design, cal)
     base = "analytical" if cal is None else "calibrated"
+    over = f"the {base} model"
     if cal is not None and cal.has_curves:
-        base = "calibrated with curves"
+        base, over = "calibrated with curves", "a calibration with curve tables"
     if model.net.macs > MAX_MODEL_MACS[base]:
         raise UserError(f"{model_path}: {model.net.macs} multiply-accumulates per sample; over "
-                        f"the {base} model the board keeps its 200 Hz with at most "
+                        f"{over} the board keeps its 200 Hz with at most "
                         f"{MAX_MODEL_MACS[base]} (train a smaller one: --hidden)")
     return model, render_model(model, source_label(design_path), source_label(model_path))
 
