@@ -20,9 +20,15 @@ Sections (each prints a Markdown table):
   difference between the two, and the cycles per sample; then a short rate sweep for overruns.
 - ``sizes``: flash and RAM of the ATmega328P image and the avrxmega3 size check, with and
   without the calibration.
-- ``effects``: each correctable effect's single-effect scenario: calibrated p99 on an unseen
-  run of the same unit against what the diagnosis predicted would be left (its final held-out
-  p99), and the twin's floor (the same run without the effect).
+- ``effects``: each correctable effect's single-effect scenario (``--effects`` picks some):
+  calibrated p99 on an unseen run of the same unit against what the diagnosis predicted would
+  be left (its final held-out p99), and the twin's floor (the same run without the effect).
+  An effect without a scenario of its own (the curves) is the twin's effect alone at its
+  default (mid-range) magnitude.
+- ``curves``: the paper unit's calibration with and without both curve tables (a spring
+  stiffening by 12 % at 0.5 rad, a magnet's error of 0.015 rad in the first harmonic falling
+  as 1/h): flash and RAM of the ATmega328P image, the avrxmega3 size check, and the cycles per
+  sample on the emulated ATmega328P streaming at 200 Hz (the curved image's rated rate).
 """
 from __future__ import annotations
 
@@ -197,13 +203,15 @@ def section_sizes(design, args, out, unit) -> None:
 def section_effects(design, args, out, tmp) -> None:
     fs = full_scale(design)
     lines = ["### single effects: calibrated p99 on an unseen run vs the diagnosis's prediction",
-             "", "| effect | chosen | rig latency fitted, ms | floor p99 (max axis) | predicted p99 "
-             "| calibrated p99 | worst ratio | within 25 % |", "|---|---|---|---|---|---|---|---|"]
+             "", "| effect | chosen | rig latency fitted, ms | floor p99 (max axis) | analytical p99 "
+             "| predicted p99 | calibrated p99 | worst ratio | within 25 % |",
+             "|---|---|---|---|---|---|---|---|---|"]
     rows = []
-    for name in CORRECTED:
-        effects = twin.scenario_effects(name, seed=1)
+    for name in args.effects or CORRECTED:
+        scenario = name if name in twin.SCENARIOS else None
+        effects = twin.scenario_effects(name, seed=1) if scenario else [twin.make_effect(name, 1)]
         cal_run = twin.simulate(design, effects, duration_s=args.cal_duration, rate_hz=50,
-                                seed=1, scenario=name)
+                                seed=1, scenario=scenario)
         fit = calibrate(cal_run, design, name=f"{name[:14]}-unit")
         # The diagnosis's final refit, undamped: one set of parameters, as a calibration is
         # (the ladder's damped figure blends refits per axis).
@@ -216,19 +224,59 @@ def section_effects(design, args, out, tmp) -> None:
         floor = np.asarray(floor_run.gap((99,))["p99"])
         got = np.asarray(tv(CalibratedModel(design, fit.calibration).predict(check),
                             check.wrench, fs)["p99"])
+        analytical = np.asarray(tv(check.model_wrench(), check.wrench, fs)["p99"])
         ratio = got / predicted
         ok = bool(np.all(ratio <= 1.25))
         rows.append({"effect": name, "chosen": list(fit.calibration.effects),
                      "rig_latency_s": fit.latency_s,
-                     "floor": floor.tolist(), "predicted": predicted.tolist(),
+                     "floor": floor.tolist(), "analytical": analytical.tolist(),
+                     "predicted": predicted.tolist(),
                      "calibrated": got.tolist(), "ok": ok})
         lines.append(f"| {name} | {', '.join(fit.calibration.effects) or '-'} | "
-                     f"{1e3 * fit.latency_s:.2f} | {floor.max():.2f} | {' '.join(f'{v:.2f}' for v in predicted)} | "
+                     f"{1e3 * fit.latency_s:.2f} | {floor.max():.2f} | "
+                     f"{' '.join(f'{v:.2f}' for v in analytical)} | "
+                     f"{' '.join(f'{v:.2f}' for v in predicted)} | "
                      f"{' '.join(f'{v:.2f}' for v in got)} | {ratio.max():.2f} | "
                      f"{'yes' if ok else 'NO'} |")
         print(lines[-1], file=sys.stderr, flush=True)
     print("\n".join(lines) + "\n", flush=True)
     out["effects"] = rows
+
+
+def with_example_curves(cal: C.Calibration) -> C.Calibration:
+    """``cal`` with a spring stiffening by 12 % of the nominal torque at the reference (the
+    twin's cubic spring at the top of its range) and a magnet's error of 0.015 rad in the first
+    harmonic falling as 1/h (any phase: 0.7 h rad)."""
+    h = np.repeat(np.arange(1, 5), 2)
+    phase = np.where(np.arange(8) % 2 == 0, np.cos(0.7 * h), np.sin(0.7 * h))
+    return cal.with_(name=(cal.name[:16] + "-curves"),
+                     effects=tuple(cal.effects) + ("nonlinear_spring", "encoder_periodic_error"),
+                     spring_curvature=np.tile([0.0, 0.12], (6, 1)),
+                     encoder_periodic_rad=np.tile(0.015 / h * phase, (6, 1)))
+
+
+def section_curves(design, args, out, unit, tmp) -> None:
+    curved = with_example_curves(unit["calibration"])
+    paths = {"without curves": unit["path"],
+             "with both curves": C.save(curved, tmp / "curved-unit.toml")}
+    check = twin.simulate(duration_s=6, rate_hz=200, **twin.same_unit(unit["truth"], 3))
+    lines = ["### curve tables on the ATmega328P (the paper unit's calibration)", "",
+             "| calibration | flash | static RAM | avrxmega3 check flash | solve cycles mean "
+             "(max) | whole sample mean | CPU at 200 Hz |", "|---|---|---|---|---|---|---|"]
+    rows = {}
+    for label, path in paths.items():
+        image = design_firmware(Path(DEFAULT_DESIGN), path)
+        probe = appbuild.size_check_app("avrxmega3", image.elf.parent.parent / "include",
+                                        name=f"probe-{label.split()[0]}")
+        t = stream_log(image, check, rate_hz=200, hold_s=1.0).stats["timing"]
+        rows[label] = {"flash": image.sizes.flash, "ram": image.sizes.ram,
+                       "avrxmega3_flash": probe.sizes.flash, "timing": t}
+        lines.append(f"| {label} | {image.sizes.flash} | {image.sizes.ram} | "
+                     f"{probe.sizes.flash} | {t['solve_cycles']['mean']:.0f} "
+                     f"({t['solve_cycles']['max']:.0f}) | {t['process_cycles']['mean']:.0f} | "
+                     f"{100 * t['cpu_busy']:.0f} % (missed {t['missed_ticks']}) |")
+    print("\n".join(lines) + "\n", flush=True)
+    out["curves"] = rows
 
 
 def main(argv=None) -> int:
@@ -245,6 +293,8 @@ def main(argv=None) -> int:
     parser.add_argument("--rig-latency", type=float, default=None, metavar="SECONDS",
                         help="the paper unit's calibration states the rig's latency instead of "
                              "fitting it (delta6 calibrate --rig-latency; the twin's rig: 0.01)")
+    parser.add_argument("--effects", default="",
+                        help="comma-separated effects of the effects section (default all)")
     parser.add_argument("--json", metavar="OUT.json")
     args = parser.parse_args(argv)
     args.cal_duration = 600.0 if args.quick else 2000.0
@@ -252,18 +302,21 @@ def main(argv=None) -> int:
     if args.quick and args.board_seconds is None:
         args.board_seconds = 60.0
     args.sweep = [int(v) for v in args.sweep.split(",") if v]
+    args.effects = [v for v in args.effects.split(",") if v]
     sections = set(args.sections.split(","))
     design = load_checked(DEFAULT_DESIGN)
     out: dict = {}
     with tempfile.TemporaryDirectory(prefix="delta6-bench-calibration-") as tmp:
         tmp = Path(tmp)
         unit = None
-        if sections & {"paper", "board", "sizes"}:
+        if sections & {"paper", "board", "sizes", "curves"}:
             unit = section_paper(design, args, out, tmp)
         if "sizes" in sections:
             section_sizes(design, args, out, unit)
         if "board" in sections:
             section_board(design, args, out, unit)
+        if "curves" in sections:
+            section_curves(design, args, out, unit, tmp)
         if "effects" in sections:
             section_effects(design, args, out, tmp)
     if args.json:

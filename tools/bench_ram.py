@@ -31,6 +31,7 @@ from delta6.commands.codegen import build_name, calibration_text, design_firmwar
 from delta6.core import calibration as C
 from delta6.core import int8net, int8quant, residualmodel
 from delta6.core.design import load
+from delta6.core.errors import UserError
 from delta6.learning import mcu
 from delta6.link.device import Device
 from delta6.sim.virtualboard import VirtualBoard, demo_trajectory, stack_depth, theta_to_counts, write_replay
@@ -153,6 +154,9 @@ def main() -> int:
             except avrbuild.BuildError as exc:
                 overflow = [ln for ln in str(exc).splitlines() if "overflowed" in ln]
                 print(f"{name:<18} does not link: {(overflow or ['build failed'])[0].strip()}")
+                continue
+            except UserError as exc:      # codegen refuses the model over this calibration
+                print(f"{name:<18} refused: {exc}")
                 continue
             stack, rate_hz = peak_stack(image, args.seconds, tmp)
             s = image.sizes

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from delta6.core import curves
 from delta6.core.calibration import Calibration
 from delta6.core.design import Design
 from delta6.core.model import ENCODER_COUNT_RAD, NOMINAL_PHI
@@ -69,6 +70,38 @@ class CalibrationRangeError(ValueError):
     """A calibration the firmware's fixed-point sums cannot hold."""
 
 
+#: Must equal delta6::kCalibrationCurvesVersion, kCurveAngleShift, kCurveTorqueShift.
+CURVES_VERSION = 1
+TORQUE_NAMES = tuple(f"kCurveTorque{j}" for j in range(1, 7))
+ANGLE_NAMES = tuple(f"kCurveAngle{j}" for j in range(1, 7))
+
+
+@dataclass(frozen=True)
+class CurveConstants:
+    """The fields of ``delta6::CurvedCalibrationConstants`` beside ``base``, and the int16
+    tables (``delta6.core.curves.curve_tables``: the ones the Python model interpolates)."""
+
+    knots: int
+    torque: np.ndarray               # (6, knots) int16
+    angle: np.ndarray | None         # (6, knots) int16, or None
+
+
+def curve_constants(design: Design, cal: Calibration) -> CurveConstants | None:
+    """The curve tables for the firmware (None: the calibration has no curve)."""
+    tables = curves.curve_tables(design, cal)
+    if tables is None:
+        return None
+    sc = solver_constants(design)
+    if tables.origin != sc.table_origin or curves.KNOT_COUNTS != TABLE_STEP \
+            or len(tables.knots) != sc.branch_table.shape[0] + 1:
+        raise AssertionError("the curve knots must be the coarse tables' rows and one beyond")
+    for table in (tables.torque, tables.angle):
+        if table is not None and np.any(np.abs(np.diff(table.astype(int), axis=1)) > 32767):
+            raise CalibrationRangeError("a curve changes by more than the firmware's int16 "
+                                        "step between two knots")
+    return CurveConstants(knots=len(tables.knots), torque=tables.torque, angle=tables.angle)
+
+
 def _f(values) -> tuple:
     return tuple(f32(v) for v in np.ravel(values))
 
@@ -115,18 +148,25 @@ def calibration_constants(design: Design, cal: Calibration) -> CalibrationConsta
     # The int32 sum (count terms, constant, friction offset) must hold its largest value over
     # the joint box and every play state.
     sc = solver_constants(design)
+    tables = curves.curve_tables(design, cal)
+    curve_nm = 0.0 if tables is None else \
+        np.abs(tables.torque).max(axis=1) * 2.0 ** -curves.TORQUE_SHIFT
     worst = (np.abs(kx) * sc.limit_counts + np.abs(kd) * 2 * half
              + (np.abs(kw) * radii).sum(axis=1) + np.abs(k0)
-             + np.abs(offset).max(axis=1, initial=0.0)) * 2.0 ** TORQUE_SHIFT
+             + np.abs(offset).max(axis=1, initial=0.0) + curve_nm) * 2.0 ** TORQUE_SHIFT
     if np.any(worst >= 2.0 ** 31 - 64):
         raise CalibrationRangeError("the calibration's torque terms exceed the firmware's "
                                     "fixed-point range (hysteresis weights too large?)")
-    # Each joint's coarse table holds its constant angle corrections, as the solver's tables.
+    # Each joint's coarse table holds its constant angle corrections, as the solver's tables,
+    # and the encoder curve at its knots (the rows; the board adds the part between them).
     rows = sc.branch_table.shape[0]
     coarse = (np.arange(rows) * TABLE_STEP - sc.table_origin) * ENCODER_COUNT_RAD
+    coarse = np.repeat(coarse[None, :], 6, axis=0)
+    if tables is not None and tables.angle is not None:
+        coarse = coarse - tables.angle[:, :rows] * 2.0 ** -curves.ANGLE_SHIFT
     tables = tuple(
-        _coarse(coarse, la[j], design.theta_offset_rad + cal.delta_rest_angle_rad[j]
-                - cal.offset_rad[j]) if j < 3 else _coarse(coarse, 1.0, -cal.offset_rad[j])
+        _coarse(coarse[j], la[j], design.theta_offset_rad + cal.delta_rest_angle_rad[j]
+                - cal.offset_rad[j]) if j < 3 else _coarse(coarse[j], 1.0, -cal.offset_rad[j])
         for j in range(6))
     return CalibrationConstants(
         kx=_q(kx), kw=_padded(kw, MAX_RADII, _q), kd=_q(kd), k0=_q(k0),
@@ -193,15 +233,47 @@ def render(design: Design, cal: Calibration, design_label: str, calibration_labe
     ]
     for name, table in zip(TABLE_NAMES, k.tables):
         lines += _table(name, table, f"{name}") + [""]
-    lines += ["const CalibrationConstants kCalibrationConstants DELTA6_FLASH = {"]
-    for name in FIELDS:
-        lines.append(f"    {_value(getattr(k, name))},  // {name}")
+    cv = curve_constants(design, cal)
+    fields = [f"    {_value(getattr(k, name))},  // {name}" for name in FIELDS]
+    if cv is None:
+        lines += ["const CalibrationConstants kCalibrationConstants DELTA6_FLASH = {"]
+        lines += fields + ["};"]
+    else:
+        lines += [
+            "// The per-joint curves (delta6.core.curves.curve_tables), one entry per knot",
+            f"// x_i = {curves.KNOT_COUNTS} i - table_origin: the joint torque s(x) - k ratio e(x) in",
+            f"// 2^-{curves.TORQUE_SHIFT} N*m" + (f"; the encoder error e(x) in 2^-{curves.ANGLE_SHIFT} rad."
+                                                   if cv.angle is not None else "."),
+        ]
+        for names, tables in ((TORQUE_NAMES, cv.torque), (ANGLE_NAMES, cv.angle)):
+            if tables is None:
+                continue
+            for name, row in zip(names, tables):
+                lines.append(f"const int16_t {name}[{len(row)}] DELTA6_FLASH = {{"
+                             + ", ".join(str(int(v)) for v in row) + "};")
+        angle = ", ".join(ANGLE_NAMES) if cv.angle is not None else ", ".join(["nullptr"] * 6)
+        lines += ["", "#define DELTA6_CALIBRATION_CURVES 1",
+                  "const CurvedCalibrationConstants kCalibrationConstants DELTA6_FLASH = {",
+                  "  {"] + ["  " + f for f in fields] + [
+                  "  },",
+                  f"    {cv.knots},  // knots",
+                  f"    {{{', '.join(TORQUE_NAMES)}}},  // torque",
+                  f"    {{{angle}}},  // angle",
+                  "};"]
     lines += [
-        "};",
         "",
         "}  // namespace calibration",
         "}  // namespace delta6",
         "",
+    ]
+    if cv is not None:
+        lines += [
+            f"static_assert(delta6::kCalibrationCurvesVersion == {CURVES_VERSION} && "
+            f"delta6::kCurveAngleShift == {curves.ANGLE_SHIFT} && "
+            f"delta6::kCurveTorqueShift == {curves.TORQUE_SHIFT},",
+            f'              "delta6_calibration.h was generated for other curves: rerun {COMMAND}");',
+        ]
+    lines += [
         f"static_assert(delta6::kCalibrationConstantsVersion == {CALIBRATION_VERSION},",
         f'              "delta6_calibration.h is older than the firmware: rerun {COMMAND}");',
         f"static_assert(delta6::kMaxPlayRadii == {MAX_RADII} && "

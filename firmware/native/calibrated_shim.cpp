@@ -13,12 +13,23 @@
 
 using delta6::CalibrationConstants;
 using delta6::CalibrationState;
+using delta6::CurvedCalibrationConstants;
 
 extern "C" {
 
-// The generated header's constants (NULL when the build has none), its hash and name.
+// The generated header's constants (NULL when the build has none; the base of a calibration
+// with curves), its curves (NULL without), its hash and name.
 const CalibrationConstants* d6c_generated() {
-#ifdef D6C_HAS_GENERATED
+#if defined(DELTA6_CALIBRATION_CURVES)
+    return &delta6::calibration::kCalibrationConstants.base;
+#elif defined(D6C_HAS_GENERATED)
+    return &delta6::calibration::kCalibrationConstants;
+#else
+    return nullptr;
+#endif
+}
+const CurvedCalibrationConstants* d6c_generated_curved() {
+#if defined(DELTA6_CALIBRATION_CURVES)
     return &delta6::calibration::kCalibrationConstants;
 #else
     return nullptr;
@@ -33,6 +44,7 @@ uint32_t d6c_generated_hash() {
 }
 
 size_t d6c_constants_size() { return sizeof(CalibrationConstants); }
+size_t d6c_curved_size() { return sizeof(CurvedCalibrationConstants); }
 size_t d6c_state_size() { return sizeof(CalibrationState); }
 
 void d6c_reset(CalibrationState* s) { delta6::calibration_reset(*s); }
@@ -44,6 +56,15 @@ void d6c_set_period(const CalibrationConstants* c, float period_s, CalibrationSt
 // n samples in a row, continuing from *s.
 void d6c_run(const CalibrationConstants* c, CalibrationState* s, size_t n, const int16_t* delta,
              float* wrench, uint8_t* status) {
+    for (size_t i = 0; i < n; ++i) {
+        status[i] = delta6::solve_calibrated(delta6::design::kSolverConstants, *c, *s,
+                                             delta + 6 * i, wrench + 6 * i);
+    }
+}
+
+// The same with curves.
+void d6c_run_curved(const CurvedCalibrationConstants* c, CalibrationState* s, size_t n,
+                    const int16_t* delta, float* wrench, uint8_t* status) {
     for (size_t i = 0; i < n; ++i) {
         status[i] = delta6::solve_calibrated(delta6::design::kSolverConstants, *c, *s,
                                              delta + 6 * i, wrench + 6 * i);

@@ -33,11 +33,13 @@
 // - the analytical model: 350 Hz (wrench streams sustain 400 Hz, wrench+raw 350 Hz);
 // - a calibrated unit: 250 Hz (the calibrated solve is about 51,500 cycles of the 64,000 in a
 //   250 Hz period; a wrench+raw sample about 57,500 with the record);
+// - a calibrated unit with curve tables (a nonlinear spring or an encoder's periodic error):
+//   200 Hz (the tables add about 3,500-4,000 cycles a sample; 250 Hz overruns);
 // - with an on-chip residual (over either model): 200 Hz (over a calibration the default
 //   residual adds about 8,500; codegen refuses models too costly for 200 Hz).
 // With the wrench pipeline on (a low-pass filter or a tool frame: about 19,000 more cycles
 // per sample): 250 Hz for the analytical model (300 Hz overruns), 150 Hz calibrated.
-#if DELTA6_RESIDUAL
+#if DELTA6_RESIDUAL || defined(DELTA6_CALIBRATION_CURVES)
 #define DELTA6_RATED_HZ 200UL
 #define DELTA6_RATED_PIPELINE_HZ 150UL
 #elif DELTA6_CALIBRATED

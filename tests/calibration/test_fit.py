@@ -154,7 +154,7 @@ def test_fitted_friction_opposes_the_motion_at_every_speed(late_fit, late_rig):
 
 
 @pytest.mark.parametrize("bad", [["thermal_drift"], ["warp_drive"], ["harness"],
-                                 ["nonlinear_spring"], ["encoder_periodic_error"]])
+                                 ])
 def test_uncorrectable_or_unknown_effects_are_refused(bad):
     with pytest.raises(UserError) as err:
         check_effects(bad)

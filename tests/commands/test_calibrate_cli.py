@@ -203,3 +203,27 @@ def test_calibrate_checks_its_outputs_and_refuses_a_device_log_before_fitting(tm
         assert err.count("\n") == 1 and words in err, err
     assert main(["evaluate", str(log), "--design", DESIGN, "--json", str(tmp_path)]) == 2
     assert "is a folder" in capsys.readouterr().err
+
+
+def test_a_curve_is_calibrated_and_compiled_from_the_command_line(tmp_path, capsys):
+    """`--effect nonlinear_spring` fits the spring's curve and the rate that carries its
+    straight part; evaluate scores it, codegen writes its tables into the header."""
+    log, check = tmp_path / "spring.csv", tmp_path / "spring-check.csv"
+    assert main(["simulate", "--effect", "nonlinear_spring", "--magnitude", "1", "--seed", "6",
+                 "--duration", "60", "-o", str(log)]) == 0
+    assert main(["simulate", "--unit", str(tmp_path / "spring.truth.json"), "--seed", "7",
+                 "--duration", "40", "-o", str(check)]) == 0
+    out = tmp_path / "spring-unit.toml"
+    assert main(["calibrate", str(log), "--design", DESIGN, "-o", str(out), "--effect",
+                 "nonlinear_spring", "--quiet"]) == 0
+    cal = C.load(out)
+    assert cal.effects == ("nonlinear_spring", "stiffness_mismatch") and cal.has_curves
+    js = tmp_path / "t.json"
+    assert main(["evaluate", str(check), "--design", DESIGN, "--calibration", str(out),
+                 "--json", str(js)]) == 0
+    analytical, calibrated = json.loads(js.read_text())["rows"]
+    assert max(calibrated["p99_pct"]) < 0.3 * max(analytical["p99_pct"])
+    header = tmp_path / "generated" / "delta6_design.h"
+    assert main(["codegen", DESIGN, "-o", str(header), "--calibration", str(out)]) == 0
+    text = header.with_name("delta6_calibration.h").read_text()
+    assert "kCurveTorque6" in text and "kCurveAngle1" not in text

@@ -127,3 +127,27 @@ def test_a_model_too_costly_for_the_rated_rate_is_refused(over_cal, unit_logs, t
             assert status == 0, err
         else:
             assert status == 2 and len(err.splitlines()) == 1 and "at most 144" in err, err
+
+
+def test_over_a_calibration_with_curves_only_the_default_model_is_taken(over_cal, unit_logs,
+                                                                        tmp_path, capsys):
+    """The curve tables take about 3,600 cycles and 1,600 B more: over such a calibration the
+    board keeps 200 Hz (and the emulated ATmega328P's 32 KB) with the default linear map of
+    the counts (36 multiply-accumulates), not with a hidden layer."""
+    from support.calibrations import with_curves
+    cal, _, _, _ = over_cal
+    curved = calibration_mod.save(with_curves(cal, 4).with_(name="curved"), tmp_path / "c.toml")
+    header = tmp_path / "generated" / "delta6_design.h"
+    for hidden, ok in (("0", True), ("4", False)):
+        model = tmp_path / f"h{hidden}.json"
+        args = ["--hidden", hidden] if hidden != "0" else []
+        assert main(["train", str(unit_logs[0]), "--target", "mcu", "--residual-over",
+                     str(curved), "--epochs", "1", "--quiet", "-o", str(model), *args]) == 0
+        capsys.readouterr()
+        status = main(["codegen", "designs/delta6.toml", "--calibration", str(curved),
+                       "--model", str(model), "-o", str(header)])
+        err = capsys.readouterr().err.strip()
+        if ok:
+            assert status == 0, err
+        else:
+            assert status == 2 and len(err.splitlines()) == 1 and "at most 36" in err, err

@@ -19,7 +19,8 @@ def _random_cal(baseline, rng) -> C.Calibration:
         presliding_nm=r(-0.003, 0.003, 6), delta_a_mm=r(-0.5, 0.5, 3),
         delta_lb_mm=r(-0.5, 0.5, 3), delta_azimuth_rad=r(-0.01, 0.01, 3),
         gimbal_misalignment_rad=r(-0.01, 0.01, 3), elbow_rad_per_nm=r(0, 0.2, 3),
-        tilt_rad_per_nm=float(r(0, 0.1)),
+        tilt_rad_per_nm=float(r(0, 0.1)), spring_curvature=r(-0.2, 0.2, (6, 2)),
+        encoder_periodic_rad=r(-0.004, 0.004, (6, 8)),
         fit={"log": "cal.csv", "samples": 100, "heldout_before": {"p99_pct": [1.0] * 6}})
 
 
@@ -28,7 +29,8 @@ def test_round_trip_is_exact(baseline, seed):
     cal = _random_cal(baseline, np.random.default_rng(seed))
     back = C.loads(C.dumps(cal))
     assert back.hash32() == cal.hash32()
-    for name in ("offset_rad", "hysteresis_nm", "friction_sign_nm", "delta_lb_mm"):
+    for name in ("offset_rad", "hysteresis_nm", "friction_sign_nm", "delta_lb_mm",
+                 "spring_curvature", "encoder_periodic_rad"):
         np.testing.assert_array_equal(getattr(back, name), getattr(cal, name))
     assert back.tilt_rad_per_nm == cal.tilt_rad_per_nm
     assert back.fit == cal.fit and back.effects == cal.effects and back.name == "unit-7"
@@ -39,6 +41,20 @@ def test_hash_covers_parameters_and_design_not_name_or_fit(baseline):
     assert cal.with_(name="b", fit={"x": 1}).hash32() == cal.hash32()
     assert cal.with_(offset_rad=np.full(6, 1e-6)).hash32() != cal.hash32()
     assert cal.with_(design_hash=cal.design_hash ^ 1).hash32() != cal.hash32()
+
+
+def test_curves_are_hashed_only_when_present(baseline):
+    """A calibration without curves keeps the hash it had before they existed (boards and
+    logs that report it stay recognised); a curve changes it."""
+    cal = C.neutral(baseline, "a")
+    assert "spring_curvature" not in cal.canonical()
+    assert "encoder_periodic_rad" not in cal.canonical()
+    # The neutral calibration's hash as it was before the curves (it covers the design hash).
+    assert cal.hash32() == 0x0EA94F52
+    for name, shape in (("spring_curvature", (6, 2)), ("encoder_periodic_rad", (6, 8))):
+        value = np.zeros(shape)
+        value[2, 1] = 1e-4
+        assert cal.with_(**{name: value}).hash32() != cal.hash32()
 
 
 def test_wrong_design_is_refused(baseline):
@@ -71,6 +87,9 @@ def good_text(baseline):
     ("tilt_rad_per_nm = ", "tilt_rad_per_nm = nan #", "tilt_rad_per_nm"),
     ('schema = "delta6-calibration/1"', 'schema = "delta6-log"', "schema"),
     ('effects = ["encoder_offset", "joint_friction"]', 'effects = ["thermal_drift"]', "effects"),
+    ("curvature = [[", "curvature = [[0.1, 0.2, 0.3], [", "spring.curvature"),
+    ("curvature = [[", "curvature = [[7.0, 0.1], [", "spring.curvature"),
+    ("periodic_rad = [[", "periodic_rad = [[0.5, ", "angle.periodic_rad"),
 ])
 def test_bad_fields_are_named(good_text, old, new, field):
     assert old in good_text

@@ -15,7 +15,7 @@ from delta6.core.calibrated import CalibratedModel, counts_from_angles
 from delta6.core.spec import full_scale
 from delta6_codegen.calibration_header import CalibrationRangeError, calibration_constants
 
-from support.calibrations import random_calibration
+from support.calibrations import random_calibration, with_curves
 
 TOLERANCE_PCT = 0.01
 
@@ -77,8 +77,48 @@ def test_the_generated_header_holds_the_same_constants(baseline, libdir):
     np.testing.assert_array_equal(from_header, at_run_time)
 
 
-def test_outside_the_box_gives_zeros_and_a_status_never_nan(baseline, libdir):
+@settings(max_examples=10)
+@given(st.integers(0, 2**31 - 1), st.sampled_from([(True, False), (False, True), (True, True)]))
+def test_calibrations_with_curves_along_random_paths(baseline, libdir, seed, which):
+    cal = with_curves(random_calibration(baseline, seed), seed, *which)
+    counts = random_path(seed, 400, 1365)
+    assert worst_pct(baseline, cal, counts, 0.004, libdir) < TOLERANCE_PCT
+
+
+def test_curves_over_the_joint_box_and_along_a_twin_trajectory(baseline, libdir):
+    """Both curves at once: every knot interval of every joint (a sweep of the box, each
+    joint out of phase with the others), the box's corners, and a recorded trajectory. The
+    curves matter far beyond the tolerance (the same calibration without them differs)."""
+    base = random_calibration(baseline, 21)
+    cal = with_curves(base, 21)
+    n = 1365
+    sweep = np.stack([np.roll(np.arange(-n, n + 1, 3), 150 * j) for j in range(6)], axis=1)
+    grid = np.array(np.meshgrid(*[[-n, 0, n]] * 6)).reshape(6, -1).T
+    run = twin.simulate(baseline, twin.scenario_effects("paper", 1), duration_s=10,
+                        rate_hz=250, seed=12)
+    for counts in (sweep, grid, counts_from_angles(run.theta)):
+        assert worst_pct(baseline, cal, counts, 0.004, libdir) < TOLERANCE_PCT
+    fs = full_scale(baseline)
+    with_, _ = CalibratedModel(baseline, cal).run(sweep, 0.004)
+    without, _ = CalibratedModel(baseline, base).run(sweep, 0.004)
+    assert (np.abs(with_ - without) / fs * 100).max() > 100 * TOLERANCE_PCT
+
+
+@pytest.mark.parametrize("which", [(True, False), (False, True), (True, True)])
+def test_the_generated_header_holds_the_same_curves(baseline, libdir, which):
+    cal = with_curves(random_calibration(baseline, 13), 13, *which)
+    counts = random_path(13, 300, 1365)
+    native = native_calibrated(baseline, cal, 0.004, libdir, generated=True)
+    assert native.curved and native.lib.d6c_generated_hash() == cal.hash32()
+    from_header, _ = native.run(counts)
+    at_run_time, _ = native_calibrated(baseline, cal, 0.004, libdir).run(counts)
+    np.testing.assert_array_equal(from_header, at_run_time)
+
+
+@pytest.mark.parametrize("curved", [False, True])
+def test_outside_the_box_gives_zeros_and_a_status_never_nan(baseline, libdir, curved):
     cal = random_calibration(baseline, 3)
+    cal = with_curves(cal, 3) if curved else cal
     native = native_calibrated(baseline, cal, 0.004, libdir)
     rng = np.random.default_rng(0)
     counts = rng.integers(-8192, 8192, size=(2000, 6))
@@ -95,3 +135,18 @@ def test_torques_beyond_the_fixed_point_range_are_refused(baseline):
     stiff = baseline.replace(k_nm_per_rad=[20.0] * 6)
     with pytest.raises(CalibrationRangeError):
         calibration_constants(stiff, C.neutral(stiff))
+
+
+@pytest.mark.parametrize("spring,encoder", [(False, False), (True, False), (False, True),
+                                            (True, True)])
+def test_the_header_holds_curve_tables_only_for_the_curves_present(baseline, spring, encoder):
+    from delta6_codegen import render_calibration
+    cal = random_calibration(baseline, 17)
+    if spring or encoder:
+        cal = with_curves(cal, 17, spring, encoder)
+    text = render_calibration(baseline, cal, "d.toml", "c.toml")
+    assert ("kCurveTorque1" in text) == (spring or encoder)
+    assert ("CurvedCalibrationConstants" in text) == (spring or encoder)
+    assert ("kCurveAngle1" in text) == encoder
+    if not (spring or encoder):
+        assert "const CalibrationConstants kCalibrationConstants DELTA6_FLASH" in text

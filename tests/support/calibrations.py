@@ -31,6 +31,23 @@ def random_calibration(design, seed: int, scale: float = 1.0) -> C.Calibration:
         elbow_rad_per_nm=u(0.1, 3, False), tilt_rad_per_nm=float(u(0.08, (), False)))
 
 
+def with_curves(cal: C.Calibration, seed: int, spring: bool = True,
+                encoder: bool = True) -> C.Calibration:
+    """``cal`` with per-joint curves of realistic size: a stiffening spring (curvature up to
+    0.3 of the nominal torque at the reference) and a magnet's periodic error (up to 0.015 rad
+    in the first harmonic, falling as 1/h, any phase)."""
+    rng = np.random.default_rng(seed)
+    effects = list(cal.effects)
+    if spring:
+        cal = cal.with_(spring_curvature=rng.uniform(-0.3, 0.3, (6, 2)))
+        effects.append("nonlinear_spring")
+    if encoder:
+        harmonics = np.repeat(np.arange(1, 5), 2)
+        cal = cal.with_(encoder_periodic_rad=rng.uniform(-0.015, 0.015, (6, 8)) / harmonics)
+        effects.append("encoder_periodic_error")
+    return cal.with_(effects=tuple(effects))
+
+
 def history_calibration(design, name: str, viscous_nm_s_per_rad: float = 0.0) -> C.Calibration:
     """A calibration with history terms (hysteresis plays, backlash; friction if
     ``viscous_nm_s_per_rad``), so that the base carries state from sample to sample."""

@@ -16,7 +16,7 @@ from delta6.build.nativesolver import header_dir
 from delta6.core.calibration import Calibration
 from delta6.core.design import Design
 from delta6_codegen import calibration_constants, render_calibration
-from delta6_codegen.calibration_header import FIELDS, MAX_RADII, MAX_SPEEDS
+from delta6_codegen.calibration_header import FIELDS, MAX_RADII, MAX_SPEEDS, curve_constants
 
 SOURCES = [FIRMWARE_CORE / "delta6_calibrated.cpp", FIRMWARE_CORE / "delta6_solver.cpp",
            FIRMWARE_NATIVE / "calibrated_shim.cpp"]
@@ -42,6 +42,16 @@ class CCalibration(ctypes.Structure):
     _fields_ = [(name, _TYPES[name]) for name in FIELDS]
 
 
+_I16P = ctypes.POINTER(ctypes.c_int16)
+
+
+class CCurved(ctypes.Structure):
+    """Mirror of delta6::CurvedCalibrationConstants."""
+
+    _fields_ = [("base", CCalibration), ("knots", ctypes.c_uint8), ("torque", _I16P * 6),
+                ("angle", _I16P * 6)]
+
+
 def _fill(ctype, value):
     if isinstance(value, tuple):
         return ctype(*(_fill(ctype._type_, v) for v in value))
@@ -60,6 +70,24 @@ def c_calibration(design: Design, cal: Calibration) -> CCalibration:
     return out
 
 
+def c_curved(design: Design, cal: Calibration) -> CCurved | None:
+    """A ctypes struct for ``cal`` with its curve tables (None: it has no curves)."""
+    cv = curve_constants(design, cal)
+    if cv is None:
+        return None
+    out = CCurved()
+    base = c_calibration(design, cal)
+    out.base = base
+    out._base = base      # ctypes copies the struct's bytes; its tables live with the original
+    out.knots = cv.knots
+    out._curves = [np.ascontiguousarray(t, dtype=np.int16) for t in cv.torque]
+    out.torque = (_I16P * 6)(*(t.ctypes.data_as(_I16P) for t in out._curves))
+    if cv.angle is not None:
+        out._angles = [np.ascontiguousarray(t, dtype=np.int16) for t in cv.angle]
+        out.angle = (_I16P * 6)(*(t.ctypes.data_as(_I16P) for t in out._angles))
+    return out
+
+
 class NativeCalibrated:
     """The C++ calibrated model of one design; ``run`` keeps the history between calls."""
 
@@ -74,14 +102,24 @@ class NativeCalibrated:
             raise RuntimeError("CalibrationConstants layout differs between C++ and Python")
         lib.d6c_set_period.argtypes = [ctypes.c_void_p, ctypes.c_float, ctypes.c_void_p]
         lib.d6c_run.argtypes = [ctypes.c_void_p] * 2 + [ctypes.c_size_t] + [ctypes.c_void_p] * 3
-        self.constants = c_calibration(design, cal)
+        lib.d6c_run_curved.argtypes = lib.d6c_run.argtypes
+        lib.d6c_generated_curved.restype = ctypes.c_void_p
+        lib.d6c_curved_size.restype = ctypes.c_size_t
+        if lib.d6c_curved_size() != ctypes.sizeof(CCurved):
+            raise RuntimeError("CurvedCalibrationConstants layout differs between C++ and Python")
+        self.constants = c_curved(design, cal)
+        self.curved = self.constants is not None
+        if not self.curved:
+            self.constants = c_calibration(design, cal)
         self._pointer = ctypes.byref(self.constants)
         if use_generated:    # the constants compiled from the generated header instead
-            if not lib.d6c_generated():
+            found = lib.d6c_generated_curved() if self.curved else lib.d6c_generated()
+            if not found:
                 raise RuntimeError("this build has no generated calibration header")
-            self._pointer = ctypes.c_void_p(lib.d6c_generated())
+            self._pointer = ctypes.c_void_p(found)
         self.state = ctypes.create_string_buffer(lib.d6c_state_size())
         lib.d6c_reset(self.state)
+        # (a curved struct starts with its base)
         lib.d6c_set_period(self._pointer, period_s, self.state)
 
     def run(self, delta) -> tuple[np.ndarray, np.ndarray]:
@@ -89,8 +127,9 @@ class NativeCalibrated:
         n = len(delta)
         wrench = np.full((n, 6), np.nan, dtype=np.float32)
         status = np.full(n, 0xEE, dtype=np.uint8)
-        self.lib.d6c_run(self._pointer, self.state, n, delta.ctypes.data,
-                         wrench.ctypes.data, status.ctypes.data)
+        run = self.lib.d6c_run_curved if self.curved else self.lib.d6c_run
+        run(self._pointer, self.state, n, delta.ctypes.data, wrench.ctypes.data,
+            status.ctypes.data)
         return wrench, status
 
 

@@ -23,8 +23,8 @@ from typing import Callable
 
 import numpy as np
 
-from delta6.core import model
-from delta6.core.calibrated import JointTerms
+from delta6.core import curves, model
+from delta6.core.calibrated import JointTerms, counts_from_angles
 from delta6.core.calibration import Calibration, CalibrationError, validate
 from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.diagnosis.data import GapData
@@ -57,6 +57,9 @@ class Family:
     on_device: bool = True
     #: Linear inequalities on the values, (A, lower): A @ values >= lower (None: no sign fixed).
     constraints: Callable[[Calibration], tuple[np.ndarray, np.ndarray]] | None = None
+    #: Whether each parameter is also checked on its own (False: only the family's whole
+    #: curve, when the term's limits are on a curve its parameters build together).
+    each_parameter: bool = True
 
     @property
     def term(self) -> Term:
@@ -78,7 +81,7 @@ class Family:
         the radii), and large values of opposite signs would cancel in the sum."""
         values = self.values(cal)
         checks = self.term.plausibility(self.term_map @ values)
-        for i in np.flatnonzero(values):
+        for i in np.flatnonzero(values) if self.each_parameter else ():
             for check in self.term.plausibility(self.term_map[:, i] * values[i]):
                 same = next(c for c in checks if c["quantity"] == check["quantity"])
                 if check["ratio"] > same["ratio"]:
@@ -113,6 +116,24 @@ def _offset(ctx):
 
 def _rate(ctx):
     return _torque(ctx, (ctx.data.params.k * ctx.data.theta)[:, :, None])
+
+
+def _count_angle(ctx) -> np.ndarray:
+    """The angle the board's curves are evaluated at: the whole counts, rad."""
+    return counts_from_angles(ctx.data.theta) * ENCODER_COUNT_RAD
+
+
+def _spring_curve(ctx):
+    # The diagnosis term's columns (its straight part removed: that stays with the rate),
+    # at the count angle, with the nominal rate.
+    return _torque(ctx, curves.spring_features(_count_angle(ctx), ctx.data.params.k))
+
+
+def _encoder_curve(ctx):
+    # The link's angle is the count angle minus e: as encoder_offset, per harmonic.
+    feats = curves.encoder_features(_count_angle(ctx))                  # (n, 6, 2H)
+    cols = -ctx.data.angle_jacobian[:, :, :, None] * feats[:, None, :, :]
+    return cols.reshape(ctx.n, 6, -1)
 
 
 def _geometry(ctx):
@@ -269,6 +290,21 @@ def families(cal: Calibration) -> dict[str, Family]:
                lambda c: np.asarray(c.backlash_play_rad),
                _per_joint_map(np.eye(len(_TERMS["backlash"].param_names) // 6, 1)),
                ("backlash_play_rad",)),
+        # The two curves: their parameters are the diagnosis terms' coefficients themselves.
+        Family("nonlinear_spring", tuple(f"{k}_{j}" for j in JOINTS
+                                         for k in ("abs_quadratic", "cubic")),
+               _spring_curve, lambda c, x: _add(c, spring_curvature=x.reshape(6, -1)),
+               lambda c: np.asarray(c.spring_curvature).ravel(), np.eye(12),
+               ("spring_curvature",)),
+        # Over the joint range the harmonics are nearly collinear: the term judges the error
+        # curve they make together (``_encoder_plausible``), not each harmonic alone.
+        Family("encoder_periodic_error",
+               tuple(f"{k}{h}_{j}_rad" for j in JOINTS for h in curves.ENCODER_HARMONICS
+                     for k in ("sin", "cos")),
+               _encoder_curve, lambda c, x: _add(c, encoder_periodic_rad=x.reshape(6, -1)),
+               lambda c: np.asarray(c.encoder_periodic_rad).ravel(),
+               np.eye(6 * 2 * len(curves.ENCODER_HARMONICS)), ("encoder_periodic_rad",),
+               each_parameter=False),
         Family("link_compliance", tuple(f"elbow_{b}_rad_per_nm" for b in BRANCHES)
                + ("tilt_rad_per_nm",), _compliance,
                lambda c, x: _add(c, elbow_rad_per_nm=x[:3]).with_(

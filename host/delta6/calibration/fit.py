@@ -274,8 +274,8 @@ def effects_to_fit(diagnosis: dict) -> list[str]:
     members it folded into a group verdict (named "and/or", little of their own beside a
     larger member, `verdicts.fold_small_members`), each after the member its group names
     alone, and a spring-rate error that is a stiffening spring's straight part
-    (`verdicts.straight_parts`), after the spring. The board applies no stiffening spring,
-    but its straight part is a rate correction it does apply; the calibration fits each of
+    (`verdicts.straight_parts`), after the spring: the spring's curve leaves its straight
+    part out by construction, so the rate correction carries it. The calibration fits each of
     them as when it was named alone."""
     present = list(diagnosis["present"])
     for g in diagnosis["groups"]:
@@ -288,6 +288,24 @@ def effects_to_fit(diagnosis: dict) -> list[str]:
             at = present.index(of) + 1 if of in present else len(present)
             present.insert(at, sp["name"])
     return present
+
+
+#: Families whose columns leave their straight-line part to another (``Term.refines``): the
+#: spring's curve is fitted with the rate that carries its straight part.
+STRAIGHT_PART_OF = {t.name: t.refines for t in TERMS if t.straight_part is not None}
+
+
+def with_straight_parts(effects: list[str]) -> list[str]:
+    """``effects`` with, after each family that leaves its straight part out, the family
+    that carries it (``--effect nonlinear_spring`` fits the spring's rate too: its curve
+    alone is not a spring)."""
+    out = []
+    for e in effects:
+        out.append(e)
+        carrier = STRAIGHT_PART_OF.get(e)
+        if carrier is not None and carrier not in effects and carrier not in out:
+            out.append(carrier)
+    return out
 
 
 def calibrate(log, design: Design, *, effects=None, name: str | None = None,
@@ -318,7 +336,7 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
         chosen_by = "diagnosis"
     else:
         check_effects(effects)
-        chosen = [e for e in dict.fromkeys(effects) if e in CORRECTED]
+        chosen = with_straight_parts([e for e in dict.fromkeys(effects) if e in CORRECTED])
         chosen_by = "--effect"
     if progress:
         progress("calibration columns")

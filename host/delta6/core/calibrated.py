@@ -11,10 +11,13 @@ through a few numbers of state per joint (:class:`ModelState`), in one pass per 
    +1 after rising, -1 after falling), hysteresis states ``h_r = (x - play_r(x)) / r`` for the
    play radii r (whole counts: the plays stay whole numbers, exactly, on both sides), and the
    joint speed ``v``, a first-order filtered difference (time constant ``speed_filter_s``).
-2. **angle side**: theta = x * count - offset + backlash_play / 2 * d (the link leads its
-   encoder by half the play in the direction of motion).
-3. **torque**: tau = k * rate_ratio * theta + sum_r w_r h_r
-   + sum_s c_s clamp(v / V_s, -1, 1) + viscous * v + presliding * d.
+2. **angle side**: theta = x * count - offset - e(x) + backlash_play / 2 * d (the link leads
+   its encoder by half the play in the direction of motion; e is the encoder's periodic
+   error, tabulated over x: ``delta6.core.curves``).
+3. **torque**: tau = k * rate_ratio * theta + s(x) + sum_r w_r h_r
+   + sum_s c_s clamp(v / V_s, -1, 1) + viscous * v + presliding * d (s: the spring's curve
+   beyond its rate, tabulated over x; the encoder error's torque k * rate_ratio * e(x) comes
+   from the same table as the board's, ``CurveTables.torque``).
 4. **geometry**: each branch has its own a, b, la, lb, azimuth and rest angle; the elbow turns
    by ``elbow_rad_per_nm * tau_i`` (load-dependent compliance, kinematics only).
 5. **statics** (eqs. 2-11) with those torques in that geometry, then the gimbal: the force
@@ -29,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from delta6.core import model
+from delta6.core import curves, model
 from delta6.core.calibration import Calibration
 from delta6.core.design import Design
 from delta6.core.model import ENCODER_COUNT_RAD, Params
@@ -105,6 +108,7 @@ class CalibratedModel:
             phi=nominal.phi + c.delta_azimuth_rad,
             offset=nominal.offset + c.delta_rest_angle_rad)
         self.radii = np.asarray(c.hysteresis_radii_counts, dtype=float)
+        self.curves = curves.curve_tables(design, c)
 
     # -- the pieces ---------------------------------------------------------------------------
 
@@ -131,6 +135,15 @@ class CalibratedModel:
         torque = (self.design.k * c.rate_ratio * theta
                   + np.einsum("njr,jr->nj", hysteresis, c.hysteresis_nm)
                   + signs + c.viscous_nm_s_per_rad * speed + c.presliding_nm * direction)
+        tables = self.curves
+        if tables is not None:
+            # The board's tables: the torque table holds s - k ratio e, so theta's e is
+            # subtracted after the torque is formed.
+            torque = torque + curves.interpolate(tables.torque, tables.knots, x) \
+                * 2.0 ** -curves.TORQUE_SHIFT
+            if tables.angle is not None:
+                theta = theta - curves.interpolate(tables.angle, tables.knots, x) \
+                    * 2.0 ** -curves.ANGLE_SHIFT
         after = ModelState(direction2=y2[-1].copy(), plays=yr[-1].copy(),
                            speed=speed[-1].copy(), last=x[-1].copy())
         return JointTerms(theta, torque, direction, hysteresis, speed), after

@@ -21,22 +21,20 @@ from pathlib import Path
 
 import numpy as np
 
+from delta6.core.curves import ENCODER_HARMONICS
 from delta6.core.errors import UserError
 
 SCHEMA = "delta6-calibration/1"
 #: Effects of the twin's vocabulary a calibration corrects on the device.
 CORRECTED = ("encoder_offset", "backlash", "stiffness_mismatch", "spring_hysteresis",
-             "joint_friction", "geometry_error", "link_compliance")
+             "joint_friction", "geometry_error", "link_compliance", "nonlinear_spring",
+             "encoder_periodic_error")
 #: Effects the fit accounts for but the device does not apply, and why.
 NOT_APPLIED = {
     "sensor_latency": "a property of the calibration rig (the reference sensor is late), "
                       "not of the unit: fitted, reported, not applied",
     "thermal_drift": "needs the unit's temperature; no gain shown with the chip's sensor: "
                      "left out",
-    "nonlinear_spring": "no device form yet (the spring torque would need its curve per "
-                        "joint): reported by the diagnosis, not applied",
-    "encoder_periodic_error": "no device form yet (a harmonic table over each shaft angle): "
-                              "reported by the diagnosis, not applied",
     "harness": "a force from outside the unit (a cable to the plate) that changes with how "
                "it is routed: reported by the diagnosis, not applied",
 }
@@ -72,12 +70,16 @@ class Calibration:
     design_name: str
     design_hash: int
     effects: tuple[str, ...] = ()
-    # angle side: theta = count angle - offset + play / 2 * direction
+    # angle side: theta = count angle - offset - e(count angle) + play / 2 * direction
     offset_rad: np.ndarray = _zeros(6)
+    # e: the encoder's periodic error, per joint sin, cos of harmonics 1..4 (delta6.core.curves)
+    encoder_periodic_rad: np.ndarray = _zeros(6, 2 * len(ENCODER_HARMONICS))
     backlash_play_rad: np.ndarray = _zeros(6)
     direction_half_counts: int = DEFAULT_DIRECTION_HALF_COUNTS
-    # rate: spring torque = k * ratio * theta
+    # rate: spring torque = k * ratio * theta + s(count angle)
     rate_ratio: np.ndarray = field(default_factory=lambda: np.ones(6))
+    # s: the spring's curve beyond its rate, per joint (|u|, u^2 coefficients; curves)
+    spring_curvature: np.ndarray = _zeros(6, 2)
     # torque-side history: Prandtl-Ishlinskii plays of the count, weights per joint and radius
     hysteresis_radii_counts: tuple[int, ...] = DEFAULT_HYSTERESIS_RADII
     hysteresis_nm: np.ndarray = field(
@@ -110,6 +112,8 @@ class Calibration:
         out = {"design_hash": self.design_hash}
         for name, _ in _PARAMETERS:
             value = getattr(self, name)
+            if name in _HASHED_WHEN_PRESENT and not np.any(value):
+                continue        # absent curves hash as before they existed
             out[name] = np.asarray(value, dtype=float).tolist() \
                 if not isinstance(value, int) else value
         return out
@@ -130,6 +134,11 @@ class Calibration:
         return replace(self, **changes)
 
     @property
+    def has_curves(self) -> bool:
+        """Whether the board needs the per-joint curve tables (``delta6.core.curves``)."""
+        return bool(np.any(self.encoder_periodic_rad) or np.any(self.spring_curvature))
+
+    @property
     def uses_history(self) -> bool:
         return bool(np.any(self.hysteresis_nm) or np.any(self.friction_sign_nm)
                     or np.any(self.viscous_nm_s_per_rad) or np.any(self.presliding_nm)
@@ -140,6 +149,7 @@ class Calibration:
 _PARAMETERS = (
     ("offset_rad", (6,)), ("backlash_play_rad", (6,)), ("direction_half_counts", "int"),
     ("rate_ratio", (6,)),
+    ("encoder_periodic_rad", (6, 2 * len(ENCODER_HARMONICS))), ("spring_curvature", (6, 2)),
     ("hysteresis_radii_counts", "radii"), ("hysteresis_nm", (6, "radii")),
     ("speed_filter_s", ()), ("friction_speeds_rad_s", "speeds"),
     ("friction_sign_nm", (6, "speeds")), ("viscous_nm_s_per_rad", (6,)),
@@ -149,11 +159,16 @@ _PARAMETERS = (
     ("gimbal_misalignment_rad", (3,)), ("elbow_rad_per_nm", (3,)), ("tilt_rad_per_nm", ()),
 )
 
+#: Parameters added later, hashed only when not neutral: a calibration without them keeps
+#: the hash it had (and the board that reports it stays recognised).
+_HASHED_WHEN_PRESENT = ("encoder_periodic_rad", "spring_curvature")
+
 #: The file's sections: section -> (key in the file, attribute).
 SECTIONS = {
     "angle": (("offset_rad", "offset_rad"), ("backlash_play_rad", "backlash_play_rad"),
-              ("direction_half_counts", "direction_half_counts")),
-    "spring": (("rate_ratio", "rate_ratio"),),
+              ("direction_half_counts", "direction_half_counts"),
+              ("periodic_rad", "encoder_periodic_rad")),
+    "spring": (("rate_ratio", "rate_ratio"), ("curvature", "spring_curvature")),
     "hysteresis": (("play_radii_counts", "hysteresis_radii_counts"),
                    ("weights_nm", "hysteresis_nm")),
     "friction": (("speed_filter_s", "speed_filter_s"),
@@ -175,7 +190,8 @@ _BOUNDS = {
     "delta_la_mm": 5.0, "delta_lb_mm": 5.0, "delta_azimuth_rad": 0.1,
     "delta_rest_angle_rad": 0.1, "gimbal_misalignment_rad": 0.1, "elbow_rad_per_nm": 1.0,
     "tilt_rad_per_nm": 1.0, "hysteresis_nm": 0.5, "friction_sign_nm": 0.5,
-    "viscous_nm_s_per_rad": 1.0, "presliding_nm": 0.5,
+    "viscous_nm_s_per_rad": 1.0, "presliding_nm": 0.5, "encoder_periodic_rad": 0.1,
+    "spring_curvature": 2.0,
 }
 
 

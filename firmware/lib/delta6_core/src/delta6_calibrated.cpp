@@ -20,8 +20,10 @@
 // The stages are separate functions (see below); the attribute keeps LTO from merging them.
 #if defined(__GNUC__)
 #define DELTA6_NOINLINE __attribute__((noinline))
+#define DELTA6_ALWAYS_INLINE inline __attribute__((always_inline))
 #else
 #define DELTA6_NOINLINE
+#define DELTA6_ALWAYS_INLINE inline
 #endif
 // -O2 for this file on the AVR (the image is built -Os): about 1,000 cycles less per sample
 // for about 650 bytes of flash.
@@ -58,6 +60,53 @@ uint8_t fail(uint8_t status, float wrench[6]) {
     return status;
 }
 
+// A pointer stored in flash to an int16 table (16 bits on the AVR).
+inline const int16_t* flash_i16_table(const int16_t* const* p) {
+#if defined(__AVR__)
+    return reinterpret_cast<const int16_t*>(pgm_read_word(p));
+#else
+    return *p;
+#endif
+}
+
+// The curve tables' joint torque at count x, 2^-kTorqueShift N*m: linear between the knots
+// i and i + 1 around x + origin (kTableStep apart), held at the end knots outside;
+// (t_i 2^6 + (t_(i+1) - t_i) l) in 2^-(kCurveTorqueShift + 6) N*m, shifted to the sum's unit.
+// Codegen keeps neighbouring knots within an int16 of each other.
+inline int32_t curve_torque(const CurvedCalibrationConstants* cv, uint8_t j, int16_t x,
+                            int16_t origin) {
+    const int16_t* t = flash_i16_table(&cv->torque[j]);
+    const uint8_t last = static_cast<uint8_t>(flash::byte(&cv->knots) - 1);
+    const int16_t b = static_cast<int16_t>(x + origin);
+    uint8_t i = 0, l = 0;
+    if (b > 0) {
+        i = static_cast<uint8_t>(static_cast<uint16_t>(b) >> 6);
+        l = static_cast<uint8_t>(b & 63);
+        if (static_cast<uint16_t>(b) >= static_cast<uint16_t>(last) << 6) {
+            i = static_cast<uint8_t>(last - 1);
+            l = 64;
+        }
+    }
+    const int16_t lo = flash::i16(t + i);
+    const int16_t step = static_cast<int16_t>(flash::i16(t + i + 1) - lo);
+    const int32_t v = (static_cast<int32_t>(lo) << 6) + static_cast<int32_t>(step) * l;
+    return v << (kTorqueShift - kCurveTorqueShift - 6);
+}
+
+// The encoder error beyond knot i of the count biased = x + origin (inside the box), rad:
+// (e_(i+1) - e_i) l 2^-(kCurveAngleShift + 6).
+inline float curve_angle_between_knots(const CurvedCalibrationConstants* cv, uint8_t j,
+                                       uint16_t biased) {
+    const int16_t* a = flash_i16_table(&cv->angle[j]);
+    if (a == nullptr) return 0.0f;
+    const uint8_t i = static_cast<uint8_t>(static_cast<uint16_t>(biased << 2) >> 8);
+    const uint8_t l = static_cast<uint8_t>(biased & 63u);
+    const int32_t r = static_cast<int32_t>(static_cast<int16_t>(
+                          flash::i16(a + i + 1) - flash::i16(a + i))) * l;
+    if (r == 0) return 0.0f;
+    return scale_down(static_cast<float>(r), kCurveAngleShift + 6);
+}
+
 // The stages below are separate functions on purpose: inlined into one, the AVR build runs
 // out of registers and reaches most of its values through a frame larger than the 64 bytes
 // a single load or store can address (two extra instructions around each access).
@@ -65,8 +114,12 @@ uint8_t fail(uint8_t status, float wrench[6]) {
 // 1-3: the history, the joint torques (the count terms, the constant and the friction
 // offset summed in int32) and the varying part of each angle's correction (dir2 = 2x - y2,
 // the direction of motion in half counts).
+// With kCurves, the spring's and the encoder error's torque from the curve tables joins the
+// int32 sum (computed before the box check: the index is clamped to the tables).
+template <bool kCurves>
 DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationState& st,
-                                   const int16_t delta[6], float tau[6], int16_t dir2[6]) {
+                                   const int16_t delta[6], float tau[6], int16_t dir2[6],
+                                   const CurvedCalibrationConstants* cv, int16_t origin) {
     const uint8_t radii = flash::byte(&cc.radii);
     const uint8_t speeds = flash::byte(&cc.speeds);
     const int16_t half = flash::i16(&cc.direction_half);
@@ -80,6 +133,7 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
         dir2[j] = d2;
         int32_t sum = flash::i32(&cc.kx[j]) * x + flash::i32(&cc.kd[j]) * d2
                       + flash::i32(&cc.k0[j]);
+        if (kCurves) sum += curve_torque(cv, j, x, origin);
         int16_t* play = st.play[j];
         const int32_t* kw = cc.kw[j];
         for (uint8_t r = 0; r < radii; ++r) {
@@ -110,10 +164,14 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
 // cos e = 1 - e^2/2, sin e = e; on the gimbal (backlash alone, |e| < 0.01 rad) to first
 // order; within 2e-6 of the amplitude either way.
 // (The solver's constants come in as scalars: a pointer to them would keep a copy in RAM.)
+// With kCurves and an encoder curve, the encoder error between the knots joins e (the part at
+// the knot is in the coarse table): at most the error's change over one knot step, a few
+// 1e-3 rad, so the rotation's approximations keep their accuracy.
+template <bool kCurves>
 DELTA6_NOINLINE void joint_trig(const CalibrationConstants& cc, int16_t origin,
                                 const float* fine, const int16_t delta[6],
                                 const int16_t dir2[6], const float tau[6], float cs[6],
-                                float sn[6]) {
+                                float sn[6], const CurvedCalibrationConstants* cv) {
     const int16_t half = flash::i16(&cc.direction_half);
     for (uint8_t j = 0; j < 6; ++j) {
         const uint16_t biased = static_cast<uint16_t>(delta[j] + origin);
@@ -125,6 +183,7 @@ DELTA6_NOINLINE void joint_trig(const CalibrationConstants& cc, int16_t origin,
                   : d2 == -half ? -flash_float(&cc.eh[j])
                   : flash_float(&cc.ed[j]) * static_cast<float>(d2);
         if (j < 3) e += flash_float(&cc.elbow[j]) * tau[j];
+        if (kCurves) e -= curve_angle_between_knots(cv, j, biased);
         if ((fastmath::bits_of(e) & 0x7FFFFFFFul) != 0) {
             // c' = c m - s e, s' = s m + c e with m = cos e: 1 - e^2/2 on the branches, 1 on
             // the gimbal.
@@ -220,8 +279,13 @@ void calibration_set_period(const CalibrationConstants& c, float period_s,
     s.speed_g = (1.0f - s.speed_a) * kCountRad / period_s;
 }
 
-uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& cc,
-                         CalibrationState& st, const int16_t delta[6], float wrench[6]) {
+namespace {
+
+// Inlined into each overload, so that the one without curves is the code it was before.
+template <bool kCurves>
+DELTA6_ALWAYS_INLINE uint8_t solve(const SolverConstants& k, const CalibrationConstants& cc,
+              const CurvedCalibrationConstants* cv, CalibrationState& st,
+              const int16_t delta[6], float wrench[6]) {
     if (!st.started) {
         for (uint8_t j = 0; j < 6; ++j) {
             st.last[j] = delta[j];
@@ -233,7 +297,7 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
     }
     float tau[6];
     int16_t dir2[6];
-    joint_torques(cc, st, delta, tau, dir2);
+    joint_torques<kCurves>(cc, st, delta, tau, dir2, cv, k.table_origin);
     DELTA6_PROFILE_MARK(21);
     // The joint box, on the counts as the analytical solver has it.
     for (uint8_t i = 0; i < 6; ++i) {
@@ -242,7 +306,7 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
         }
     }
     float cs[6], sn[6];
-    joint_trig(cc, k.table_origin, k.fine_table, delta, dir2, tau, cs, sn);
+    joint_trig<kCurves>(cc, k.table_origin, k.fine_table, delta, dir2, tau, cs, sn, cv);
     DELTA6_PROFILE_MARK(22);
     float cx[3], cy[3], p[3];
     uint8_t status = trilaterate(cc, k.min_height_sq, cs, sn, cx, cy, p);
@@ -275,6 +339,18 @@ uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c
     }
     for (uint8_t i = 0; i < 6; ++i) wrench[i] = w[i];
     return kSolveOk;
+}
+
+}  // namespace
+
+uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& cc,
+                         CalibrationState& st, const int16_t delta[6], float wrench[6]) {
+    return solve<false>(k, cc, nullptr, st, delta, wrench);
+}
+
+uint8_t solve_calibrated(const SolverConstants& k, const CurvedCalibrationConstants& cv,
+                         CalibrationState& st, const int16_t delta[6], float wrench[6]) {
+    return solve<true>(k, cv.base, &cv, st, delta, wrench);
 }
 
 }  // namespace delta6

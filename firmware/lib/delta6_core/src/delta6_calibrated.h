@@ -4,9 +4,11 @@
 //
 //   1. history of each joint's count x: the direction of motion d (a play of +-H/2 counts),
 //      hysteresis plays of whole-count radii, the filtered joint speed v;
-//   2. angle side: theta = x * count - offset + half_play * d;
-//   3. torque: tau = rate * theta + sum_r w_r (x - play_r) + sum_s c_s clamp(v / V_s, -1, 1)
-//      + viscous * v + presliding * d;
+//   2. angle side: theta = x * count - offset - e(x) + half_play * d;
+//   3. torque: tau = rate * theta + s(x) + sum_r w_r (x - play_r)
+//      + sum_s c_s clamp(v / V_s, -1, 1) + viscous * v + presliding * d;
+//      (e, s: the encoder's periodic error and the spring's curve, tables over x, only in a
+//      calibration that has them: CurvedCalibrationConstants);
 //   4. per-branch geometry (a - b, la, lb, azimuth, rest angle) and the elbow's turn
 //      elbow * tau: the trig tables give the nominal angle, a small rotation adds the rest;
 //   5. general trilateration and statics, then the gimbal: F_E0 = F - w x F with
@@ -78,6 +80,23 @@ struct CalibrationState {
     float speed_a, speed_g;            // v = a v + g (x - last): from the sample period
 };
 
+// A calibration with per-joint curves (delta6.core.curves): int16 tables at the knots
+// x_i = i * kTableStep - table_origin (the rows of the coarse trig tables, and one beyond),
+// interpolated linearly over the count x, held at the end knots outside. The encoder error at
+// each knot is already in the coarse trig table of its row; the board adds the part between
+// knots. A separate struct, so that a calibration without curves compiles to exactly the
+// code it had before.
+constexpr uint8_t kCurveAngleShift = 19;    // angle tables: 2^-19 rad
+constexpr uint8_t kCurveTorqueShift = 16;   // torque tables: 2^-16 N*m
+constexpr uint16_t kCalibrationCurvesVersion = 1;
+
+struct CurvedCalibrationConstants {
+    CalibrationConstants base;
+    uint8_t knots;                     // table entries per joint
+    const int16_t* torque[6];          // s(x) - k ratio e(x), 2^-kCurveTorqueShift N*m
+    const int16_t* angle[6];           // e(x), 2^-kCurveAngleShift rad; null: no encoder curve
+};
+
 // Forget the history: the next sample starts settled (after a zero change or a gap).
 void calibration_reset(CalibrationState& s);
 // The speed filter's coefficients for a sample period (call when the rate changes).
@@ -86,6 +105,14 @@ void calibration_set_period(const CalibrationConstants& c, float period_s,
 // One sample: signed count deltas in, the calibrated wrench out (statuses as solve_counts;
 // any non-zero status leaves all six outputs 0.0f). The history advances with every call.
 uint8_t solve_calibrated(const SolverConstants& k, const CalibrationConstants& c,
+                         CalibrationState& s, const int16_t delta[6], float wrench[6]);
+
+// The same with the curves (the overload the generated header's constants select).
+inline void calibration_set_period(const CurvedCalibrationConstants& c, float period_s,
+                                   CalibrationState& s) {
+    calibration_set_period(c.base, period_s, s);
+}
+uint8_t solve_calibrated(const SolverConstants& k, const CurvedCalibrationConstants& c,
                          CalibrationState& s, const int16_t delta[6], float wrench[6]);
 
 }  // namespace delta6
