@@ -13,7 +13,6 @@ from delta6.calibration import calibrate
 from delta6.calibration.families import Context, families
 from delta6.calibration.fit import with_straight_parts
 from delta6.core import calibration as C
-from delta6.core import curves
 from delta6.core.calibrated import CalibratedModel, counts_from_angles
 from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.core.spec import full_scale
@@ -21,12 +20,6 @@ from delta6.diagnosis import terms
 from delta6.diagnosis.data import GapData
 
 CURVES = ("nonlinear_spring", "encoder_periodic_error")
-
-
-def test_the_curves_are_the_diagnosis_terms_own():
-    assert curves.SPRING_REF_RAD == terms.NONLINEAR_REF_RAD
-    assert curves.SPRING_STRAIGHT_PART == terms.NONLINEAR_STRAIGHT_PART
-    assert curves.ENCODER_HARMONICS == terms.ENCODER_HARMONICS
 
 
 def test_the_families_columns_are_the_terms_columns_at_the_count_angle(baseline):
