@@ -126,32 +126,23 @@ def test_a_lone_small_name_is_not_rescued_by_the_every_name_rule():
     assert names_together(small, SMALL_SHARE)
 
 
-def test_a_latency_under_one_axis_pushes_is_named_though_its_misfit_stays_structured(
-        baseline, monkeypatch):
+def test_a_latency_under_one_axis_pushes_is_named_alone_and_leaves_nothing_structured(
+        baseline):
     """A first-order latency under one-axis pushes: the family (a delay's expansion) follows
-    it only in part, the misfit stays structured, and friction's speed terms take part of its
-    share in the final model. With the partial rule made to fire (a lower MISSING_SHARE and
-    a PARTIAL_SHARE above the latency's own share), the latency, which alone removes most of
-    the held-out error, stays named; friction, which absorbs, does not."""
+    it whole on a continuous path; nothing else is named and the leftover is white. (When the
+    pushes' path jumped at the axes' boundaries, the jumps left the latency's misfit
+    structured and friction's speed terms took part of its share.)"""
     seed = 3622
     effect = twin.make_effect("sensor_latency", seed=seed, formulation="first_order",
                               magnitude=0.76)
     path = AxisPushes(baseline, 300.0, stream(seed, "pushes"))
     r = twin.simulate(baseline, [effect], duration_s=300.0, rate_hz=50.0, seed=seed,
                       record_temp=True, path=path)
-    log = LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c)
-    monkeypatch.setattr(run_module, "MISSING_SHARE", 0.02)
-    monkeypatch.setattr(run_module, "PARTIAL_SHARE", 0.5)
-    strict = diagnose(log, baseline, seed=0)
-    own = {s["added"]: s["share_of_gap"] for s in strict["ladder"]}
-    alone = {c["name"]: c["score"] for c in strict["candidates"]}
-    assert [s["added"] for s in strict["ladder"]][:2] == ["sensor_latency", "joint_friction"]
-    assert own["sensor_latency"] < 0.5 < alone["sensor_latency"]
-    assert own["joint_friction"] < 0.5
-    assert strict["unexplained"]["verdict"]["structured"]
-    assert strict["present"][:1] == ["sensor_latency"]
-    assert "sensor_latency" not in {p["name"] for p in strict["partial"]}
-    assert "joint_friction" in {p["name"] for p in strict["partial"]}
+    verdict = diagnose(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c),
+                       baseline, seed=0)
+    assert verdict["present"] == ["sensor_latency"]
+    assert [s["added"] for s in verdict["ladder"]] == ["sensor_latency"]
+    assert not verdict["unexplained"]["verdict"]["structured"]
 
 
 def test_an_absorber_of_an_unknown_effect_that_explains_less_than_the_leftover_is_not_named(
