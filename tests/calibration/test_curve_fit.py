@@ -66,7 +66,7 @@ def test_a_curve_alone_is_calibrated_out_on_an_unseen_run(baseline, name, magnit
     fit_run = twin.simulate(baseline, [effect], duration_s=120, rate_hz=50, seed=5)
     check = twin.simulate(duration_s=60, rate_hz=50, **twin.same_unit(fit_run.truth, 6))
     fit = calibrate(fit_run, baseline, effects=[name])
-    assert name in fit.calibration.effects and fit.calibration.has_curves
+    assert name in fit.calibration.effects and curves.has_curves(baseline, fit.calibration)
     fs = full_scale(baseline)
     before = np.percentile(np.abs(check.model_wrench() - check.wrench) / fs * 100, 99, axis=0)
     after = np.percentile(np.abs(CalibratedModel(baseline, fit.calibration).predict(check)

@@ -10,7 +10,7 @@ from typing import NamedTuple
 from delta6.build import avrbuild
 from delta6.core import calibration as calibration_mod
 from delta6.core import design as design_mod
-from delta6.core import paths, residualmodel
+from delta6.core import curves, paths, residualmodel
 from delta6.core.errors import UserError
 from delta6.core.workspace import load_checked
 from delta6.link.protocol import VERSION as PROTOCOL_VERSION
@@ -106,7 +106,7 @@ def model_text(design: design_mod.Design, design_path: Path, model_path: Path | 
     residualmodel.check_base(model, design, cal)
     base = "analytical" if cal is None else "calibrated"
     over = f"the {base} model"
-    if cal is not None and cal.has_curves:
+    if cal is not None and curves.has_curves(design, cal):
         base, over = "calibrated with curves", "a calibration with curve tables"
     if model.net.macs > MAX_MODEL_MACS[base]:
         raise UserError(f"{model_path}: {model.net.macs} multiply-accumulates per sample; over "
