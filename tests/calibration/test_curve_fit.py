@@ -10,8 +10,7 @@ import pytest
 
 from delta6 import twin
 from delta6.calibration import calibrate
-from delta6.calibration.families import (Context, curve_table_checks, families,
-                                          without_vanishing_curves)
+from delta6.calibration.families import Context, curve_table_checks, families, without_vanishing_curves
 from delta6.calibration.fit import with_straight_parts
 from delta6.core import calibration as C
 from delta6.core import curves

@@ -23,7 +23,9 @@
    may hold signs too (``Family.constraints``: friction opposes the motion). Each step is the
    prior-regularised least squares under those inequalities (``bounded.solve``).
 5. **Plausibility.** A family whose fitted parameters leave the diagnosis term's plausible
-   limits (``Term.plausibility``) or the file's bounds is left out (the worst first) and the
+   limits (``Term.plausibility``) or the file's bounds, or a curve beyond the board's int16
+   tables (``families.curve_table_checks``; the iterates hold it at the tables' range, so the
+   model stays defined while the fit runs), is left out (the worst first) and the
    rest refitted; the calibration and the report say so (``fit.left_out``). An implausible
    calibration is never written.
 """
@@ -36,8 +38,7 @@ import numpy as np
 
 from delta6 import __version__
 from delta6.calibration import bounded
-from delta6.calibration.families import (Context, curve_table_checks, families,
-                                          without_vanishing_curves)
+from delta6.calibration.families import Context, curve_table_checks, families, without_vanishing_curves
 from delta6.core import accuracy
 from delta6.core.calibrated import CalibratedModel, counts_from_angles, sample_period
 from delta6.core.calibration import CORRECTED, NOT_APPLIED, Calibration, neutral

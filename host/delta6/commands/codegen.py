@@ -9,8 +9,8 @@ from typing import NamedTuple
 
 from delta6.build import avrbuild
 from delta6.core import calibration as calibration_mod
-from delta6.core import design as design_mod
 from delta6.core import curves, paths, residualmodel
+from delta6.core import design as design_mod
 from delta6.core.errors import UserError
 from delta6.core.workspace import load_checked
 from delta6.link.protocol import VERSION as PROTOCOL_VERSION
