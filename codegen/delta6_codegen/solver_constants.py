@@ -11,12 +11,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from delta6.core.curves import KNOT_COUNTS, knot_counts, limit_counts
 from delta6.core.design import Design, DesignError
 from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.core.workspace import MIN_HEIGHT_FRACTION, MIN_LEVER_FRACTION
 
 #: Must equal delta6::kTableStep and kSolverConstantsVersion (the header static_asserts it).
-TABLE_STEP = 64
+#: The coarse tables' rows are the curve tables' knots (``delta6.core.curves``) but the last.
+TABLE_STEP = KNOT_COUNTS
 CONSTANTS_VERSION = 1
 #: The solver's fault thresholds sit this many times inside what the design check proves
 #: for the whole joint box, so they never trip inside the box of a valid design.
@@ -65,16 +67,6 @@ def f32_at_most(x: float) -> float:
     return float(v)
 
 
-def limit_counts(design: Design) -> int:
-    """Largest count n with n * (2 pi / 2^14) <= joint limit, computed as the model does."""
-    n = int(design.joint_limit_rad / ENCODER_COUNT_RAD)
-    while (n + 1) * ENCODER_COUNT_RAD <= design.joint_limit_rad:
-        n += 1
-    while n * ENCODER_COUNT_RAD > design.joint_limit_rad:
-        n -= 1
-    return n
-
-
 def _coarse(angles: np.ndarray, scale: float = 1.0, offset: float = 0.0) -> np.ndarray:
     """Rows (a cos, a sin, a (cos + sin)) of offset + angles: see table_cos_sin."""
     c, s = scale * np.cos(offset + angles), scale * np.sin(offset + angles)
@@ -102,9 +94,9 @@ def solver_constants(design: Design) -> SolverConstants:
                           f"axis (a - b + la cos(theta) >= 5 % of a - b over the joint box; "
                           f"min is {r_min / mm:.3g} mm)")
     n_lim = limit_counts(design)
-    origin = -(-n_lim // TABLE_STEP) * TABLE_STEP
-    n_coarse = (n_lim + origin) // TABLE_STEP + 1
-    coarse = (np.arange(n_coarse) * TABLE_STEP - origin) * ENCODER_COUNT_RAD
+    knots = knot_counts(design)
+    origin = int(-knots[0])
+    coarse = knots[:-1] * ENCODER_COUNT_RAD
     fine = np.arange(TABLE_STEP) * ENCODER_COUNT_RAD
     k = design.k
     return SolverConstants(

@@ -103,14 +103,39 @@ def test_interpolation_is_exact_at_knots_and_held_outside(baseline):
     assert t.knots[0] % curves.KNOT_COUNTS == 0 and t.knots[-2] <= n < t.knots[-1]
 
 
-def test_no_curves_no_tables_and_the_model_unchanged(baseline):
-    cal = C.neutral(baseline)
-    assert curves.curve_tables(baseline, cal) is None and not cal.has_curves
+def test_no_curves_no_tables_and_the_model_is_the_rate_alone(baseline):
+    """Without curves the joint's angle is the count angle and its torque the rate's: any
+    change to the model without curves shows here."""
+    cal = C.neutral(baseline).with_(rate_ratio=np.linspace(0.9, 1.1, 6),
+                                    offset_rad=np.linspace(-0.01, 0.01, 6))
+    assert curves.curve_tables(baseline, cal) is None and not curves.has_curves(baseline, cal)
     x = _box(baseline)[::50]
-    with_zero = cal.with_(spring_curvature=np.zeros((6, 2)))
+    terms, _ = CalibratedModel(baseline, cal).joint_terms(x, 0.02)
+    theta = x * ENCODER_COUNT_RAD - cal.offset_rad
+    np.testing.assert_array_equal(terms.theta, theta)
+    np.testing.assert_allclose(terms.torque, baseline.k * cal.rate_ratio * theta,
+                               rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("field,value", [("spring_curvature", 1e-7),
+                                         ("encoder_periodic_rad", 1e-9)])
+def test_a_curve_that_rounds_to_zero_in_the_tables_is_no_curve(baseline, field, value):
+    """A curve is what the board's tables hold: one that rounds to zero at every knot gives no
+    tables (so no curved image, no lower rated rate) and the model without it, exactly."""
+    shape = np.shape(getattr(C.neutral(baseline), field))
+    cal = C.neutral(baseline).with_(**{field: np.full(shape, value)})
+    assert curves.curve_tables(baseline, cal) is None and not curves.has_curves(baseline, cal)
+    x = _box(baseline)[::50]
     a, _ = CalibratedModel(baseline, cal).run(x, 0.02)
-    b, _ = CalibratedModel(baseline, with_zero).run(x, 0.02)
+    b, _ = CalibratedModel(baseline, C.neutral(baseline)).run(x, 0.02)
     np.testing.assert_array_equal(a, b)
+
+
+def test_an_encoder_curve_whose_angle_table_rounds_to_zero_has_no_angle_table(baseline):
+    cal = C.neutral(baseline).with_(spring_curvature=_spring(4),
+                                    encoder_periodic_rad=np.full((6, 8), 1e-9))
+    tables = curves.curve_tables(baseline, cal)
+    assert tables.angle is None and np.any(tables.torque)
 
 
 def test_the_model_applies_the_encoder_error_on_the_angle_side(baseline):
@@ -125,7 +150,11 @@ def test_the_model_applies_the_encoder_error_on_the_angle_side(baseline):
     np.testing.assert_allclose(terms.torque, baseline.k * terms.theta, atol=2e-5)
 
 
-def test_a_curve_beyond_the_boards_table_is_one_line(baseline):
+def test_a_curve_beyond_the_boards_table_is_one_line_or_held_at_the_range(baseline):
     cal = C.neutral(baseline).with_(encoder_periodic_rad=np.full((6, 8), 0.1))
-    with pytest.raises(curves.CurveRangeError, match="periodic_rad"):
+    with pytest.raises(curves.CurveRangeError, match="periodic_rad.*knots"):
         CalibratedModel(baseline, cal)
+    # A fit's iterate: held at the table's range, as a board with such a table would be.
+    tables = CalibratedModel(baseline, cal, saturate_curves=True).curves
+    assert np.abs(tables.angle).max() == curves.INT16_MAX
+    assert np.abs(tables.torque).max() <= curves.INT16_MAX

@@ -98,6 +98,41 @@ class Family:
         return [c for c in self.plausibility(cal) if c["ratio"] > 1.0]
 
 
+#: The curve families and the part of the board's tables each one fills.
+CURVE_FAMILIES = ("nonlinear_spring", "encoder_periodic_error")
+
+
+def curve_table_checks(design, cal: Calibration, effect: str) -> list[dict]:
+    """A curve family's fitted curve against the board's int16 tables (at the knots: the
+    joint box and one knot beyond each end), as ``Family.plausibility``'s checks: the encoder
+    error in the angle table, each curve's own joint torque, and the torque table they fill
+    together (that check goes to the curve with the larger part of it at its worst knot)."""
+    if effect not in CURVE_FAMILIES:
+        return []
+    v = curves.curve_values(design, cal)
+    own = v.spring if effect == "nonlinear_spring" else v.encoder_torque
+    other = v.encoder_torque if effect == "nonlinear_spring" else v.spring
+    worst = np.unravel_index(np.argmax(np.abs(v.torque)), v.torque.shape)
+    both = np.abs(v.torque).max() if abs(own[worst]) >= abs(other[worst]) else 0.0
+    checks = [("board_table_torque_nm", max(np.abs(own).max(), both), curves.TORQUE_RANGE_NM)]
+    if effect == "encoder_periodic_error":
+        checks.append(("board_table_angle_rad", np.abs(v.angle).max(), curves.ANGLE_RANGE_RAD))
+    return [{"quantity": q, "largest": float(x), "limit": lim, "ratio": float(x) / lim}
+            for q, x, lim in checks]
+
+
+def without_vanishing_curves(design, cal: Calibration) -> Calibration:
+    """``cal`` with each curve whose board table rounds to zero written as zero: it is no
+    curve (``curves.curve_tables``), and so the file's hash is that of what the board does."""
+    tables = curves.curve_tables(design, cal)
+    if tables is None:
+        return cal.with_(spring_curvature=np.zeros_like(cal.spring_curvature),
+                         encoder_periodic_rad=np.zeros_like(cal.encoder_periodic_rad))
+    if tables.angle is None:
+        return cal.with_(encoder_periodic_rad=np.zeros_like(cal.encoder_periodic_rad))
+    return cal
+
+
 def _torque(ctx: Context, per_joint: np.ndarray) -> np.ndarray:
     """Extra joint torques per feature (n, 6, m) -> wrench columns (n, 6, 6 m), joint-major."""
     g = ctx.data.torque_map

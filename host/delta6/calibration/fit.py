@@ -23,7 +23,9 @@
    may hold signs too (``Family.constraints``: friction opposes the motion). Each step is the
    prior-regularised least squares under those inequalities (``bounded.solve``).
 5. **Plausibility.** A family whose fitted parameters leave the diagnosis term's plausible
-   limits (``Term.plausibility``) or the file's bounds is left out (the worst first) and the
+   limits (``Term.plausibility``) or the file's bounds, or a curve beyond the board's int16
+   tables (``families.curve_table_checks``; the iterates hold it at the tables' range, so the
+   model stays defined while the fit runs), is left out (the worst first) and the
    rest refitted; the calibration and the report say so (``fit.left_out``). An implausible
    calibration is never written.
 """
@@ -36,7 +38,7 @@ import numpy as np
 
 from delta6 import __version__
 from delta6.calibration import bounded
-from delta6.calibration.families import Context, families
+from delta6.calibration.families import Context, curve_table_checks, families, without_vanishing_curves
 from delta6.core import accuracy
 from delta6.core.calibrated import CalibratedModel, counts_from_angles, sample_period
 from delta6.core.calibration import CORRECTED, NOT_APPLIED, Calibration, neutral
@@ -129,7 +131,7 @@ class _Fitter:
         self.counts = counts_from_angles(data.theta)
         self.dt = sample_period(data.t)
         self.settings = settings
-        terms, _ = CalibratedModel(data.design, settings).joint_terms(self.counts, self.dt)
+        terms, _ = CalibratedModel(data.design, settings, saturate_curves=True).joint_terms(self.counts, self.dt)
         self.families = families(settings)
         ctx = Context(data, terms, settings)
         all_terms = _terms(ctx, self.families) + [_latency_term(data)]
@@ -202,7 +204,10 @@ class _Fitter:
 
     def predict(self, cal: Calibration, latency: float = 0.0) -> np.ndarray:
         """What the reference should read: the calibrated wrench, late by the rig's latency."""
-        w, _ = CalibratedModel(self.data.design, cal).run(self.counts, self.dt)
+        # An iterate's curve may leave the board's tables: held at their range here, it is
+        # left out as implausible after the fit (``_worst_implausible``).
+        w, _ = CalibratedModel(self.data.design, cal, saturate_curves=True).run(self.counts,
+                                                                               self.dt)
         if latency:
             w = w - latency * np.gradient(w, self.data.t, axis=0)
         return w
@@ -233,11 +238,12 @@ def _extend(fitter: _Fitter, chosen: list[str], rng, progress) -> list[str]:
 
 
 def _worst_implausible(fitter: _Fitter, cal: Calibration, chosen) -> tuple | None:
-    """The chosen family furthest out of its plausible bounds, with its failed checks (None:
-    every family is plausible)."""
+    """The chosen family furthest out of its plausible bounds (or, a curve, out of the board's
+    tables), with its failed checks (None: every family is plausible)."""
     worst, worst_ratio = None, 1.0
     for effect in chosen:
-        failed = fitter.families[effect].implausible(cal)
+        failed = fitter.families[effect].implausible(cal) + [
+            c for c in curve_table_checks(fitter.data.design, cal, effect) if c["ratio"] > 1.0]
         ratio = max((c["ratio"] for c in failed), default=0.0)
         if ratio > worst_ratio:
             worst, worst_ratio = (effect, failed), ratio
@@ -393,7 +399,7 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
     }
     fit_record["rig_latency_s"] = latency
     fit_record["rig_latency"] = "given" if given else "fitted"
-    cal = cal.with_(name=name or base.name, fit=fit_record)
+    cal = without_vanishing_curves(design, cal).with_(name=name or base.name, fit=fit_record)
     return CalibrationFit(calibration=cal, heldout_before=before, heldout_after=after,
                           heldout_before_rig=before_rig, heldout_after_rig=after_rig,
                           latency_s=latency, latency_given=given, diagnosis=diagnosis,

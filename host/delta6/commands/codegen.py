@@ -9,8 +9,8 @@ from typing import NamedTuple
 
 from delta6.build import avrbuild
 from delta6.core import calibration as calibration_mod
+from delta6.core import curves, paths, residualmodel
 from delta6.core import design as design_mod
-from delta6.core import paths, residualmodel
 from delta6.core.errors import UserError
 from delta6.core.workspace import load_checked
 from delta6.link.protocol import VERSION as PROTOCOL_VERSION
@@ -89,7 +89,7 @@ def calibration_text(design: design_mod.Design, design_path: Path, cal_path: Pat
 #: image's rated 200 Hz on the ATmega328P at 16 MHz, over each base (docs/ondevice-model.md:
 #: the analytical default, 672, at 74,300 cycles of work per 80,000-cycle period; over a
 #: calibration, whose solve takes 51,000, the 144-MAC network at 75,400).
-#: Over a calibration with curve tables (about 3,600 cycles and 1,600 B more), the default
+#: Over a calibration with curve tables (about 3,500 cycles and 1,600 B more), the default
 #: linear map of the counts, 36: 67,000 cycles a sample and 32,470 B of the emulated
 #: ATmega328P's 32 KB (a 108-MAC network reading the wrench overflows them).
 MAX_MODEL_MACS = {"analytical": 672, "calibrated": 144, "calibrated with curves": 36}
@@ -106,7 +106,7 @@ def model_text(design: design_mod.Design, design_path: Path, model_path: Path | 
     residualmodel.check_base(model, design, cal)
     base = "analytical" if cal is None else "calibrated"
     over = f"the {base} model"
-    if cal is not None and cal.has_curves:
+    if cal is not None and curves.has_curves(design, cal):
         base, over = "calibrated with curves", "a calibration with curve tables"
     if model.net.macs > MAX_MODEL_MACS[base]:
         raise UserError(f"{model_path}: {model.net.macs} multiply-accumulates per sample; over "

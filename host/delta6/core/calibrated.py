@@ -95,7 +95,9 @@ class CalibratedModel:
 
     name = "calibrated"
 
-    def __init__(self, design: Design, calibration: Calibration):
+    def __init__(self, design: Design, calibration: Calibration, saturate_curves: bool = False):
+        """``saturate_curves``: hold a curve beyond the board's table at the table's range
+        (a fit's iterates) instead of refusing it (``curves.CurveRangeError``)."""
         calibration.check_design(design)
         self.design = design
         self.cal = calibration
@@ -108,7 +110,7 @@ class CalibratedModel:
             phi=nominal.phi + c.delta_azimuth_rad,
             offset=nominal.offset + c.delta_rest_angle_rad)
         self.radii = np.asarray(c.hysteresis_radii_counts, dtype=float)
-        self.curves = curves.curve_tables(design, c)
+        self.curves = curves.curve_tables(design, c, saturate=saturate_curves)
 
     # -- the pieces ---------------------------------------------------------------------------
 

@@ -134,11 +134,6 @@ class Calibration:
         return replace(self, **changes)
 
     @property
-    def has_curves(self) -> bool:
-        """Whether the board needs the per-joint curve tables (``delta6.core.curves``)."""
-        return bool(np.any(self.encoder_periodic_rad) or np.any(self.spring_curvature))
-
-    @property
     def uses_history(self) -> bool:
         return bool(np.any(self.hysteresis_nm) or np.any(self.friction_sign_nm)
                     or np.any(self.viscous_nm_s_per_rad) or np.any(self.presliding_nm)
@@ -160,7 +155,10 @@ _PARAMETERS = (
 )
 
 #: Parameters added later, hashed only when not neutral: a calibration without them keeps
-#: the hash it had (and the board that reports it stays recognised).
+#: the hash it had (and the board that reports it stays recognised). The hash has no design
+#: to tabulate them with, so it takes them as written; a curve whose board tables round to
+#: zero is no curve for the model and the board (``curves.curve_tables``), and ``delta6
+#: calibrate`` writes it as zero, so a fitted file hashes as what the board applies.
 _HASHED_WHEN_PRESENT = ("encoder_periodic_rad", "spring_curvature")
 
 #: The file's sections: section -> (key in the file, attribute).

@@ -80,7 +80,8 @@ def encoder_error(q: np.ndarray, coef: np.ndarray) -> np.ndarray:
 
 
 def limit_counts(design) -> int:
-    """Largest count n with n * count <= the joint limit (as the firmware solver's box)."""
+    """Largest count n with n * count <= the joint limit: the firmware solver's box (codegen
+    writes this into the design header) and the span of the curve tables."""
     n = int(design.joint_limit_rad / ENCODER_COUNT_RAD)
     while (n + 1) * ENCODER_COUNT_RAD <= design.joint_limit_rad:
         n += 1
@@ -104,45 +105,79 @@ class CurveTables:
     """Per joint, int16 at the knots (``knots``, counts); None: the curve is absent."""
 
     knots: np.ndarray                  # (N,) counts
-    angle: np.ndarray | None           # (6, N) e, 2^-ANGLE_SHIFT rad
-    torque: np.ndarray | None          # (6, N) s - k ratio e, 2^-TORQUE_SHIFT N*m
+    angle: np.ndarray | None           # (6, N) e, 2^-ANGLE_SHIFT rad (None: all zero)
+    torque: np.ndarray                 # (6, N) s - k ratio e, 2^-TORQUE_SHIFT N*m
 
     @property
     def origin(self) -> int:
         return int(-self.knots[0])
 
 
-def _quantize(values: np.ndarray, shift: int, what: str) -> np.ndarray:
+#: The tables' ranges: the largest encoder error (rad) and curve torque (N*m) they hold.
+ANGLE_RANGE_RAD = INT16_MAX * 2.0 ** -ANGLE_SHIFT
+TORQUE_RANGE_NM = INT16_MAX * 2.0 ** -TORQUE_SHIFT
+
+
+def _quantize(values: np.ndarray, shift: int, what: str, saturate: bool) -> np.ndarray:
     q = np.round(values * 2.0 ** shift)
-    if np.any(np.abs(q) > INT16_MAX):
-        raise CurveRangeError(f"{what} reaches {np.abs(values).max():.4g} over the joint box; "
-                              f"the board's table holds at most {INT16_MAX / 2.0 ** shift:.4g}")
-    return q.astype(np.int16)
+    if np.any(np.abs(q) > INT16_MAX) and not saturate:
+        raise CurveRangeError(f"{what} reaches {np.abs(values).max():.4g} at the table's knots "
+                              f"(the joint box and the knot beyond each end); the board's "
+                              f"table holds at most {INT16_MAX / 2.0 ** shift:.4g}")
+    return np.clip(q, -INT16_MAX, INT16_MAX).astype(np.int16)
 
 
-def curve_tables(design, cal) -> CurveTables | None:
-    """The board's tables for ``cal`` on ``design`` (None when it has neither curve)."""
-    spring = np.asarray(cal.spring_curvature, dtype=float)
-    encoder = np.asarray(cal.encoder_periodic_rad, dtype=float)
-    if not np.any(spring) and not np.any(encoder):
-        return None
+@dataclass(frozen=True)
+class CurveValues:
+    """The curves at the knots before rounding to the tables' units (rad, N*m), (6, N) each;
+    the torque split into its parts, so that a fit can tell which curve overflows."""
+
+    knots: np.ndarray
+    angle: np.ndarray            # e
+    spring: np.ndarray           # s at the link's angle
+    encoder_torque: np.ndarray   # - k ratio e
+
+    @property
+    def torque(self) -> np.ndarray:
+        return self.spring + self.encoder_torque
+
+
+def curve_values(design, cal) -> CurveValues:
+    """The tables' contents before rounding; the spring and the encoder's torque are taken at
+    the angle table's rounded e (held at its range), as the board has it."""
     knots = knot_counts(design)
     q = knots[:, None] * ENCODER_COUNT_RAD * np.ones(6)          # (N, 6)
-    angle = None
-    error = np.zeros_like(q)
-    if np.any(encoder):
-        angle = _quantize(encoder_error(q, encoder).T, ANGLE_SHIFT,
-                          "the encoder curve (angle.periodic_rad), rad,")
-        error = angle.T.astype(float) * 2.0 ** -ANGLE_SHIFT
+    angle = encoder_error(q, np.asarray(cal.encoder_periodic_rad, dtype=float))
+    error = _quantize(angle, ANGLE_SHIFT, "", True).astype(float) * 2.0 ** -ANGLE_SHIFT
     # The spring bends with the link: its curve at the link's angle as far as it is a function
     # of the count (the offset and the encoder error; not the backlash's direction).
-    torque = spring_torque(q - np.asarray(cal.offset_rad, dtype=float) - error, design.k, spring)
-    if angle is not None:
-        # The encoder error's torque through the rate, from the tabulated error itself.
-        torque = torque - design.k * np.asarray(cal.rate_ratio, dtype=float) * error
-    return CurveTables(knots=knots, angle=angle,
-                       torque=_quantize(torque.T, TORQUE_SHIFT,
-                                        "the curves' joint torque, N*m,"))
+    spring = spring_torque(q - np.asarray(cal.offset_rad, dtype=float) - error, design.k,
+                           np.asarray(cal.spring_curvature, dtype=float))
+    # The encoder error's torque through the rate, from the tabulated error itself.
+    encoder_torque = -design.k * np.asarray(cal.rate_ratio, dtype=float) * error
+    return CurveValues(knots, angle.T, spring.T, encoder_torque.T)
+
+
+def curve_tables(design, cal, saturate: bool = False) -> CurveTables | None:
+    """The board's tables for ``cal`` on ``design``. A curve is what its table holds: a table
+    that rounds to zero everywhere is no table (``angle`` None), and a calibration whose tables
+    are all zero has no curves (None), so the model, the board and its rating agree.
+    ``saturate``: hold a value beyond a table's range at the range instead of refusing it
+    (a fit's iterates; the fit leaves such a curve out, ``delta6.calibration.families``)."""
+    if not np.any(cal.spring_curvature) and not np.any(cal.encoder_periodic_rad):
+        return None
+    v = curve_values(design, cal)
+    angle = _quantize(v.angle, ANGLE_SHIFT, "the encoder curve (angle.periodic_rad), rad,",
+                      saturate)
+    torque = _quantize(v.torque, TORQUE_SHIFT, "the curves' joint torque, N*m,", saturate)
+    if not np.any(angle) and not np.any(torque):
+        return None
+    return CurveTables(knots=v.knots, angle=angle if np.any(angle) else None, torque=torque)
+
+
+def has_curves(design, cal) -> bool:
+    """Whether the board needs the curve tables for ``cal`` (their tables are not all zero)."""
+    return curve_tables(design, cal, saturate=True) is not None
 
 
 def interpolate(table: np.ndarray, knots: np.ndarray, counts: np.ndarray) -> np.ndarray:

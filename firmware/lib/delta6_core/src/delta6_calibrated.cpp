@@ -89,8 +89,10 @@ inline int32_t curve_torque(const CurvedCalibrationConstants* cv, uint8_t j, int
     }
     const int16_t lo = flash::i16(t + i);
     const int16_t step = static_cast<int16_t>(flash::i16(t + i + 1) - lo);
-    const int32_t v = (static_cast<int32_t>(lo) << 6) + static_cast<int32_t>(step) * l;
-    return v << (kTorqueShift - kCurveTorqueShift - 6);
+    // Products, not left shifts: shifting a negative value left is undefined before C++20
+    // (the compilers emit the same shifts for these constant powers of two).
+    const int32_t v = static_cast<int32_t>(lo) * 64 + static_cast<int32_t>(step) * l;
+    return v * (static_cast<int32_t>(1) << (kTorqueShift - kCurveTorqueShift - 6));
 }
 
 // The encoder error beyond knot i of the count biased = x + origin (inside the box), rad:
