@@ -13,6 +13,7 @@ from delta6.calibration import calibrate
 from delta6.calibration.families import Context, curve_table_checks, families, without_vanishing_curves
 from delta6.calibration.fit import with_straight_parts
 from delta6.core import calibration as C
+from delta6.core import curves
 from delta6.core.calibrated import CalibratedModel, counts_from_angles
 from delta6.core.design import load as load_design
 from delta6.core.model import ENCODER_COUNT_RAD
