@@ -26,12 +26,6 @@ from conftest import DESIGNS
 CURVES = ("nonlinear_spring", "encoder_periodic_error")
 
 
-def test_the_curves_are_the_diagnosis_terms_own():
-    assert curves.SPRING_REF_RAD == terms.NONLINEAR_REF_RAD
-    assert curves.SPRING_STRAIGHT_PART == terms.NONLINEAR_STRAIGHT_PART
-    assert curves.ENCODER_HARMONICS == terms.ENCODER_HARMONICS
-
-
 def test_the_families_columns_are_the_terms_columns_at_the_count_angle(baseline):
     run = twin.simulate(baseline, [], duration_s=40, rate_hz=50, seed=2)
     # A log of whole counts (what the board has): the term's columns there are the family's.

@@ -130,18 +130,23 @@ def partial_families(steps: list[dict], carried: dict, traded: dict, alone: dict
 
 
 def first_explanation(alone: dict, base_sse: np.ndarray, forward: list[str],
-                      chosen: list[str]) -> set:
+                      chosen: list[str], traded: dict) -> set:
     """The family forward selection took first (``forward[0]``: the single best explanation
     of the gap), if the final model ``chosen`` still has it, when it removes at least
     ``PARTIAL_SHARE`` of the held-out error on its own: no absorber of an effect the
     vocabulary lacks, even with a structured leftover (a sensor latency whose formulation the
     family follows only in part leaves its misfit structured, and a neighbour sharing its
-    features, friction's speed terms, takes part of its share in the final model). Empty when
-    it removes less, or when the backward test or the noise rule took it out."""
+    features, friction's speed terms, takes part of its share in the final model). But only
+    while it still carries ``SMALL_SHARE`` of the gap in the final model with the families it
+    trades with (``traded``: :func:`group_shares` with refinements): one whose explanation
+    the later families took over whole (a geometry error taking a harness's pull on the plate
+    until a rate error and an offset took it from there) is no longer the explanation.
+    Empty when it removes less, or when the backward test or the noise rule took it out."""
     if not forward or forward[0] not in chosen:
         return set()
     name = forward[0]
-    return {name} if selection.gain(base_sse, alone[name]) >= PARTIAL_SHARE else set()
+    return {name} if (selection.gain(base_sse, alone[name]) >= PARTIAL_SHARE
+                      and traded[name] >= SMALL_SHARE) else set()
 
 
 def harness_clamp(problem: selection.Problem, *, seed: int, min_gain: float,
@@ -611,7 +616,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     if chosen and missing > 0:
         partial = partial_families(
             steps, group_shares(problem, chosen, base_total), traded, alone_share, missing,
-            confirmed | first_explanation(alone, base_sse, info["forward"], chosen))
+            confirmed | first_explanation(alone, base_sse, info["forward"], chosen, traded))
     unnamed = {p["name"] for p in partial}
     # A family that carries too little of the gap, with the families it trades with, to
     # tell it from its neighbours' trading is not named either (a family its own signature

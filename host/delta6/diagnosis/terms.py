@@ -43,6 +43,7 @@ from typing import Callable
 
 import numpy as np
 
+from delta6.core import curves
 from delta6.core.model import ENCODER_COUNT_RAD, link_tension
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.sensitivity import GEOMETRY_NAMES
@@ -287,19 +288,20 @@ def _thermal(data: GapData) -> np.ndarray:
 
 
 #: Reference deflection of the nonlinear-spring family, rad (about the joint limit): its
-#: parameters are the extra torque there as a fraction of the nominal spring torque.
-NONLINEAR_REF_RAD = 0.5
+#: parameters are the extra torque there as a fraction of the nominal spring torque. The
+#: calibration's curves (``delta6.core.curves``) hold the same shapes: one definition.
+NONLINEAR_REF_RAD = curves.SPRING_REF_RAD
 #: The straight-line part taken out of the stiffening spring's |u| and u^2 columns (their
 #: least-squares slope for u uniform in [-1, 1]): E[u^2 |u|] / E[u^2], E[u^4] / E[u^2].
-NONLINEAR_STRAIGHT_PART = (0.75, 0.6)
+NONLINEAR_STRAIGHT_PART = curves.SPRING_STRAIGHT_PART
 #: Friction, hysteresis and backlash: a joint torque that depends on the direction of motion.
 DIRECTION_DEPENDENT = "direction-dependent joint torque"
 #: A stiffening spring (torque side) and an encoder's periodic error (angle side) both show
 #: as a joint torque error that is a smooth curve in the joint's own angle: over the joint
 #: range four harmonics of a shaft turn and a spring's curvature can stand in for each other.
 SMOOTH_IN_ANGLE = "joint torque smooth in the joint's angle"
-#: Harmonics of a shaft turn in the encoder family.
-ENCODER_HARMONICS = (1, 2, 3, 4)
+#: Harmonics of a shaft turn in the encoder family (the calibration's curve has the same).
+ENCODER_HARMONICS = curves.ENCODER_HARMONICS
 #: Largest part of an encoder's periodic error beyond a straight line over the joint range
 #: (+-NONLINEAR_REF_RAD), rad. Over that sixth of a turn harmonic h bends away from its line
 #: by at most 0.08, 0.31, 0.62, 0.95 times its amplitude (h = 1..4); a magnet's error of

@@ -3,7 +3,9 @@ along a single wrench axis with long holds, the six axes one after the other.
 
 The log is cut into six equal stretches, one per axis (Fx, Fy, Fz, Mx, My, Mz); inside its
 stretch an axis is pushed alternately positive and negative: a minimum-jerk ramp from rest to
-the push, a hold, a ramp back, a rest. The joint deflections of a push are those that load
+the push, a hold, a ramp back, a rest, drawn until they fill the stretch and then sped up
+together to end with it (each push back at rest when the next axis begins: the path is
+continuous). The joint deflections of a push are those that load
 that axis alone at the rest pose (the inverse of the model's wrench Jacobian there), scaled to
 a random share of the joint box; away from rest the wrench is not purely on one axis any more,
 as with a real robot pushing in a straight line.
@@ -56,21 +58,26 @@ class AxisPushes:
         limit = design.joint_limit_rad
         starts, lengths, frm, to = [], [], [], []
         stretch = duration_s / 6.0
+        rest = np.zeros(6)
         for axis in range(6):
             now, end, sign = axis * stretch, (axis + 1) * stretch, 1.0
-            while now < end:
+            cycles = []
+            while sum(sum(c) for _, c in cycles) < end - now:
                 push = sign * rng.uniform(s.reach_min, s.reach_max) * limit * dirs[axis]
-                for target, kind in ((push, "ramp"), (push, "hold"), (np.zeros(6), "ramp"),
-                                     (np.zeros(6), "hold")):
-                    if kind == "ramp":
-                        length = rng.uniform(s.ramp_min_s, s.ramp_max_s)
-                    else:
-                        length = rng.uniform(s.hold_min_s, s.hold_max_s)
-                    origin = to[-1] if to else np.zeros(6)
-                    starts.append(now), lengths.append(length)
-                    frm.append(origin), to.append(target)
-                    now += length
+                cycles.append((push, [rng.uniform(s.ramp_min_s, s.ramp_max_s),
+                                      rng.uniform(s.hold_min_s, s.hold_max_s),
+                                      rng.uniform(s.ramp_min_s, s.ramp_max_s),
+                                      rng.uniform(s.hold_min_s, s.hold_max_s)]))
                 sign = -sign
+            # The pushes fill the stretch exactly, a little faster than drawn: each returns to
+            # rest inside its axis's stretch, the moves follow one another without overlap,
+            # and the path is continuous.
+            scale = (end - now) / sum(sum(c) for _, c in cycles)
+            for push, cycle in cycles:
+                for target, length in zip((push, push, rest, rest), cycle):
+                    starts.append(now), lengths.append(length * scale)
+                    frm.append(to[-1] if to else rest), to.append(target)
+                    now += length * scale
         self.starts = np.array(starts)
         self.lengths = np.array(lengths)
         self.origins = np.array(frm)
