@@ -9,8 +9,8 @@
 Prints progress, the figures (top-1 on single effects, false positives, pairs, parameter
 recovery, predicted vs true shrink, run time), the confusion matrix and the paper scenario's
 ladder; writes benchmark.json and benchmark.md into --out. ``--rescore`` takes an earlier
-run's benchmark.json, measures what its records lack (the joints an unknown per-joint effect
-bends, by simulating those cases again) and prints the unknown effects' figures both ways.
+run's benchmark.json, measures the joints each unknown per-joint effect bends with today's
+measure (simulating those cases again) and prints the unknown effects' figures both ways.
 """
 from __future__ import annotations
 
@@ -99,9 +99,14 @@ def rescore(bench, path: Path, design_path: str) -> int:
     except (OSError, ValueError, KeyError, TypeError) as exc:
         print(f"error: {path}: not a gap benchmark's benchmark.json ({exc})", file=sys.stderr)
         return 2
-    added = bench.add_bends(results, design_path, duration)
-    summary = bench.score_extended(results)
-    print(f"{path}: bends measured for {added} unknown runs; "
+    try:
+        added = bench.add_bends(results, design_path, duration)
+        summary = bench.score_extended(results)
+    except (KeyError, TypeError, ValueError, IndexError) as exc:
+        print(f"error: {path}: a record is not a gap benchmark's ({type(exc).__name__}: "
+              f"{exc})", file=sys.stderr)
+        return 2
+    print(f"{path}: bends measured for {added} unknown per-joint runs; "
           f"seed {payload['settings'].get('base_seed')}")
     print(f"unknown effects: leftover right {summary['unknown_leftover_ok']:.0%} of "
           f"{summary['unknown_runs']} on the joints the effect bends, "

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -45,3 +46,19 @@ def test_each_axis_is_pushed_both_ways_on_a_long_enough_run(baseline):
         pushes = path.targets[inside][np.any(path.targets[inside] != 0.0, axis=1)]
         largest = np.argmax(np.abs(pushes[0]))
         assert {np.sign(p[largest]) for p in pushes} == {-1.0, 1.0}
+
+
+def test_a_run_without_duration_is_refused(baseline):
+    for duration in (0.0, -5.0, float("nan")):
+        with pytest.raises(ValueError, match="positive duration"):
+            AxisPushes(baseline, duration, stream(1, "pushes"))
+
+
+def test_a_long_run_pushes_slowly(baseline):
+    """From 400 s on, the pushes are sped up by at most the longest push over a stretch."""
+    s = PushSettings()
+    for seed in range(5):
+        path = AxisPushes(baseline, 400.0, stream(seed, "pushes"))
+        ramps = path.lengths[0::2]                      # ramp, hold, ramp, hold, ...
+        assert ramps.min() >= s.ramp_min_s * (400.0 / 6) / (400.0 / 6 + 2 * (s.ramp_max_s
+                                                                          + s.hold_max_s))

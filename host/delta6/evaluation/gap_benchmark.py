@@ -32,7 +32,7 @@ from delta6.core.model import Params
 from delta6.core.spec import full_scale
 from delta6.diagnosis.leftover import ANGLE_DEGREE, JOINT_SHARE
 from delta6.diagnosis.run import diagnose
-from delta6.diagnosis.sensitivity import torque_map
+from delta6.diagnosis.sensitivity import angle_jacobian, torque_map
 from delta6.link.logfile import read_log
 
 #: Development used seeds below 10,000; the benchmark starts far above. The first benchmark
@@ -63,6 +63,9 @@ EXPECTED_SHAPES = {
 }
 #: Effects of the unknown-effect runs (each withheld from the diagnosis's families in turn).
 UNKNOWN_EFFECTS = tuple(EXPECTED_SHAPES)
+#: The per-joint ones among them: smooth curves in each joint's own angle, scored on the
+#: joints they bend (``joint_bends``).
+BENT_EFFECTS = ("nonlinear_spring", "encoder_periodic_error")
 
 
 @dataclass
@@ -151,21 +154,31 @@ def _effects(case: Case):
     return out
 
 
-def beyond_line(design: Design, result, clean) -> np.ndarray:
+def beyond_line(design: Design, result, clean, joint: int | None = None) -> np.ndarray:
     """Per joint, the rms (N*m) of what an effect adds to the analytical model's error, as the
     joint torque that explains it, that is a smooth function of the joint's own angle beyond a
     straight line: what a polynomial of the leftover angle test's degree explains beyond one
     of degree 1.
 
     ``result`` and ``clean`` are the same run (trajectory, noise) with and without the effect.
-    A straight line in a joint's angle is an encoder offset plus a spring-rate error, which
-    the diagnosis's vocabulary names; what the effect does to the other joints' torques
-    through the kinematics (an angle error also turns the geometry) is a function of its own
-    joint's angle, not theirs. Only the bend can be left over for the leftover verdict to find
-    on the joint: an encoder's periodic error whose phase puts the joint's range on a nearly
-    straight stretch of the curve leaves nothing there."""
+    With ``joint`` (the effect acts on that joint alone), what the vocabulary's encoder offset
+    and spring-rate families take on that joint (the wrench per unit of its angle offset,
+    through the kinematics too, and per unit of its rate error) is fitted out of the added
+    error first: an angle offset also turns the geometry, which shows as a curve in the joint's
+    own angle on joints 1-3, and those families name it whole. Only what is left can be left
+    over for the leftover verdict to find: an encoder's periodic error whose phase puts the
+    joint's range on a nearly straight stretch of its curve leaves nothing there."""
+    params = Params.from_design(design)
     added = (result.model_wrench() - result.wrench) - (clean.model_wrench() - clean.wrench)
-    g = torque_map(Params.from_design(design), result.theta)
+    g = torque_map(params, result.theta)
+    if joint is not None:
+        j = joint - 1
+        fs = full_scale(design)
+        offset = angle_jacobian(params, result.theta)[:, :, j]              # dW/d(offset)
+        rate = g[:, :, j] * (design.k[j] * result.theta[:, j])[:, None]    # dW/d(ratio)
+        cols = np.stack([offset / fs, rate / fs], axis=-1).reshape(-1, 2)
+        coef, *_ = np.linalg.lstsq(cols, (added / fs).reshape(-1), rcond=None)
+        added = added - (np.stack([offset, rate], axis=-1) @ coef)
     tau = np.linalg.solve(g, added[..., None])[..., 0]
     out = np.empty(6)
     for j in range(6):
@@ -195,9 +208,11 @@ def joint_bends(design: Design, effect, simulate, clean) -> np.ndarray:
     ``clean``): an angle error on one joint also turns the geometry, which reaches the other
     joints' torques, and on a short run that can correlate with their own angles. Zero on
     the joints it does not act on."""
+    if effect.NAME not in BENT_EFFECTS:
+        raise ValueError(f"{effect.NAME}: not a smooth curve in each joint's angle")
     out = np.zeros(6)
     for j in effect.joints:
-        out[j - 1] = beyond_line(design, simulate([on_joint(effect, j)]), clean)[j - 1]
+        out[j - 1] = beyond_line(design, simulate([on_joint(effect, j)]), clean, j)[j - 1]
     return out
 
 
@@ -264,7 +279,7 @@ def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> d
     truth_rows = [{"name": e["name"], "formulation": e["formulation"],
                    "magnitude": e["magnitude"], "joints": e["joints"], "summary": e["summary"]}
                   for e in truth["effects"]]
-    if case.kind == "unknown" and case.joints:
+    if case.kind == "unknown" and case.joints and case.effects[0] in BENT_EFFECTS:
         bend = joint_bends(design, effects[0], simulate, clean)
         truth_rows[0]["beyond_line_nm"] = bend.tolist()
         truth_rows[0]["leftover_joints"] = leftover_joints(truth_rows[0]["joints"], bend)
@@ -305,15 +320,16 @@ def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> d
 
 
 def add_bends(results: list[dict], design_path: str, duration_s: float) -> int:
-    """Measure ``beyond_line_nm`` and ``leftover_joints`` for the recorded unknown per-joint
-    runs that lack them (records written before they were measured): each case is simulated
-    again from its record (the same trajectory, noise and effect). Returns how many."""
+    """Measure ``beyond_line_nm`` and ``leftover_joints`` of the recorded unknown per-joint
+    runs with today's measure (records written before it, or with an earlier one): each case
+    is simulated again from its record (the same trajectory, noise and effect). Returns how
+    many."""
     from delta6 import twin
     design = load(design_path)
     done = 0
     for r in results:
         if r["kind"] != "unknown" or not r["case"].get("joints") \
-                or "leftover_joints" in r["truth"][0]:
+                or r["case"]["effects"][0] not in BENT_EFFECTS:
             continue
         case = Case(**r["case"])
 

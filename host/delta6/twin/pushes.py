@@ -53,6 +53,8 @@ class AxisPushes:
 
     def __init__(self, design, duration_s: float, rng: np.random.Generator,
                  settings: PushSettings = PushSettings()):
+        if not duration_s > 0:
+            raise ValueError(f"the pushes need a positive duration, got {duration_s!r} s")
         self.settings = s = settings
         dirs = axis_directions(design)
         limit = design.joint_limit_rad
