@@ -134,9 +134,9 @@ def first_explanation(alone: dict, base_sse: np.ndarray, forward: list[str],
     """The family forward selection took first (``forward[0]``: the single best explanation
     of the gap), if the final model ``chosen`` still has it, when it removes at least
     ``PARTIAL_SHARE`` of the held-out error on its own: no absorber of an effect the
-    vocabulary lacks, even with a structured leftover (a sensor latency whose formulation the
-    family follows only in part leaves its misfit structured, and a neighbour sharing its
-    features, friction's speed terms, takes part of its share in the final model). But only
+    vocabulary lacks, even with a structured leftover and a neighbour sharing its features
+    taking part of its share in the final model (a latency's misfit beside friction's speed
+    terms). But only
     while it still carries ``SMALL_SHARE`` of the gap in the final model with the families it
     trades with (``traded``: :func:`group_shares` with refinements): one whose explanation
     the later families took over whole (a geometry error taking a harness's pull on the plate
