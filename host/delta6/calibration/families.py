@@ -28,7 +28,14 @@ from delta6.core.calibrated import JointTerms, counts_from_angles
 from delta6.core.calibration import Calibration, CalibrationError, validate
 from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.diagnosis.data import GapData
-from delta6.diagnosis.terms import FRICTION_VELOCITIES_RAD_S, HYSTERESIS_RADII, TERMS, Term, force_rotation
+from delta6.diagnosis.terms import (
+    FRICTION_VELOCITIES_RAD_S,
+    HYSTERESIS_RADII,
+    SMOOTH_IN_ANGLE_FAMILIES,
+    TERMS,
+    Term,
+    force_rotation,
+)
 
 
 @dataclass
@@ -98,8 +105,8 @@ class Family:
         return [c for c in self.plausibility(cal) if c["ratio"] > 1.0]
 
 
-#: The curve families and the part of the board's tables each one fills.
-CURVE_FAMILIES = ("nonlinear_spring", "encoder_periodic_error")
+#: The curve families, tabulated per joint on the board.
+CURVE_FAMILIES = SMOOTH_IN_ANGLE_FAMILIES
 
 
 def curve_table_checks(design, cal: Calibration, effect: str) -> list[dict]:

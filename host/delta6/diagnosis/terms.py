@@ -802,3 +802,7 @@ TERMS: tuple[Term, ...] = (
          "N, N/mm, N/rad", _harness, prior_sd=HARNESS_PRIORS, plausible=_harness_plausible),
 )
 EFFECT_NAMES = tuple(t.name for t in TERMS)
+#: The families of a curve in each joint's own angle (a stiffening spring, an encoder's
+#: periodic error): what the calibration tabulates per joint and the benchmark scores by
+#: the joints they bend.
+SMOOTH_IN_ANGLE_FAMILIES = tuple(t.name for t in TERMS if t.group == SMOOTH_IN_ANGLE)

@@ -33,6 +33,7 @@ from delta6.core.spec import full_scale
 from delta6.diagnosis.leftover import ANGLE_DEGREE, JOINT_SHARE
 from delta6.diagnosis.run import diagnose
 from delta6.diagnosis.sensitivity import angle_jacobian, torque_map
+from delta6.diagnosis.terms import SMOOTH_IN_ANGLE_FAMILIES
 from delta6.link.logfile import read_log
 
 #: Development used seeds below 10,000; the benchmark starts far above. The first benchmark
@@ -65,7 +66,7 @@ EXPECTED_SHAPES = {
 UNKNOWN_EFFECTS = tuple(EXPECTED_SHAPES)
 #: The per-joint ones among them: smooth curves in each joint's own angle, scored on the
 #: joints they bend (``joint_bends``).
-BENT_EFFECTS = ("nonlinear_spring", "encoder_periodic_error")
+BENT_EFFECTS = SMOOTH_IN_ANGLE_FAMILIES
 
 
 @dataclass
