@@ -202,15 +202,18 @@ class Tails:
 def predict(data: GapData, terms, bounds: np.ndarray, fold_of_block: np.ndarray,
             models: dict, store: set, x_all: np.ndarray | None = None,
             cache: ColumnCache | None = None,
-            progress: Callable[[str], None] | None = None) -> dict:
+            progress: Callable[[str], None] | None = None, spill=None) -> dict:
     """One pass: the held-out prediction of every model (name -> (column indices, coefficients
     per fold (K, c))), each sample predicted with the coefficients of its block's fold.
     Returns name -> p99 of the held-out error per axis (% FS) and, for the names in
-    ``store``, name -> the FS-normalised prediction itself (float32, (n, 6)). ``x_all``: the
-    whole log's columns when they were kept, ``cache`` the columns of an earlier pass (no
-    columns are built then)."""
+    ``store``, name -> the FS-normalised prediction itself (a :class:`KeptPrediction`, float32,
+    (n, 6)). ``x_all``: the whole log's columns when they were kept, ``cache`` the columns of
+    an earlier pass (no columns are built then). ``spill``: a directory where the stored
+    predictions wait on disk, not in memory (long logs)."""
     tails = {name: Tails(len(data)) for name in models}
-    kept = {name: np.empty((len(data), 6), dtype=np.float32) for name in store}
+    kept = {name: KeptPrediction(len(data), None if spill is None
+                                 else Path(spill) / f"prediction-{i}.f32")
+            for i, name in enumerate(sorted(store, key=repr))}
     stored = x_all is not None or cache is not None
     spans = ([(a, min(len(data), a + PIECE_SAMPLES), None, None)
               for a in range(0, len(data), PIECE_SAMPLES)] if stored else pieces(data))
@@ -232,6 +235,38 @@ def predict(data: GapData, terms, bounds: np.ndarray, fold_of_block: np.ndarray,
                 pred = np.zeros_like(y)
             tails[name].add(100.0 * (y - pred))
             if name in kept:
-                kept[name][a:b] = pred
+                kept[name].write(a, pred)
         del x
     return {"p99": {name: t.percentile() for name, t in tails.items()}, "pred": kept}
+
+
+class KeptPrediction:
+    """A held-out prediction (n, 6) kept in float32, written piece by piece in time order: in
+    memory, or in a scratch file at ``path`` (a long log's ladder steps are used one at a
+    time: only the one in use is in memory)."""
+
+    def __init__(self, n: int, path: Path | None = None):
+        self.n = n
+        self.path = path
+        self.array = np.empty((n, 6), dtype=np.float32) if path is None else None
+        self.written = 0
+        if path is not None:
+            path.write_bytes(b"")
+
+    def write(self, a: int, pred: np.ndarray) -> None:
+        assert a == self.written, "pieces are kept in order"
+        if self.array is not None:
+            self.array[a:a + len(pred)] = pred
+        else:
+            with open(self.path, "ab") as f:
+                f.write(np.ascontiguousarray(pred, dtype=np.float32).tobytes())
+        self.written += len(pred)
+
+    def read(self) -> np.ndarray:
+        """The whole prediction; a scratch file is removed once read."""
+        assert self.written == self.n, "every piece must be written first"
+        if self.array is not None:
+            return self.array
+        out = np.fromfile(self.path, dtype=np.float32).reshape(self.n, 6)
+        self.path.unlink()
+        return out
