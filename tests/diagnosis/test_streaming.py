@@ -129,3 +129,35 @@ def test_predictions_kept_on_disk_are_those_kept_in_memory(history_log, tmp_path
         got = on_disk["pred"][name].read()
         assert got.dtype == np.float32 and np.array_equal(got, in_memory["pred"][name].read())
     assert not list(tmp_path.iterdir())                     # each file goes once read
+
+
+def test_a_second_cache_stores_only_its_new_columns_and_reads_the_rest_from_the_first(
+        tmp_path):
+    """A second pass that changes one family writes that family's columns only; read back,
+    its columns are those it was given (float32), whichever cache holds them."""
+    rng = np.random.default_rng(1)
+    first = stream.ColumnCache(tmp_path, width=5)
+    (tmp_path / "second").mkdir()
+    source = np.array([0, -1, 3, -1, -1, 4])              # columns 1, 3 and 4 are new
+    second = stream.ColumnCache(tmp_path / "second", width=6, reuse=(first, source))
+    x1, x2 = rng.normal(size=(23, 6, 5)), rng.normal(size=(23, 6, 6))
+    x2[:, :, source >= 0] = x1[:, :, source[source >= 0]]
+    for a, b in ((0, 9), (9, 23)):
+        first.write(a, x1[a:b])
+        second.write(a, x2[a:b])
+    assert second.path.stat().st_size == 23 * 6 * 3 * 4
+    want = x2.astype(np.float32)
+    assert np.array_equal(second.read(4, 17), want[4:17].astype(float))
+    assert np.array_equal(second.rows([20, 2, 7]), want[[20, 2, 7]])
+    assert np.array_equal(first.rows([5]), x1[[5]].astype(np.float32))
+
+
+def test_the_columns_a_second_pass_reuses_are_those_of_its_unchanged_families():
+    import dataclasses
+
+    terms = list(TERMS[:3])
+    changed = dataclasses.replace(terms[1], param_names=terms[1].param_names[:2])
+    widths = [len(t.param_names) for t in terms]
+    got = stream.reused_columns(terms, [terms[0], changed, terms[2]])
+    assert np.array_equal(got, list(range(widths[0])) + [-1, -1]
+                          + list(range(widths[0] + widths[1], sum(widths))))

@@ -259,13 +259,7 @@ def _rows(problem: selection.Problem, cache, rows: slice, n: int, cols: np.ndarr
         return problem.x[rows][:, :, cols]
     if cache is None:
         return None
-    row = 6 * cache.width
-    out = []
-    with open(cache.path, "rb") as f:
-        for i in range(*rows.indices(n)):
-            f.seek(i * row * 4)
-            out.append(np.fromfile(f, dtype=np.float32, count=row).reshape(6, cache.width)[:, cols])
-    return np.asarray(out, dtype=float)
+    return cache.rows(range(*rows.indices(n)))[:, :, cols].astype(float)
 
 
 def others_at_search(data: GapData, problem: selection.Problem, first: "Selected", cache=None):
@@ -414,8 +408,11 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
             second_cache = None
             if cache is not None:
                 Path(scratch, "second").mkdir()
+                # Only the harness's columns are new: the others are read from the first
+                # pass's cache (a long log's is gigabytes of disk).
                 second_cache = stream.ColumnCache(
-                    Path(scratch, "second"), sum(len(t.param_names) for t in second_terms))
+                    Path(scratch, "second"), sum(len(t.param_names) for t in second_terms),
+                    reuse=(cache, stream.reused_columns(terms, second_terms)))
             second = selection.build_problem(data, second_terms, progress=progress,
                                              signatures=signatures, keep_columns=keep,
                                              cache=second_cache)
@@ -423,9 +420,6 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
                                        min_gain=min_gain, confidence=confidence,
                                        min_share=min_share)
             if "harness" in second_selected.kept:
-                # The first pass's columns are not read again: on a long log its cache is
-                # gigabytes of disk.
-                _drop(cache)
                 problem, terms, cache, first = second, second_terms, second_cache, \
                     second_selected
             else:

@@ -86,25 +86,75 @@ def columns(view: GapData, terms, keep: slice) -> np.ndarray:
 class ColumnCache:
     """The columns of a streamed pass, kept on disk (float32) for the next pass: building them
     costs far more than reading them back. Plain file reads, not a memory map, so the cache
-    never counts against the process's memory."""
+    never counts against the process's memory.
 
-    def __init__(self, directory, width: int):
+    ``reuse``: (an earlier pass's cache, per column of this pass the column of that cache it
+    repeats, -1 for a new one). Only the new columns are written to this cache's file; the
+    others are read from the earlier one (a second pass that changes one family of ~270
+    columns stores that family's, not gigabytes more of scratch disk on a long log)."""
+
+    def __init__(self, directory, width: int, reuse: tuple["ColumnCache", np.ndarray] | None
+                 = None):
         self.path = Path(directory) / "columns.f32"
         self.width = width
+        self.base, self.source = (None, None) if reuse is None else \
+            (reuse[0], np.asarray(reuse[1], dtype=int))
+        self.own = np.arange(width) if reuse is None else np.flatnonzero(self.source < 0)
         self.path.write_bytes(b"")
         self.written = 0
 
     def write(self, a: int, x: np.ndarray) -> None:
         assert a == self.written, "pieces are cached in order"
+        if self.base is not None:
+            x = x[:, :, self.own]
         with open(self.path, "ab") as f:
             f.write(np.ascontiguousarray(x, dtype=np.float32).tobytes())
         self.written += len(x)
 
     def read(self, a: int, b: int) -> np.ndarray:
-        row = 6 * self.width
-        out = np.fromfile(self.path, dtype=np.float32, count=(b - a) * row,
-                          offset=a * row * 4)
-        return out.reshape(b - a, 6, self.width).astype(float)
+        return self.read32(a, b).astype(float)
+
+    def read32(self, a: int, b: int) -> np.ndarray:
+        """Samples [a, b) as written, (b - a, 6, width) float32."""
+        row = 6 * len(self.own)
+        own = np.fromfile(self.path, dtype=np.float32, count=(b - a) * row,
+                          offset=a * row * 4).reshape(b - a, 6, len(self.own))
+        return self._with_base(own, lambda: self.base.read32(a, b))
+
+    def rows(self, indices) -> np.ndarray:
+        """The samples ``indices`` (a few thousand, read one by one), (m, 6, width) float32."""
+        row = 6 * len(self.own)
+        with open(self.path, "rb") as f:
+            out = []
+            for i in indices:
+                f.seek(int(i) * row * 4)
+                out.append(np.fromfile(f, dtype=np.float32, count=row))
+        own = np.asarray(out, dtype=np.float32).reshape(len(out), 6, len(self.own))
+        return self._with_base(own, lambda: self.base.rows(indices))
+
+    def _with_base(self, own: np.ndarray, base) -> np.ndarray:
+        if self.base is None:
+            return own
+        out = np.empty(own.shape[:2] + (self.width,), dtype=np.float32)
+        out[:, :, self.own] = own
+        shared = self.source >= 0
+        out[:, :, shared] = base()[:, :, self.source[shared]]
+        return out
+
+
+def reused_columns(first_terms, second_terms) -> np.ndarray:
+    """Per column of ``second_terms``, the column of ``first_terms`` that is the same (the same
+    term object at either place), or -1 (a changed family's): ``ColumnCache``'s ``reuse``."""
+    at, start = 0, {}
+    for term in first_terms:
+        start[id(term)] = at
+        at += len(term.param_names)
+    out = []
+    for term in second_terms:
+        width = len(term.param_names)
+        first = start.get(id(term))
+        out.extend(range(first, first + width) if first is not None else [-1] * width)
+    return np.asarray(out, dtype=int)
 
 
 def blocks_in(bounds: np.ndarray, a: int, b: int) -> Iterator[tuple[int, int, int]]:
