@@ -298,6 +298,36 @@ DELTA6_NOINLINE uint8_t statics(const CalibrationConstants& cc, float min_lever,
     return kSolveOk;
 }
 
+// 6: the gimbal, F_E0 = F - w x F with w = gimbal + tilt * (M + c z x F), then eq. (12) with
+// the corrected gimbal angles, R^T = Ry^T Rx^T Rz^T, into wrench (left as it was unless
+// every value is finite). Returns a SolveStatus. (Its own function: in the caller's frame,
+// beyond the 64 bytes a load or store addresses, every value costs two more instructions.)
+DELTA6_NOINLINE uint8_t to_e(const CalibrationConstants& cc, const float tau[6],
+                             const float f[3], const float cs[6], const float sn[6],
+                             float wrench[6]) {
+    const float c = flash_float(&cc.c), tilt = flash_float(&cc.tilt);
+    const float wx = flash_float(&cc.gimbal[0]) + tilt * (tau[3] - c * f[1]);
+    const float wy = flash_float(&cc.gimbal[1]) + tilt * (tau[4] + c * f[0]);
+    const float wz = flash_float(&cc.gimbal[2]) + tilt * tau[5];
+    float w[6] = {
+        f[0] - (wy * f[2] - wz * f[1]),
+        f[1] - (wz * f[0] - wx * f[2]),
+        f[2] - (wx * f[1] - wy * f[0]),
+        tau[3], tau[4], tau[5],
+    };
+    DELTA6_PROFILE_MARK(25);
+    for (uint8_t v = 0; v < 6; v += 3) {
+        rotate_back(cs[5], sn[5], w[v], w[v + 1]);
+        rotate_back(cs[3], sn[3], w[v + 1], w[v + 2]);
+        rotate_back(cs[4], sn[4], w[v + 2], w[v]);
+    }
+    for (uint8_t i = 0; i < 6; ++i) {
+        if (!fastmath::is_finite(w[i])) return kSolveNonFinite;
+    }
+    for (uint8_t i = 0; i < 6; ++i) wrench[i] = w[i];
+    return kSolveOk;
+}
+
 }  // namespace
 
 void calibration_reset(CalibrationState& s) { s.started = 0; }
@@ -355,28 +385,8 @@ DELTA6_ALWAYS_INLINE uint8_t solve(const SolverConstants& k, const CalibrationCo
     status = statics(cc, k.min_lever, cs, sn, tau, a, p, f);
     if (status != kSolveOk) return fail(status, wrench);
     DELTA6_PROFILE_MARK(24);
-    // The gimbal: F_E0 = F - w x F, w = gimbal + tilt * (M + c z x F).
-    const float c = flash_float(&cc.c), tilt = flash_float(&cc.tilt);
-    const float wx = flash_float(&cc.gimbal[0]) + tilt * (tau[3] - c * f[1]);
-    const float wy = flash_float(&cc.gimbal[1]) + tilt * (tau[4] + c * f[0]);
-    const float wz = flash_float(&cc.gimbal[2]) + tilt * tau[5];
-    float w[6] = {
-        f[0] - (wy * f[2] - wz * f[1]),
-        f[1] - (wz * f[0] - wx * f[2]),
-        f[2] - (wx * f[1] - wy * f[0]),
-        tau[3], tau[4], tau[5],
-    };
-    DELTA6_PROFILE_MARK(25);
-    // Eq. (12) with the corrected gimbal angles: R^T = Ry^T Rx^T Rz^T.
-    for (uint8_t v = 0; v < 6; v += 3) {
-        rotate_back(cs[5], sn[5], w[v], w[v + 1]);
-        rotate_back(cs[3], sn[3], w[v + 1], w[v + 2]);
-        rotate_back(cs[4], sn[4], w[v + 2], w[v]);
-    }
-    for (uint8_t i = 0; i < 6; ++i) {
-        if (!fastmath::is_finite(w[i])) return fail(kSolveNonFinite, wrench);
-    }
-    for (uint8_t i = 0; i < 6; ++i) wrench[i] = w[i];
+    status = to_e(cc, tau, f, cs, sn, wrench);
+    if (status != kSolveOk) return fail(status, wrench);
     return kSolveOk;
 }
 
