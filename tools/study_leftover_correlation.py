@@ -3,6 +3,8 @@ behind docs/diagnosis.md's note on it ("What is left"). Development seeds only (
 
     .venv/bin/python tools/study_leftover_correlation.py                 # all three, ~6 min
     .venv/bin/python tools/study_leftover_correlation.py --study noise   # ~15 s
+    .venv/bin/python tools/study_leftover_correlation.py --study runs --seeds 4102 4103 \
+        --withhold geometry_error         # proximal encoder errors without the geometry family
 
 The leftover's white noise comes mostly from the reference sensor's wrench noise mapped through
 G^-1, so it is correlated across joints. The candidate test for joint j runs the verdict's angle
@@ -101,8 +103,9 @@ def conditional(tau: np.ndarray, theta: np.ndarray) -> np.ndarray:
     return out
 
 
-def run(design, seed: int, effects) -> dict:
-    """A twin run diagnosed without the newest families; the leftover verdict's input."""
+def run(design, seed: int, effects, withhold=()) -> dict:
+    """A twin run diagnosed without the newest families (and ``withhold``); the leftover
+    verdict's input."""
     made = [twin.make_effect(name, seed=seed + 100_000 * i, magnitude=m, joints=joints,
                              formulation=twin.random_effect(name, seed=seed + 100_000 * i)
                              .formulation)
@@ -121,7 +124,7 @@ def run(design, seed: int, effects) -> dict:
     leftover.analyse = spy
     try:
         verdict = diagnose(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c),
-                           design, seed=0, terms=[t for t in TERMS if t.name not in NEWEST])
+                           design, seed=0, terms=[t for t in TERMS if t.name not in NEWEST + tuple(withhold)])
     finally:
         leftover.analyse = analyse
     bends = None
@@ -161,7 +164,7 @@ def study_noise(design) -> None:
         print(f"  sd of 20-s block means x sqrt(1000) / white: {blocks.std(0) * 31.62 / sd}")
 
 
-def study_runs(design) -> None:
+def study_runs(design, seeds=None, withhold=()) -> None:
     print("per run; per joint: bend | leftover's held-out angle fit | slow part beyond the "
           "own-angle curve (mN*m) | p old | p new | p if the rest were white "
           "(* <= 1.67e-4)")
@@ -169,7 +172,9 @@ def study_runs(design) -> None:
     false = {"old": 0, "new": 0}
     false_verdict = {"old": 0, "new": 0}
     for seed, effects in RUNS:
-        c = run(design, seed, effects)
+        if seeds and seed not in seeds:
+            continue
+        c = run(design, seed, effects, withhold)
         tau, theta = c["tau"], c["theta"]
         tests = {"old": [leftover.angle_test(tau[:, j], theta[:, j]) for j in range(6)]}
         e = conditional(tau, theta)
@@ -265,9 +270,14 @@ def study_white(design) -> None:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--study", choices=("noise", "runs", "white", "all"), default="all")
+    parser.add_argument("--seeds", type=int, nargs="+", help="runs: only these of its seeds")
+    parser.add_argument("--withhold", nargs="+", default=[], choices=[t.name for t in TERMS],
+                        help="runs: families withheld beside the three newest")
     args = parser.parse_args()
     design = load_checked(DEFAULT_DESIGN)    # the shipped design: the twin's runs
-    for name, study in (("noise", study_noise), ("runs", study_runs), ("white", study_white)):
+    studies = (("noise", study_noise), ("white", study_white),
+               ("runs", lambda d: study_runs(d, args.seeds, args.withhold)))
+    for name, study in studies:
         if args.study in (name, "all"):
             print(f"== {name}")
             study(design)
