@@ -70,8 +70,10 @@ class CalibrationRangeError(ValueError):
     """A calibration the firmware's fixed-point sums cannot hold."""
 
 
-#: Must equal delta6::kCalibrationCurvesVersion, kCurveAngleShift, kCurveTorqueShift.
-CURVES_VERSION = 1
+#: Must equal delta6::kCalibrationCurvesVersion, kCurveAngleShift, kCurveTorqueShift,
+#: kCurveTurnShift.
+CURVES_VERSION = 2
+TURN_SHIFT = 31
 TORQUE_NAMES = tuple(f"kCurveTorque{j}" for j in range(1, 7))
 ANGLE_NAMES = tuple(f"kCurveAngle{j}" for j in range(1, 7))
 
@@ -84,6 +86,8 @@ class CurveConstants:
     knots: int
     torque: np.ndarray               # (6, knots) int16
     angle: np.ndarray | None         # (6, knots) int16, or None
+    ed: tuple                        # the backlash angle per half count, 2^-TURN_SHIFT rad
+    eh: tuple                        # the backlash angle, 2^-TURN_SHIFT rad
 
 
 def curve_constants(design: Design, cal: Calibration) -> CurveConstants | None:
@@ -97,7 +101,21 @@ def curve_constants(design: Design, cal: Calibration) -> CurveConstants | None:
         if table is not None and np.any(np.abs(np.diff(table.astype(int), axis=1)) > 32767):
             raise CalibrationRangeError("a curve changes by more than the firmware's int16 "
                                         "step between two knots")
-    return CurveConstants(knots=len(tables.knots), torque=tables.torque, angle=tables.angle)
+    # The board sums the backlash angle and the encoder error between two knots in int32
+    # units of 2^-TURN_SHIFT rad (the rounding, below 2^-32 rad per half count, is far below
+    # a float32 angle's).
+    eh = 0.5 * cal.backlash_play_rad
+    step = 0.0 if tables.angle is None else \
+        np.abs(np.diff(tables.angle.astype(int), axis=1)).max() * 2.0 ** -curves.ANGLE_SHIFT
+    if np.abs(eh).max() + step >= 2.0 ** (31 - TURN_SHIFT) * (1 - 2.0 ** -20):
+        raise CalibrationRangeError("the backlash and the encoder curve's steps exceed the "
+                                    "firmware's fixed-point angle range")
+
+    def q(values) -> tuple:
+        return tuple(int(round(v * 2.0 ** TURN_SHIFT)) for v in values)
+
+    return CurveConstants(knots=len(tables.knots), torque=tables.torque, angle=tables.angle,
+                          ed=q(eh / cal.direction_half_counts), eh=q(eh))
 
 
 def _f(values) -> tuple:
@@ -257,6 +275,8 @@ def render(design: Design, cal: Calibration, design_label: str, calibration_labe
                   f"    {cv.knots},  // knots",
                   f"    {{{', '.join(TORQUE_NAMES)}}},  // torque",
                   f"    {{{angle}}},  // angle",
+                  f"    {_value(cv.ed)},  // ed",
+                  f"    {_value(cv.eh)},  // eh",
                   "};"]
     lines += [
         "",
@@ -268,7 +288,8 @@ def render(design: Design, cal: Calibration, design_label: str, calibration_labe
         lines += [
             f"static_assert(delta6::kCalibrationCurvesVersion == {CURVES_VERSION} && "
             f"delta6::kCurveAngleShift == {curves.ANGLE_SHIFT} && "
-            f"delta6::kCurveTorqueShift == {curves.TORQUE_SHIFT},",
+            f"delta6::kCurveTorqueShift == {curves.TORQUE_SHIFT} && "
+            f"delta6::kCurveTurnShift == {TURN_SHIFT},",
             f'              "delta6_calibration.h was generated for other curves: rerun {COMMAND}");',
         ]
     lines += [

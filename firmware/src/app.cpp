@@ -31,10 +31,13 @@
 // (tools/bench_virtual_board.py [--calibration CAL --model M] on the emulated ATmega328P; the
 // 4809 runs the same code within about 10 %):
 // - the analytical model: 350 Hz (wrench streams sustain 400 Hz, wrench+raw 350 Hz);
-// - a calibrated unit: 250 Hz (the calibrated solve is about 51,500 cycles of the 64,000 in a
-//   250 Hz period; a wrench+raw sample about 57,500 with the record);
+// - a calibrated unit: 250 Hz (the calibrated solve is about 49,000 cycles of the 64,000 in a
+//   250 Hz period; a wrench+raw sample about 55,000 with the record; with every joint moving
+//   and reversing every sample the CPU is 92-94 % busy);
 // - a calibrated unit with curve tables (a nonlinear spring or an encoder's periodic error):
-//   200 Hz (the tables add about 3,500-4,000 cycles a sample; 250 Hz overruns);
+//   200 Hz (the tables add about 2,200 cycles a sample: 250 Hz holds on recorded motion, 96 %
+//   busy, but with every joint moving and reversing every sample it is 96-99 % busy and
+//   has overrun now and then; docs/calibration.md, "Curve tables on the board");
 // - with an on-chip residual (over either model): 200 Hz (over a calibration the default
 //   residual adds about 8,500; codegen refuses models too costly for 200 Hz).
 // With the wrench pipeline on (a low-pass filter or a tool frame: about 19,000 more cycles

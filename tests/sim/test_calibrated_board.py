@@ -67,9 +67,9 @@ def test_the_board_streams_the_python_calibrated_wrench(baseline, unit):
 def test_a_unit_with_both_curves_streams_the_python_wrench_at_its_rated_200_hz(baseline, unit,
                                                                               tmp_path):
     """The curve tables on the chip: the image with a spring curve and an encoder curve fits
-    the ATmega328P, says it sustains 200 Hz (the tables cost about 3,500 cycles a sample: 250 Hz
-    overruns), streams at that rate without a missed period, and streams the Python calibrated
-    wrench."""
+    the ATmega328P, says it sustains 200 Hz (the tables cost about 2,200 cycles a sample: at
+    250 Hz every joint moving and reversing every sample leaves no margin), streams at that
+    rate without a missed period, and streams the Python calibrated wrench."""
     truth, _, _ = unit
     cal = with_curves(random_calibration(baseline, 31), 31).with_(name="curved-unit")
     image = design_firmware(DESIGN, C.save(cal, tmp_path / "curved.toml"))
