@@ -15,6 +15,7 @@ import numpy as np
 from delta6.core import curves
 from delta6.core.calibration import Calibration
 from delta6.core.design import Design
+from delta6.core.errors import UserError
 from delta6.core.model import ENCODER_COUNT_RAD, NOMINAL_PHI
 
 from .design_header import _table, c_float, c_string
@@ -25,6 +26,13 @@ from .solver_constants import TABLE_STEP, _coarse, f32, solver_constants
 CALIBRATION_VERSION = 4
 MAX_RADII = 4
 MAX_SPEEDS = 4
+#: The largest backlash (the whole play, rad) on a gimbal joint the board's turn of the joint
+#: by half of it, to first order, keeps within the 0.01 % FS the board is held to: the
+#: first-order turn's error grows with the square of the play (measured against the Python
+#: model along random paths: 0.002, 0.008, 0.018, 0.05 % FS at 0.01, 0.02, 0.03, 0.05 rad;
+#: the branches turn to second order: 0.003 % FS at 0.1 rad). A unit with more play (over a
+#: degree) needs a tighter encoder holder.
+MAX_GIMBAL_PLAY_RAD = 0.02
 TORQUE_SHIFT = 28
 COMMAND = "delta6 codegen"
 TABLE_NAMES = tuple(f"kTable{j}" for j in range(1, 7))
@@ -66,8 +74,9 @@ class CalibrationConstants:
 FIELDS = tuple(f for f in CalibrationConstants.__dataclass_fields__ if f != "tables")
 
 
-class CalibrationRangeError(ValueError):
-    """A calibration the firmware's fixed-point sums cannot hold."""
+class CalibrationRangeError(UserError, ValueError):
+    """A calibration the firmware's fixed-point sums or small-angle steps cannot hold (the
+    command line's one-line error)."""
 
 
 #: Must equal delta6::kCalibrationCurvesVersion, kCurveAngleShift, kCurveTorqueShift,
@@ -140,6 +149,13 @@ def calibration_constants(design: Design, cal: Calibration) -> CalibrationConsta
     if len(radii) > MAX_RADII or len(speeds) > MAX_SPEEDS:
         raise CalibrationRangeError(f"the firmware takes at most {MAX_RADII} play radii and "
                                     f"{MAX_SPEEDS} sign speeds")
+    wide = np.flatnonzero(np.abs(cal.backlash_play_rad[3:]) > MAX_GIMBAL_PLAY_RAD)
+    if wide.size:
+        j = int(wide[0]) + 3
+        raise CalibrationRangeError(
+            f"joint {j + 1}'s backlash, {cal.backlash_play_rad[j]:.4g} rad, is more than the "
+            f"board's gimbal step holds to 0.01 % FS ({MAX_GIMBAL_PLAY_RAD} rad): a unit with "
+            "that much play needs a tighter encoder holder")
     mm = 1e-3
     a = design.a_mm + cal.delta_a_mm
     b = design.b_mm + cal.delta_b_mm

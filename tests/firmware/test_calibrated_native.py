@@ -170,3 +170,26 @@ def test_the_header_holds_curve_tables_only_for_the_curves_present(baseline, spr
     assert ("kCurveAngle1" in text) == encoder
     if not (spring or encoder):
         assert "const CalibrationConstants kCalibrationConstants DELTA6_FLASH" in text
+
+
+def test_gimbal_play_beyond_the_boards_first_order_turn_is_refused(baseline, libdir):
+    """The gimbal joints' backlash turns their angle to first order on the board: at the
+    largest play codegen takes it agrees with Python within the tolerance; beyond it the
+    disagreement grows with the square of the play and codegen refuses the file in one line."""
+    from delta6_codegen.calibration_header import MAX_GIMBAL_PLAY_RAD
+    cal = random_calibration(baseline, 29)
+    play = np.array(cal.backlash_play_rad, float)
+    play[3:] = MAX_GIMBAL_PLAY_RAD
+    at_limit = cal.with_(backlash_play_rad=play.copy())
+    counts = random_path(29, 400, 1365)
+    assert worst_pct(baseline, at_limit, counts, 0.004, libdir) < TOLERANCE_PCT
+    play[4] = 1.5 * MAX_GIMBAL_PLAY_RAD
+    beyond = cal.with_(backlash_play_rad=play)
+    with pytest.raises(CalibrationRangeError, match="joint 5's backlash"):
+        calibration_constants(baseline, beyond)
+    from delta6.core.errors import UserError
+    assert issubclass(CalibrationRangeError, UserError)      # one line on the command line
+    from delta6.calibration.families import board_play_checks
+    assert board_play_checks(beyond, "backlash")[0]["ratio"] == pytest.approx(1.5)
+    assert board_play_checks(at_limit, "backlash")[0]["ratio"] == pytest.approx(1.0)
+    assert board_play_checks(beyond, "joint_friction") == []
