@@ -217,9 +217,9 @@ def test_unphysical_fitted_parameters_are_flagged():
     assert warnings("joint_friction", {"coulomb_equiv_nm": [0.01] * 6,
                                        "viscous_equiv_nm_s_per_rad": [0.1, -0.02, 0, 0, 0, 0],
                                        "torque_at_ref_speed_nm": [-1] * 6}) == [
-        "joint_friction: viscous_equiv_nm_s_per_rad fitted negative (j2 -0.02): not physical, "
-        "the term stands in for something else"]
+        "joint_friction: viscous_equiv_nm_s_per_rad fitted negative (j2 -0.02): not physical; "
+        "there the term trades with a neighbouring family or stands in for something else"]
     assert warnings("link_compliance", {"axial_b1_um_per_n": -0.5, "tilt_rad_per_nm": -1.0}) \
-        == ["link_compliance: axial_b1_um_per_n fitted negative (-0.5): not physical, the term "
+        == ["link_compliance: axial_b1_um_per_n fitted negative (-0.5): not physical; the term "
             "stands in for something else"]
     assert warnings("encoder_offset", {"offset_j1_rad": -0.01}) == []

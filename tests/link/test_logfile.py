@@ -97,7 +97,7 @@ def good_text(rows=3):
     (lambda s: s.replace("0.02,0.1,", "0.02,", 1), "line 4 has 12 fields, expected 13"),
     (lambda s: s.replace("t,theta_e1", "time,theta_e1"), "missing column(s) t"),
     (lambda s: s.replace(",Mz\n", "\n").replace(",0.1\n", "\n"), "missing column(s) Mz"),
-    (lambda s: s.replace("0.02,0.1", "0.02,nan", 1), "NaN theta_e value at line 4"),
+    (lambda s: s.replace("0.02,0.1", "0.02,nan", 1), "NaN theta_e1 value at line 4"),
     (lambda s: s.replace("0.04,", "0.01,"), "not strictly increasing at line 5"),
     (lambda s: s.replace("0.02,0.1", "0.02,abc", 1), "'abc' is not a number"),
     (lambda s: s.replace("0.02,0.1", "0.02,0.#1", 1), "line 4: '0.#1' is not a number"),

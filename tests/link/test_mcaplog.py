@@ -129,7 +129,7 @@ def test_the_reader_goes_by_content_and_keeps_the_csv_checks(tmp_path):
     with McapLogWriter(path) as log:
         log.write_block(np.array([1.0, 2.0]), np.zeros((2, 6)), np.full((2, 6), np.nan))
     assert len(read_log(path, require_complete_rows=False)) == 2
-    with pytest.raises(LogError, match="missing or NaN wrench value at sample 1"):
+    with pytest.raises(LogError, match="missing or NaN Fx value at sample 1"):
         read_log(path)
 
 

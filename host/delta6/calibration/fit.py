@@ -38,7 +38,13 @@ import numpy as np
 
 from delta6 import __version__
 from delta6.calibration import bounded
-from delta6.calibration.families import Context, curve_table_checks, families, without_vanishing_curves
+from delta6.calibration.families import (
+    Context,
+    board_play_checks,
+    curve_table_checks,
+    families,
+    without_vanishing_curves,
+)
 from delta6.core import accuracy
 from delta6.core.calibrated import CalibratedModel, counts_from_angles, sample_period
 from delta6.core.calibration import CORRECTED, NOT_APPLIED, Calibration, neutral
@@ -231,10 +237,26 @@ def _extend(fitter: _Fitter, chosen: list[str], rng, progress) -> list[str]:
         if low <= MIN_EXTRA_GAIN:
             return chosen
         if progress:
-            progress(f"calibration also uses {best}: held-out error "
-                     f"-{100 * selection.gain(current, trials[best]):.1f} %")
+            progress(f"calibration also uses {best} (beyond the diagnosis's verdict): held-out "
+                     f"error -{100 * selection.gain(current, trials[best]):.1f} %")
         chosen.append(best)
         current = trials[best]
+
+
+def _anti_dissipative(cal: Calibration) -> list[str]:
+    """A note when the fitted hysteresis loops run the wrong way on most joints (negative
+    weights: a loop that gives energy back). The weights stay free (they carry what the causal
+    backlash switch and the lagging speed estimate miss, and lower the held-out error), but
+    such a family corrects a lag, not a spring's hysteresis, and the file says so."""
+    if "spring_hysteresis" not in cal.effects:
+        return []
+    loops = np.asarray(cal.hysteresis_nm, float).sum(axis=1)
+    backwards = [j + 1 for j in range(6) if loops[j] < 0]
+    if len(backwards) <= 3:
+        return []
+    return [f"spring_hysteresis: the fitted loops run backwards (negative weights) on joints "
+            f"{', '.join(map(str, backwards))}: the family corrects a lag the other terms leave "
+            "(friction's or backlash's causal switch), not a spring's hysteresis"]
 
 
 def _worst_implausible(fitter: _Fitter, cal: Calibration, chosen) -> tuple | None:
@@ -243,7 +265,8 @@ def _worst_implausible(fitter: _Fitter, cal: Calibration, chosen) -> tuple | Non
     worst, worst_ratio = None, 1.0
     for effect in chosen:
         failed = fitter.families[effect].implausible(cal) + [
-            c for c in curve_table_checks(fitter.data.design, cal, effect) if c["ratio"] > 1.0]
+            c for c in curve_table_checks(fitter.data.design, cal, effect)
+            + board_play_checks(cal, effect) if c["ratio"] > 1.0]
         ratio = max((c["ratio"] for c in failed), default=0.0)
         if ratio > worst_ratio:
             worst, worst_ratio = (effect, failed), ratio
@@ -379,6 +402,7 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
         notes.append(note)
         if progress:
             progress(note)
+    notes += _anti_dissipative(cal)
     seconds = time.perf_counter() - started
     fit_record = {
         "log": source, "samples": len(data), "duration_s": float(data.t[-1] - data.t[0]),

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
+from delta6.calibration.fit import effects_to_fit
 from delta6.core.calibrated import CalibratedModel
 from delta6.core.calibration import SECTIONS
 from delta6.core.model import AXES, wrench
@@ -14,6 +15,24 @@ from delta6.diagnosis.report import pyplot
 
 def _row(label: str, values) -> str:
     return f"| {label} | " + " | ".join(f"{v:.2f}" for v in values) + " |"
+
+
+def corrected(fit) -> str:
+    """The corrected effects: those the diagnosis named (or --effect gave), apart from those
+    the calibration added because they lowered the held-out error further."""
+    effects = list(fit.calibration.effects)
+    if not effects:
+        return "nothing (no significant unmodelled effect)"
+    if fit.diagnosis is None:
+        return ", ".join(effects) + f" (chosen by {fit.chosen_by})"
+    named = set(effects_to_fit(fit.diagnosis))
+    parts = []
+    if named & set(effects):
+        parts.append(", ".join(e for e in effects if e in named) + " (the diagnosis's verdict)")
+    added = [e for e in effects if e not in named]
+    if added:
+        parts.append(", ".join(added) + " (added: each lowered the held-out error further)")
+    return "; ".join(parts)
 
 
 def write_report(fit, log, design, out_dir, source: str = "") -> Path:
@@ -49,8 +68,7 @@ def write_report(fit, log, design, out_dir, source: str = "") -> Path:
     lines = [f"# Delta6 calibration '{cal.name}'{': ' + source if source else ''}", "",
              f"Design `{cal.design_name}` (0x{cal.design_hash:08x}); calibration hash "
              f"0x{cal.hash32():08x}; {len(log)} samples; fitted in {fit.seconds:.1f} s.", "",
-             "Corrects: " + (", ".join(f"**{e}**" for e in cal.effects) or "nothing")
-             + f" (chosen by {fit.chosen_by}).", ""]
+             f"Corrects: {corrected(fit)}.", ""]
     how = "as stated" if fit.latency_given else "fitted"
     lines += [f"The reference sensor is late by {1e3 * fit.latency_s:.1f} ms ({how}): a "
               "property of the rig, not applied on the board.", ""]

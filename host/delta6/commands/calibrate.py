@@ -7,7 +7,7 @@ from pathlib import Path
 
 from delta6.calibration import calibrate
 from delta6.calibration.fit import check_rig_latency
-from delta6.calibration.report import write_report
+from delta6.calibration.report import corrected, write_report
 from delta6.core import calibration as calibration_mod
 from delta6.core.calibration import CORRECTED, NAME_LIMIT
 from delta6.core.errors import UserError
@@ -82,9 +82,7 @@ def summary(fit, out: Path) -> str:
 
     lines = [f"wrote {out}: calibration '{cal.name}' (hash 0x{cal.hash32():08x}) for design "
              f"'{cal.design_name}' (0x{cal.design_hash:08x}), fitted in {fit.seconds:.1f} s",
-             "corrects: " + (", ".join(cal.effects) or "nothing (no significant unmodelled "
-                                                        "effect)")
-             + f" (chosen by {fit.chosen_by})"]
+             "corrects: " + corrected(fit)]
     how = "as stated" if fit.latency_given else "fitted"
     lines.append(f"rig latency {1e3 * fit.latency_s:.1f} ms ({how}): the reference's, not "
                  "applied on the board")

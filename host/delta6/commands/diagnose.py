@@ -8,7 +8,7 @@ import math
 import sys
 from pathlib import Path
 
-from delta6.core.design import load, shipped_design
+from delta6.core.design import load, shipped_design, shipped_design_named
 from delta6.core.errors import UserError
 from delta6.core.model import AXES
 from delta6.core.outputs import check_output_file, check_output_folder
@@ -78,7 +78,8 @@ def refuse_device_log(log: LogData, name) -> None:
 
 def choose_design(log: LogData, name, given: str | None, force: bool):
     """The design file to diagnose with: ``given`` if it is the one the log names (or
-    ``force``), else the shipped design with the log's hash, else the default."""
+    ``force``), else the shipped design with the log's hash (or, without one, its name),
+    else the default."""
     recorded = log.meta.get("design_hash")
     try:
         recorded = int(recorded, 16) if recorded else None
@@ -86,14 +87,26 @@ def choose_design(log: LogData, name, given: str | None, force: bool):
         raise UserError(f"{name}: design_hash {recorded!r} in the header is not a hex "
                         "number") from None
     label = f"design '{log.meta.get('design', '?')}' (hash 0x{recorded or 0:08x})"
+    called = log.meta.get("design") or None
     if given is not None:
         if recorded is not None and not force and load(given).hash32() != recorded:
             raise UserError(f"{name} was recorded with {label}, but {given} has hash "
                             f"0x{load(given).hash32():08x}: pass the log's design, or --force "
                             "to diagnose against this one")
+        if recorded is None and called and not force and load(given).name != called:
+            raise UserError(f"{name} names design '{called}' in its header, but {given} is "
+                            f"'{load(given).name}': pass the log's design, or --force to "
+                            "diagnose against this one")
         return given
     if recorded is None:
-        return DEFAULT_DESIGN
+        # A header may name its design without the hash (a rig's, a simulator's).
+        if called is None or load(DEFAULT_DESIGN).name == called:
+            return DEFAULT_DESIGN
+        path = shipped_design_named(called)
+        if path is None:
+            raise UserError(f"{name} names design '{called}' in its header, which is not a "
+                            "shipped design: pass its file with --design")
+        return path
     path = shipped_design(recorded)
     if path is None:
         raise UserError(f"{name} was recorded with {label}, which is not a shipped design: "

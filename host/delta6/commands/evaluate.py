@@ -15,6 +15,7 @@ from delta6.core.outputs import check_output_file
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.spec import full_scale
 from delta6.core.workspace import load_checked
+from delta6.diagnosis.data import check_log
 from delta6.evaluation import tablev
 from delta6.evaluation.error_plot import check_plot_path, plot_errors
 from delta6.learning import LearnedEstimator
@@ -110,6 +111,9 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"{args.log}: no samples")
     require_reference_wrench(log.meta, args.log, "Table V compares the estimators with a "
                              "reference (docs/calibration.md)")
+    # The diagnosis's checks (units, wrap-arounds, corrupt rows): a table of a broken log is
+    # no figure.
+    check_log(log, design, min_samples=1)
     cal = calibration_mod.load(args.calibration) if args.calibration else None
     latency = rig_latency(args, cal)
     rows = [Computed(e.name, e.predict(log)) for e in estimators(args, design, log, cal)]

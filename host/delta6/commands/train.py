@@ -13,6 +13,7 @@ from delta6.core.errors import UserError
 from delta6.core.outputs import check_output_file
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
+from delta6.diagnosis.data import check_log
 from delta6.learning.presets import KINDS, PRESETS, preset
 from delta6.link.logdata import require_reference_wrench
 from delta6.link.logfile import read_log
@@ -81,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
     design = load_checked(args.design)
     log = read_log(args.log)
     require_reference_wrench(log.meta, args.log, TRAINS_ON_A_REFERENCE)
+    check_log(log, design, min_samples=1)
     chosen = preset(args.preset, args.model)
     changes = {k: v for k, v in (("max_epochs", args.epochs), ("max_minutes", args.max_minutes))
                if v is not None}
@@ -168,6 +170,7 @@ def run_mcu(args: argparse.Namespace) -> int:
     base = _mcu_base(args, design)
     log = read_log(args.log)
     require_reference_wrench(log.meta, args.log, TRAINS_ON_A_REFERENCE)
+    check_log(log, design, min_samples=1)
     # the board runs this model on one design (and calibration): a log of another is refused
     calibration_mod.check_log_meta(log.meta, design, getattr(base, "calibration", None),
                                    source=str(args.log))

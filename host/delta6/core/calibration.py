@@ -435,7 +435,7 @@ def check_log_meta(meta: dict, design, calibration: Calibration | None = None,
                    source: str = "the log") -> None:
     """Refuse to mix a log with another design or calibration than the one it names in its
     header (``design_hash``, ``calibration_hash``: written by the logger from the device
-    info). A log that names none (a rig's or the twin's) is taken as it is."""
+    info; without the hash, the ``design`` name). A log that names none is taken as it is."""
     named = meta.get("design_hash")
     if named is not None:
         try:
@@ -445,6 +445,11 @@ def check_log_meta(meta: dict, design, calibration: Calibration | None = None,
         if value is not None and value != design.hash32():
             raise CalibrationError(f"{source} was recorded with design {meta.get('design', '?')}"
                                    f" ({named}), not '{design.name}' (0x{design.hash32():08x})")
+    elif meta.get("design") not in (None, "", design.name):
+        # A header that names its design without the hash (a rig's, a simulator's) is held to
+        # the name: another design's geometry would fit the log's error away.
+        raise CalibrationError(f"{source} names design '{meta['design']}' in its header, not "
+                               f"'{design.name}': pass that design with --design")
     named = meta.get("calibration_hash")
     if named is not None and calibration is not None:
         try:

@@ -201,6 +201,14 @@ def load(path: str | Path) -> Design:
     return validate(raw, source)
 
 
+def shipped_design_named(name: str) -> Path | None:
+    """The shipped design file (``designs/``) whose design is called ``name``."""
+    for path in sorted(DESIGNS_DIR.glob("*.toml")):
+        if load(path).name == name:
+            return path
+    return None
+
+
 def shipped_design(design_hash: int) -> Path | None:
     """The shipped design file (``designs/``) whose physics hashes to ``design_hash``."""
     for path in sorted(DESIGNS_DIR.glob("*.toml")):

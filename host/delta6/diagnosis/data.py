@@ -22,6 +22,9 @@ DEFAULT_REF_TEMP_C = 23.0
 MAX_FULL_SCALES = 3.0
 #: Below this many samples the held-out scoring has too few independent blocks to mean much.
 MIN_SAMPLES = 2000
+#: A log sampled more slowly than this (median step, s) is no sensor stream: most likely its
+#: time is in milliseconds.
+MAX_SAMPLE_STEP_S = 1.0
 #: Samples per piece when a per-sample map of the whole log is computed (bounds the memory
 #: the model's intermediate arrays take on long logs).
 PIECE = 50_000
@@ -57,36 +60,9 @@ class GapData:
     @classmethod
     def from_log(cls, log: LogData, design: Design,
                  ref_temp_c: float = DEFAULT_REF_TEMP_C) -> "GapData":
-        n = len(log.t)
-        if n < MIN_SAMPLES:
-            raise DiagnosisInputError(f"too few samples: {n} (the diagnosis needs at least "
-                                      f"{MIN_SAMPLES} for time-blocked held-out scoring)")
-        for name, values in (("t", log.t), ("theta_e", log.theta), ("wrench", log.wrench)):
-            if not np.all(np.isfinite(values)):
-                raise DiagnosisInputError(f"NaN or infinite {name} values in the log")
-        if np.any(np.diff(log.t) <= 0):
-            raise DiagnosisInputError("time is not strictly increasing")
+        check_log(log, design)
         temp = log.temp_c
-        if temp is not None and not np.all(np.isfinite(temp)):
-            raise DiagnosisInputError("NaN or infinite temp_c values in the log")
         fs = full_scale(design)
-        over = np.abs(log.wrench) > MAX_FULL_SCALES * fs
-        if over.any():
-            row, axis = (int(v) for v in np.argwhere(over)[0])
-            unit = "N" if axis < 3 else "N*m"
-            raise DiagnosisInputError(
-                f"{int(over.any(axis=1).sum())} samples have a reference wrench far outside "
-                f"the design's range, the first at t = {log.t[row]:g} s: {AXES[axis]} = "
-                f"{log.wrench[row, axis]:.4g} {unit} (full scale {fs[axis]:.4g} {unit}; up to "
-                f"{MAX_FULL_SCALES:g}x is accepted): a corrupt log, a unit error or the wrong "
-                "design")
-        limit = design.joint_limit_rad
-        outside = np.abs(log.theta) > 1.5 * limit
-        if outside.mean() > 0.01:
-            raise DiagnosisInputError(
-                f"{outside.any(axis=1).mean():.0%} of the samples have encoder angles far "
-                f"outside the joint box (|theta_e| > {1.5 * limit:.2f} rad): wrong units "
-                "(degrees?) or wrong design")
         # Contiguous copies: a log's columns may be views into its whole table, which then
         # need not stay in memory.
         data = cls(design=design, params=Params.from_design(design),
@@ -233,3 +209,55 @@ class GapData:
         """The residual expressed as the extra joint torques that would explain it,
         G^-1 r (N*m): makes torque-side effects (hysteresis, friction) visible per joint."""
         return self.joint_torque_of(self.residual)
+
+
+def check_log(log: LogData, design: Design, min_samples: int = MIN_SAMPLES) -> None:
+    """The checks a log passes before any model is fitted to it or scored on it (the
+    diagnosis, ``delta6 calibrate``, ``delta6 evaluate``): enough samples, finite values, time
+    in seconds and strictly increasing, angles without a count wrap-around and inside the
+    joint box, reference wrenches the design can carry. Each failure is one
+    :class:`DiagnosisInputError` naming the problem."""
+    n = len(log.t)
+    if n < min_samples:
+        raise DiagnosisInputError(f"too few samples: {n} (the diagnosis needs at least "
+                                  f"{min_samples} for time-blocked held-out scoring)")
+    for name, values in (("t", log.t), ("theta_e", log.theta), ("wrench", log.wrench)):
+        if not np.all(np.isfinite(values)):
+            raise DiagnosisInputError(f"NaN or infinite {name} values in the log")
+    steps = np.diff(log.t)
+    if np.any(steps <= 0):
+        raise DiagnosisInputError("time is not strictly increasing")
+    if n > 1 and np.median(steps) > MAX_SAMPLE_STEP_S:
+        step = float(np.median(steps))
+        raise DiagnosisInputError(
+            f"the log's median sample step is {step:.4g} s ({1 / step:.3g} Hz), slower than "
+            f"any force sensor's stream: t must be in seconds (milliseconds?)")
+    jumps = np.abs(np.diff(log.theta, axis=0)) > np.pi
+    if jumps.any():
+        row, joint = (int(v) for v in np.argwhere(jumps)[0])
+        step = log.theta[row + 1, joint] - log.theta[row, joint]
+        raise DiagnosisInputError(
+            f"theta_e{joint + 1} jumps by {step:+.4g} rad between t = {log.t[row]:g} and "
+            f"{log.t[row + 1]:g} s: a count wrap-around (angles must be unwrapped, relative to "
+            "the encoder zeros) or a corrupt row")
+    temp = log.temp_c
+    if temp is not None and not np.all(np.isfinite(temp)):
+        raise DiagnosisInputError("NaN or infinite temp_c values in the log")
+    fs = full_scale(design)
+    over = np.abs(log.wrench) > MAX_FULL_SCALES * fs
+    if over.any():
+        row, axis = (int(v) for v in np.argwhere(over)[0])
+        unit = "N" if axis < 3 else "N*m"
+        raise DiagnosisInputError(
+            f"{int(over.any(axis=1).sum())} samples have a reference wrench far outside "
+            f"the design's range, the first at t = {log.t[row]:g} s: {AXES[axis]} = "
+            f"{log.wrench[row, axis]:.4g} {unit} (full scale {fs[axis]:.4g} {unit}; up to "
+            f"{MAX_FULL_SCALES:g}x is accepted): a corrupt log, a unit error or the wrong "
+            "design")
+    limit = design.joint_limit_rad
+    outside = np.abs(log.theta) > 1.5 * limit
+    if outside.mean() > 0.01:
+        raise DiagnosisInputError(
+            f"{outside.any(axis=1).mean():.0%} of the samples have encoder angles far "
+            f"outside the joint box (|theta_e| > {1.5 * limit:.2f} rad): wrong units "
+            "(degrees?) or wrong design")

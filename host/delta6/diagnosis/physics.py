@@ -26,6 +26,10 @@ def warnings(effect: str, params: dict) -> list[str]:
         if bad:
             where = ", ".join((f"j{i + 1} " if len(values) > 1 else "") + f"{v:.3g}"
                               for i, v in bad)
-            out.append(f"{effect}: {name} fitted negative ({where}): not physical, the term "
-                       "stands in for something else")
+            # Per joint, a family of several often takes a neighbour's part there (friction,
+            # hysteresis and backlash trade): the effect may still be there on the others.
+            out.append(f"{effect}: {name} fitted negative ({where}): not physical; "
+                       + ("there the term trades with a neighbouring family or stands in for "
+                          "something else" if len(bad) < len(values) else
+                          "the term stands in for something else"))
     return out

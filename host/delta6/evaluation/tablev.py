@@ -104,11 +104,15 @@ def format_table(result: dict) -> str:
     width = max([10] + [len(r["estimator"]) for r in result["rows"]])
     against = (f" (reference advanced by the rig latency, {1e3 * result['rig_latency_s']:.1f} ms)"
                if result.get("rig_latency_s") else "")
+    # Columns widen for a value of a thousand per cent or more (a broken estimator), so that
+    # numbers never run into each other.
+    cell = max([8] + [len(f"{v:.2f}") + 2 for r in result["rows"] for _, key in COLUMNS
+                      for v in r[key]])
     lines = [f"Table V: |error| in % of full scale, {result['samples']} samples{against}",
-             f"{'estimator':<{width}}  {'':<4}" + "".join(f"{a:>8}" for a in AXES)]
+             f"{'estimator':<{width}}  {'':<4}" + "".join(f"{a:>{cell}}" for a in AXES)]
     for r in result["rows"]:
         for q, key in COLUMNS:
             label = "max" if q == 100 else f"p{q}"
             lines.append(f"{r['estimator']:<{width}}  {label:<4}"
-                         + "".join(f"{v:8.2f}" for v in r[key]))
+                         + "".join(f"{v:{cell}.2f}" for v in r[key]))
     return "\n".join(lines)

@@ -15,6 +15,8 @@ THETA_COLUMNS = tuple(f"theta_e{i}" for i in range(1, 7))
 WRENCH_COLUMNS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 #: Required, in this order, at the start of every row.
 CORE_COLUMNS = ("t",) + THETA_COLUMNS + WRENCH_COLUMNS
+#: The columns every row of a complete log fills.
+COMPLETE_COLUMNS = THETA_COLUMNS + WRENCH_COLUMNS
 #: Optional columns, after the core ones, in this order when present.
 OPTIONAL_COLUMNS = ("seq", "status", "host_t", "temp_c")
 UNITS = {"t": "s", "theta_e": "rad", "F": "N", "M": "N*m", "host_t": "s (host monotonic)",
@@ -76,10 +78,13 @@ def check_rows(path, t: np.ndarray, theta: np.ndarray, wrench: np.ndarray,
     and strictly increasing time. ``place(i)`` names row i in the reader's terms ("line 7" of
     a CSV file, "sample 3" of an MCAP file) for the one-line error."""
     if require_complete_rows:
-        for name, values in (("theta_e", theta), ("wrench", wrench)):
-            bad = np.isnan(values).any(axis=1)
-            if bad.any():
-                raise LogError(f"{path}: missing or NaN {name} value at {place(int(np.argmax(bad)))}")
+        values = np.concatenate([theta, wrench], axis=1)
+        bad = np.isnan(values).any(axis=1)
+        if bad.any():
+            # The first row in the file's order, whichever column it is in.
+            row = int(np.argmax(bad))
+            name = COMPLETE_COLUMNS[int(np.argmax(np.isnan(values[row])))]
+            raise LogError(f"{path}: missing or NaN {name} value at {place(row)}")
     steps = np.diff(t)
     if (steps <= 0).any():
         raise LogError(f"{path}: time is not strictly increasing at {place(int(np.argmax(steps <= 0)) + 1)}")

@@ -268,7 +268,9 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
         return mcaplog.read_mcap(path, require_complete_rows=require_complete_rows)
     try:
         cut = path.name.endswith(PARTIAL_SUFFIX) and not _ends_with_newline(path)
-        with open(path, encoding="ascii", newline=None) as f:
+        # A spreadsheet's UTF-8 byte-order mark before the first line is no content.
+        with open(path, encoding="utf-8-sig" if _has_bom(path) else "ascii",
+                  newline=None) as f:
             meta, columns, body_start = _read_header(path, f)
             table, line_of = _read_body(path, f, len(columns), body_start, drop_last=cut)
         if cut:
@@ -305,6 +307,11 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
                    temp_c=optional("temp_c"), meta=meta)
 
 
+def _has_bom(path: Path) -> bool:
+    with open(path, "rb") as f:
+        return f.read(3) == b"\xef\xbb\xbf"
+
+
 def _read_header(path: Path, f) -> tuple[dict, list[str], int]:
     """The comment lines and the column header: (meta, columns, index of the header line)."""
     meta: dict[str, str] = {}
@@ -328,7 +335,8 @@ def _read_header(path: Path, f) -> tuple[dict, list[str], int]:
     if "schema" in meta and meta["schema"] != str(SCHEMA_VERSION):
         raise LogError(f"{path}: log schema {meta['schema']} is not supported "
                        f"(this version reads schema {SCHEMA_VERSION})")
-    columns = [c.strip() for c in header.split(",")]
+    # Spreadsheets may quote the names.
+    columns = [c.strip().strip('"') for c in header.split(",")]
     missing = [c for c in CORE_COLUMNS if c not in columns]
     if missing:
         raise LogError(f"{path}: missing column(s) {', '.join(missing)}")

@@ -1,0 +1,138 @@
+"""Logs as other people's rigs and simulators write them: every command that scores or fits a
+model on a log refuses a broken one in one line (status 2), whatever the command; a log that
+is only written differently (a byte-order mark, quoted names) is read."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from delta6.cli import main
+from delta6.link.logfile import LogWriter, read_log
+
+from conftest import DESIGNS
+from support.logs import synthetic_log
+
+DESIGN = str(DESIGNS / "delta6.toml")
+STIFF = str(DESIGNS / "stiff.toml")
+
+
+def write(path, log, meta=None):
+    with LogWriter(path, {"design": "delta6"} if meta is None else meta) as w:
+        w.write_block(log.t, log.theta, log.wrench)
+    return path
+
+
+@pytest.fixture(scope="module")
+def clean(baseline):
+    return synthetic_log(baseline, "none", n=2500)
+
+
+def one_line(capsys) -> str:
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    return err
+
+
+def broken(log, how):
+    out = type(log)(t=log.t.copy(), theta=log.theta.copy(), wrench=log.wrench.copy())
+    if how == "wrap":
+        out.theta[700:, 1] += 2 * np.pi              # a 14-bit count wrapped on joint 2
+    elif how == "milliseconds":
+        out.t = out.t * 1000.0
+    elif how == "newton-millimetres":
+        out.wrench[:, 3:] *= 1000.0
+    elif how == "degrees":
+        out.theta = np.degrees(out.theta)
+    return out
+
+
+@pytest.mark.parametrize("how, words", [
+    ("wrap", "theta_e2 jumps by +6.2"),
+    ("milliseconds", "t must be in seconds"),
+    ("newton-millimetres", "far outside the design's range"),
+    ("degrees", "degrees"),
+])
+@pytest.mark.parametrize("command", ["evaluate", "diagnose"])
+def test_a_broken_log_is_refused_by_every_command(tmp_path, clean, capsys, how, words,
+                                                   command):
+    path = write(tmp_path / "bad.csv", broken(clean, how))
+    extra = ["--quiet"] if command == "diagnose" else []
+    assert main([command, str(path), "--design", DESIGN, *extra]) == 2
+    assert words in one_line(capsys)
+
+
+def test_evaluate_scores_a_clean_short_log(tmp_path, clean, capsys):
+    short = type(clean)(t=clean.t[:300], theta=clean.theta[:300], wrench=clean.wrench[:300])
+    assert main(["evaluate", str(write(tmp_path / "short.csv", short)), "--design",
+                 DESIGN]) == 0
+    assert "analytical" in capsys.readouterr().out
+
+
+def test_a_design_named_without_its_hash_is_held_to_the_name(tmp_path, clean, capsys):
+    path = write(tmp_path / "stiff.csv", clean, meta={"design": "stiff"})
+    assert main(["evaluate", str(path), "--design", DESIGN]) == 2
+    assert "names design 'stiff'" in one_line(capsys)
+    assert main(["diagnose", str(path), "--design", DESIGN, "--quiet"]) == 2
+    assert "names design 'stiff'" in one_line(capsys)
+    # Without --design the diagnosis takes the shipped design of that name.
+    from delta6.commands.diagnose import choose_design
+    assert choose_design(read_log(path), path, None, False).name == "stiff.toml"
+    unknown = write(tmp_path / "mine.csv", clean, meta={"design": "my-variant"})
+    assert main(["diagnose", str(unknown), "--quiet"]) == 2
+    assert "not a shipped design" in one_line(capsys)
+    # A log that names no design is taken as it is.
+    from delta6.core.calibration import CalibrationError, check_log_meta
+    from delta6.core.design import load
+    check_log_meta({}, load(STIFF))
+    check_log_meta({"design": "stiff"}, load(STIFF))
+    with pytest.raises(CalibrationError, match="names design 'delta6'"):
+        check_log_meta({"design": "delta6"}, load(STIFF))
+
+
+def test_the_first_missing_value_in_the_file_is_named(tmp_path, clean, capsys):
+    path = write(tmp_path / "holes.csv", clean)
+    lines = path.read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    cells = lines[header + 100].split(",")
+    cells[8] = "nan"                                 # Fy, row 100
+    lines[header + 100] = ",".join(cells)
+    cells = lines[header + 2000].split(",")
+    cells[3] = ""                                    # theta_e3, row 2000: later in the file
+    lines[header + 2000] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+    assert main(["evaluate", str(path), "--design", DESIGN]) == 2
+    assert f"missing or NaN Fy value at line {header + 101}" in one_line(capsys)
+
+
+def test_spreadsheet_habits_are_read(tmp_path, clean):
+    path = write(tmp_path / "plain.csv", clean)
+    text = path.read_text()
+    lines = text.splitlines()
+    header = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    lines[header] = ",".join(f'"{c}"' for c in lines[header].split(","))
+    quoted = tmp_path / "quoted.csv"
+    quoted.write_text("\n".join(lines) + "\n")
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + text.encode("ascii"))
+    want = read_log(path)
+    for other in (quoted, bom):
+        got = read_log(other)
+        np.testing.assert_array_equal(got.theta, want.theta)
+        np.testing.assert_array_equal(got.wrench, want.wrench)
+        assert got.meta.get("design") == "delta6"
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.floats(1e3, 1e6), st.integers(0, 5))
+def test_table_columns_never_run_into_each_other(big, axis):
+    from delta6.evaluation.tablev import format_table
+    values = [1.0] * 6
+    values[axis] = big
+    rows = [{"estimator": "analytical", "p95_pct": values, "p99_pct": values,
+             "max_pct": values}]
+    text = format_table({"rows": rows, "samples": 10})
+    for line in text.splitlines()[2:]:
+        numbers = line.split()[2:]
+        assert len(numbers) == 6 and float(numbers[axis]) == pytest.approx(big, abs=0.01)

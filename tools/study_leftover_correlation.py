@@ -1,0 +1,289 @@
+"""Would the joints' correlated torque noise raise the leftover angle test's power? The figures
+behind docs/diagnosis.md's note on it ("What is left"). Development seeds only (below 10,000).
+
+    .venv/bin/python tools/study_leftover_correlation.py                 # all three, ~6 min
+    .venv/bin/python tools/study_leftover_correlation.py --study noise   # ~15 s
+    .venv/bin/python tools/study_leftover_correlation.py --study runs --seeds 4102 4103 \
+        --withhold geometry_error         # proximal encoder errors without the geometry family
+
+The leftover's white noise comes mostly from the reference sensor's wrench noise mapped through
+G^-1, so it is correlated across joints. The candidate test for joint j runs the verdict's angle
+test (``leftover.angle_test``) on the conditional residual tau_j - b_j (tau_-j - S_-j), with
+b_j = Omega_j,-j Omega_-j,-j^-1 (Omega: the joints' white-noise covariance from first
+differences, robust scales and the Gnanadesikan-Kettenring cross terms) and S_k the other
+joints' own-angle polynomials (fitted on the whole log, so that another joint's curve in its
+own angle does not leak into joint j).
+
+- ``noise``: on runs without effects, the correlation of the joints' white torque noise, the
+  conditional residual's noise against the joint's own, and whether the leftover is white
+  (the sd of block means against the white level).
+- ``runs``: twin runs diagnosed as the blind benchmark's unknown cases (the three newest
+  families withheld): an encoder's periodic error on one or two joints, the stiffening spring,
+  the harness, no effect. Per joint: the bend (``gap_benchmark.joint_bends``), what the
+  leftover's held-out angle fit explains, the leftover's slow part that is no function of the
+  joint's own angle, and the angle test's p on the joint's torque (old), on the conditional
+  residual (new), and on the joint's own-angle curve (fitted on the whole log) plus white
+  noise at the joint's level in place of the rest (the median of five draws: what the test
+  would give if only the white noise stood in its way); the verdict's joints with each.
+- ``white``: a white leftover (a run without effects) with an encoder-error-like curve added
+  on one joint (its footprint G^-1 dW/dtheta_j times a smooth function of the angle, straight
+  part removed): the power of both tests; and the level on simulated white noise with the
+  sensor's cross-axis covariance, alone and with a curve on another joint or a pose-dependent
+  force on the plate.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+from delta6 import twin
+from delta6.core.paths import DEFAULT_DESIGN
+from delta6.core.workspace import load_checked
+from delta6.diagnosis import leftover, sensitivity
+from delta6.diagnosis.run import diagnose
+from delta6.diagnosis.terms import TERMS
+from delta6.evaluation import gap_benchmark
+from delta6.link.logfile import LogData
+
+NEWEST = ("nonlinear_spring", "encoder_periodic_error", "harness")
+LEVEL = leftover.ANGLE_ALPHA / 6
+DURATION = 400.0
+EPE = "encoder_periodic_error"
+#: (seed, [(effect, magnitude, joints or None)]): development seeds.
+RUNS = [
+    (4101, [(EPE, 0.8, [1])]), (4102, [(EPE, 0.8, [2])]), (4103, [(EPE, 0.8, [3])]),
+    (4118, [(EPE, 0.9, [2])]), (4119, [(EPE, 0.9, [1])]),
+    (4104, [(EPE, 0.8, [1, 2])]), (4105, [(EPE, 0.8, [2, 3])]), (4106, [(EPE, 0.8, [1, 3])]),
+    (4120, [(EPE, 0.9, [1, 2])]),
+    (4107, [(EPE, 0.8, [4])]), (4108, [(EPE, 0.8, [5, 6])]), (4109, [(EPE, 0.8, [2, 5])]),
+    (4110, [(EPE, 0.7, [3, 4])]),
+    (4111, [("nonlinear_spring", 0.8, None)]), (4112, [("nonlinear_spring", 0.7, [2])]),
+    (4113, [("harness", 0.8, None)]), (4114, [("harness", 0.7, None)]),
+    (4115, []), (4116, []), (4117, []),
+]
+
+
+def robust_cov(d: np.ndarray) -> np.ndarray:
+    """The white-noise covariance of the columns whose first differences are ``d``."""
+    def mad(x):
+        return 1.4826 * np.median(np.abs(x - np.median(x, axis=0)), axis=0)
+    sd = mad(d)
+    z = d / sd
+    c = np.eye(d.shape[1])
+    for i in range(d.shape[1]):
+        for j in range(i + 1, d.shape[1]):
+            a, b = mad(z[:, i] + z[:, j]), mad(z[:, i] - z[:, j])
+            c[i, j] = c[j, i] = (a * a - b * b) / (a * a + b * b)
+    return c * np.outer(sd, sd) / 2.0
+
+
+def own_poly(angle: np.ndarray) -> np.ndarray:
+    s = (angle - angle.mean()) / (angle.std() or 1.0)
+    return np.stack([s**k for k in range(leftover.ANGLE_DEGREE + 1)], axis=1)
+
+
+def beyond_own_angle(tau: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    out = np.empty_like(tau)
+    for k in range(tau.shape[1]):
+        b = own_poly(theta[:, k])
+        out[:, k] = tau[:, k] - b @ np.linalg.lstsq(b, tau[:, k], rcond=None)[0]
+    return out
+
+
+def conditional(tau: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Per joint, its torque less what the other joints' noise predicts of its own."""
+    omega = robust_cov(np.diff(tau, axis=0))
+    pred = beyond_own_angle(tau, theta)
+    out = np.empty_like(tau)
+    for j in range(6):
+        o = [k for k in range(6) if k != j]
+        out[:, j] = tau[:, j] - pred[:, o] @ np.linalg.solve(omega[np.ix_(o, o)], omega[o, j])
+    return out
+
+
+def run(design, seed: int, effects, withhold=()) -> dict:
+    """A twin run diagnosed without the newest families (and ``withhold``); the leftover
+    verdict's input."""
+    made = [twin.make_effect(name, seed=seed + 100_000 * i, magnitude=m, joints=joints,
+                             formulation=twin.random_effect(name, seed=seed + 100_000 * i)
+                             .formulation)
+            for i, (name, m, joints) in enumerate(effects)]
+
+    def simulate(active):
+        return twin.simulate(design, active, duration_s=DURATION, rate_hz=50.0, seed=seed,
+                             record_temp=True)
+    r = simulate(made)
+    seen = {}
+    analyse = leftover.analyse
+
+    def spy(data, leftover_fs):     # the verdict's own input, as diagnose hands it over
+        seen.update(data=data, left=leftover_fs.copy())
+        return analyse(data, leftover_fs)
+    leftover.analyse = spy
+    try:
+        verdict = diagnose(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c),
+                           design, seed=0, terms=[t for t in TERMS if t.name not in NEWEST + tuple(withhold)])
+    finally:
+        leftover.analyse = analyse
+    bends = None
+    if made and made[0].NAME in gap_benchmark.BENT_EFFECTS and effects[0][2]:
+        bends = gap_benchmark.joint_bends(design, made[0], simulate, simulate([]))
+    data = seen["data"]
+    idx = np.arange(0, len(data), max(1, len(data) // leftover.SHAPE_SAMPLES))
+    return {"data": data, "left": seen["left"], "verdict": verdict, "bends": bends,
+            "tau": data.joint_torque_of(seen["left"][idx] * data.fs, idx),
+            "theta": data.theta[idx], "formulations": [e.formulation for e in made]}
+
+
+def verdict_joints(data, left, tests) -> list[int]:
+    """The leftover verdict's joints with each joint's angle test taken from ``tests``."""
+    calls = iter(tests)
+    angle_test = leftover.angle_test
+    leftover.angle_test = lambda *a, **k: next(calls)
+    try:
+        return leftover.analyse(data, left)["joints"]
+    finally:
+        leftover.angle_test = angle_test
+
+
+def study_noise(design) -> None:
+    np.set_printoptions(precision=2, suppress=True, linewidth=120)
+    for seed in (4115, 4116, 4117):
+        c = run(design, seed, [])
+        tau = c["data"].joint_torque_of(c["left"] * c["data"].fs)
+        omega = robust_cov(np.diff(tau, axis=0))
+        sd = np.sqrt(np.diag(omega))
+        corr = omega / np.outer(sd, sd)
+        ratio = 1.0 / np.sqrt(np.diag(omega) * np.diag(np.linalg.inv(omega)))
+        blocks = tau[: len(tau) // 1000 * 1000].reshape(-1, 1000, 6).mean(axis=1)
+        print(f"seed {seed}: white torque noise (mN*m) {1e3 * sd}")
+        print(f"  correlation across joints:\n{corr}")
+        print(f"  conditional residual's noise / joint's own: {ratio}")
+        print(f"  sd of 20-s block means x sqrt(1000) / white: {blocks.std(0) * 31.62 / sd}")
+
+
+def study_runs(design, seeds=None, withhold=()) -> None:
+    print("per run; per joint: bend | leftover's held-out angle fit | slow part beyond the "
+          "own-angle curve (mN*m) | p old | p new | p if the rest were white "
+          "(* <= 1.67e-4)")
+    rng = np.random.default_rng(1)
+    false = {"old": 0, "new": 0}
+    false_verdict = {"old": 0, "new": 0}
+    for seed, effects in RUNS:
+        if seeds and seed not in seeds:
+            continue
+        c = run(design, seed, effects, withhold)
+        tau, theta = c["tau"], c["theta"]
+        tests = {"old": [leftover.angle_test(tau[:, j], theta[:, j]) for j in range(6)]}
+        e = conditional(tau, theta)
+        tests["new"] = [leftover.angle_test(e[:, j], theta[:, j]) for j in range(6)]
+        white = leftover.noise_sd(tau)
+        rest = beyond_own_angle(tau, theta)
+        slow = np.sqrt(np.maximum(rest.var(axis=0) - white**2, 0.0))
+        joints = {k: verdict_joints(c["data"], c["left"], v) for k, v in tests.items()}
+        acting = set(effects[0][2] or range(1, 7)) if effects else set()
+        named = [s["added"] for s in c["verdict"]["ladder"]]
+        label = ", ".join(f"{n} {c['formulations'][i]} on {j or 'all'}"
+                          for i, (n, _, j) in enumerate(effects)) or "no effect"
+        print(f"\n{seed} {label}; ladder named {named}")
+        for j in range(6):
+            po, pn = tests["old"][j]["p"], tests["new"][j]["p"]
+            if j + 1 in acting or min(po, pn) < 1e-2:
+                curve = tau[:, j] - rest[:, j]
+                pw = float(np.median([leftover.angle_test(
+                    curve + white[j] * rng.standard_normal(len(curve)), theta[:, j])["p"]
+                    for _ in range(5)]))
+                bend = f"{1e3 * c['bends'][j]:.3f}" if c["bends"] is not None else "  -  "
+                print(f"  joint {j + 1}: {bend} | "
+                      f"{1e3 * np.sqrt(tests['old'][j]['explained_var']):.3f} | "
+                      f"{1e3 * slow[j]:.3f} | {po:.1e}{'*' if po <= LEVEL else ' '} | "
+                      f"{pn:.1e}{'*' if pn <= LEVEL else ' '} | "
+                      f"{pw:.1e}{'*' if pw <= LEVEL else ' '}")
+        for k in tests:
+            flagged = {j + 1 for j in range(6) if tests[k][j]["p"] <= LEVEL}
+            false[k] += len(flagged - acting)
+            false_verdict[k] += len(set(joints[k]) - acting)
+        print(f"  verdict joints old {joints['old']}, new {joints['new']}")
+    print(f"\njoints the effect does not act on: passing the angle test old {false['old']}, "
+          f"new {false['new']}; in the verdict old {false_verdict['old']}, "
+          f"new {false_verdict['new']}")
+
+
+def study_white(design) -> None:
+    c = run(design, 4116, [])
+    data, left = c["data"], c["left"]
+    theta = data.theta
+    g = sensitivity.torque_map(data.params, theta)
+    jac = sensitivity.angle_jacobian(data.params, theta)
+    base = data.joint_torque_of(left * data.fs)
+    rng = np.random.default_rng(5)
+    print("a curve on one joint added to a white leftover: share of 10 phases found "
+          "(p <= 1.67e-4), old / new")
+    for j in range(6):
+        s = (theta[:, j] - theta[:, j].mean()) / theta[:, j].std()
+        line = []
+        for bend in (0.02, 0.03, 0.05):
+            found = np.zeros(2)
+            for phase in rng.uniform(0, 2 * np.pi, 10):
+                f = np.sin(2.5 * s + phase)
+                f -= np.polyval(np.polyfit(s, f, 1), s)
+                sig = np.linalg.solve(g, (jac[:, :, j] * f[:, None])[..., None])[..., 0]
+                tau = base + sig * bend * 1e-3 / sig[:, j].std()
+                e = conditional(tau, theta)
+                found += [leftover.angle_test(x[:, j], theta[:, j])["p"] <= LEVEL
+                          for x in (tau, e)]
+            line.append(f"{bend:.2f} mN*m: {found[0] / 10:.1f} / {found[1] / 10:.1f}")
+        print(f"  joint {j + 1}: " + ", ".join(line))
+    chol = np.linalg.cholesky(robust_cov(np.diff(left * data.fs, axis=0)))
+    pos = data.position_mm / 1e3
+    pos -= pos.mean(axis=0)
+    draws = 100
+    print(f"\nsimulated white noise (the sensor's cross-axis covariance through G^-1), {draws} "
+          "draws: share of the joints without a curve of their own at p <= 0.05 / 0.01 / "
+          "1.67e-4, old; new (a force on the plate reaches every joint)")
+    for kind in ("white", "curve on joint 1", "curve on joint 4", "pose-dependent force"):
+        ps = {"old": [], "new": []}
+        for _ in range(draws):
+            tau = np.linalg.solve(g, (rng.standard_normal((len(g), 6)) @ chol.T)[..., None])[..., 0]
+            carrier = []
+            if kind.startswith("curve"):
+                k = int(kind[-1]) - 1
+                s = (theta[:, k] - theta[:, k].mean()) / theta[:, k].std()
+                tau[:, k] += 3 * tau[:, k].std() * np.sin(2.0 * s + rng.uniform(0, 2 * np.pi))
+                carrier = [k]
+            elif kind.startswith("pose"):
+                a = rng.standard_normal((3, 3)) / pos.std()
+                force = np.zeros((len(g), 6))
+                force[:, :3] = (pos @ a.T + pos**2 @ a / pos.std()) * 2 * np.sqrt(
+                    np.diag(chol @ chol.T)[:3])
+                tau += np.linalg.solve(g, force[..., None])[..., 0]
+            for k, x in (("old", tau), ("new", conditional(tau, theta))):
+                ps[k] += [leftover.angle_test(x[:, j], theta[:, j])["p"]
+                          for j in range(6) if j not in carrier]
+        print(f"  {kind}: " + "; ".join(
+            f"{k} " + " / ".join(f"{np.mean(np.array(v) <= a):.3f}" for a in (0.05, 0.01, LEVEL))
+            for k, v in ps.items()))
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--study", choices=("noise", "runs", "white", "all"), default="all")
+    parser.add_argument("--seeds", type=int, nargs="+", help="runs: only these of its seeds")
+    parser.add_argument("--withhold", nargs="+", default=[], choices=[t.name for t in TERMS],
+                        help="runs: families withheld beside the three newest")
+    args = parser.parse_args()
+    design = load_checked(DEFAULT_DESIGN)    # the shipped design: the twin's runs
+    studies = (("noise", study_noise), ("white", study_white),
+               ("runs", lambda d: study_runs(d, args.seeds, args.withhold)))
+    for name, study in studies:
+        if args.study in (name, "all"):
+            print(f"== {name}")
+            study(design)
+            sys.stdout.flush()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
