@@ -5,6 +5,9 @@ behind docs/diagnosis.md's note on it ("What is left"). Development seeds only (
     .venv/bin/python tools/study_leftover_correlation.py --study noise   # ~15 s
     .venv/bin/python tools/study_leftover_correlation.py --study runs --seeds 4102 4103 \
         --withhold geometry_error         # proximal encoder errors without the geometry family
+    .venv/bin/python tools/study_leftover_correlation.py --study nuisance \
+        --withhold geometry_error         # the angle test against a nuisance basis, ~3 min
+    .venv/bin/python tools/study_leftover_correlation.py --study nuisance-sim   # ~3 min
 
 The leftover's white noise comes mostly from the reference sensor's wrench noise mapped through
 G^-1, so it is correlated across joints. The candidate test for joint j runs the verdict's angle
@@ -35,8 +38,8 @@ own angle does not leak into joint j).
   the same training stretches (``beyond_nuisance_test``), with the nuisance the other five
   joints' angles, linear and quadratic with their cross products (``others``), those plus the
   cross products with the joint's own angle (``others+cross``), or the joint torques of a
-  wrench on the plate affine in the plate's position (``plate``); per joint old and new p and
-  the verdict's joints with each.
+  wrench on the plate affine in the plate's position (``plate``); per joint old and new p, and
+  the verdict's joints and shape with each.
 - ``nuisance-sim``: the nuisance test's power and level by simulation on the white leftover
   of a run without effects: a curve on one joint (alone, and beside a pose-dependent slow part
   of 0.1 or 0.2 mN*m on the joint: what of the curve's held-out fit survives); and the share of
@@ -150,15 +153,20 @@ def run(design, seed: int, effects, withhold=()) -> dict:
             "theta": data.theta[idx], "formulations": [e.formulation for e in made]}
 
 
-def verdict_joints(data, left, tests) -> list[int]:
-    """The leftover verdict's joints with each joint's angle test taken from ``tests``."""
+def verdict_with(data, left, tests) -> dict:
+    """The leftover verdict with each joint's angle test taken from ``tests``."""
     calls = iter(tests)
     angle_test = leftover.angle_test
     leftover.angle_test = lambda *a, **k: next(calls)
     try:
-        return leftover.analyse(data, left)["joints"]
+        return leftover.analyse(data, left)
     finally:
         leftover.angle_test = angle_test
+
+
+def verdict_joints(data, left, tests) -> list[int]:
+    """The leftover verdict's joints with each joint's angle test taken from ``tests``."""
+    return verdict_with(data, left, tests)["joints"]
 
 
 def study_noise(design) -> None:
@@ -359,7 +367,8 @@ def study_nuisance(design, seeds=None, withhold=()) -> None:
             tests[kind] = [beyond_nuisance_test(tau[:, j], theta[:, j], nuisance_basis(
                 kind, theta, j, lambda w: data.joint_torque_of(w, idx),
                 data.position_mm[idx])) for j in range(6)]
-        joints = {k: verdict_joints(data, c["left"], v) for k, v in tests.items()}
+        verdicts = {k: verdict_with(data, c["left"], v) for k, v in tests.items()}
+        joints = {k: v["joints"] for k, v in verdicts.items()}
         acting = set(effects[0][2] or range(1, 7)) if effects else set()
         per_joint = bool(effects) and effects[0][2] is not None
         named = [s["added"] for s in c["verdict"]["ladder"]]
@@ -381,6 +390,7 @@ def study_nuisance(design, seeds=None, withhold=()) -> None:
             acting_total += len(acting)
             runs_total += 1
         print("  verdict joints " + ", ".join(f"{k} {joints[k]}" for k in kinds))
+        print("  verdict shape " + ", ".join(f"{k} {verdicts[k]['shape']}" for k in kinds))
     print(f"\nper-joint effects: of {acting_total} joints, passing the angle test "
           + ", ".join(f"{k} {found[k]}" for k in kinds)
           + f"; of {runs_total} runs, verdict joints exactly right "
