@@ -15,6 +15,7 @@ import numpy as np
 from delta6.core import curves
 from delta6.core.calibration import Calibration
 from delta6.core.design import Design
+from delta6.core.errors import UserError
 from delta6.core.model import ENCODER_COUNT_RAD, NOMINAL_PHI
 
 from .design_header import _table, c_float, c_string
@@ -25,6 +26,13 @@ from .solver_constants import TABLE_STEP, _coarse, f32, solver_constants
 CALIBRATION_VERSION = 4
 MAX_RADII = 4
 MAX_SPEEDS = 4
+#: The largest backlash (the whole play, rad) on a gimbal joint the board's turn of the joint
+#: by half of it, to first order, keeps within the 0.01 % FS the board is held to: the
+#: first-order turn's error grows with the square of the play (measured against the Python
+#: model along random paths: 0.002, 0.008, 0.018, 0.05 % FS at 0.01, 0.02, 0.03, 0.05 rad;
+#: the branches turn to second order: 0.003 % FS at 0.1 rad). A unit with more play (over a
+#: degree) needs a tighter encoder holder.
+MAX_GIMBAL_PLAY_RAD = 0.02
 TORQUE_SHIFT = 28
 COMMAND = "delta6 codegen"
 TABLE_NAMES = tuple(f"kTable{j}" for j in range(1, 7))
@@ -66,12 +74,15 @@ class CalibrationConstants:
 FIELDS = tuple(f for f in CalibrationConstants.__dataclass_fields__ if f != "tables")
 
 
-class CalibrationRangeError(ValueError):
-    """A calibration the firmware's fixed-point sums cannot hold."""
+class CalibrationRangeError(UserError, ValueError):
+    """A calibration the firmware's fixed-point sums or small-angle steps cannot hold (the
+    command line's one-line error)."""
 
 
-#: Must equal delta6::kCalibrationCurvesVersion, kCurveAngleShift, kCurveTorqueShift.
-CURVES_VERSION = 1
+#: Must equal delta6::kCalibrationCurvesVersion, kCurveAngleShift, kCurveTorqueShift,
+#: kCurveTurnShift.
+CURVES_VERSION = 2
+TURN_SHIFT = 31
 TORQUE_NAMES = tuple(f"kCurveTorque{j}" for j in range(1, 7))
 ANGLE_NAMES = tuple(f"kCurveAngle{j}" for j in range(1, 7))
 
@@ -84,6 +95,8 @@ class CurveConstants:
     knots: int
     torque: np.ndarray               # (6, knots) int16
     angle: np.ndarray | None         # (6, knots) int16, or None
+    ed: tuple                        # the backlash angle per half count, 2^-TURN_SHIFT rad
+    eh: tuple                        # the backlash angle, 2^-TURN_SHIFT rad
 
 
 def curve_constants(design: Design, cal: Calibration) -> CurveConstants | None:
@@ -97,7 +110,21 @@ def curve_constants(design: Design, cal: Calibration) -> CurveConstants | None:
         if table is not None and np.any(np.abs(np.diff(table.astype(int), axis=1)) > 32767):
             raise CalibrationRangeError("a curve changes by more than the firmware's int16 "
                                         "step between two knots")
-    return CurveConstants(knots=len(tables.knots), torque=tables.torque, angle=tables.angle)
+    # The board sums the backlash angle and the encoder error between two knots in int32
+    # units of 2^-TURN_SHIFT rad (the rounding, below 2^-32 rad per half count, is far below
+    # a float32 angle's).
+    eh = 0.5 * cal.backlash_play_rad
+    step = 0.0 if tables.angle is None else \
+        np.abs(np.diff(tables.angle.astype(int), axis=1)).max() * 2.0 ** -curves.ANGLE_SHIFT
+    if np.abs(eh).max() + step >= 2.0 ** (31 - TURN_SHIFT) * (1 - 2.0 ** -20):
+        raise CalibrationRangeError("the backlash and the encoder curve's steps exceed the "
+                                    "firmware's fixed-point angle range")
+
+    def q(values) -> tuple:
+        return tuple(int(round(v * 2.0 ** TURN_SHIFT)) for v in values)
+
+    return CurveConstants(knots=len(tables.knots), torque=tables.torque, angle=tables.angle,
+                          ed=q(eh / cal.direction_half_counts), eh=q(eh))
 
 
 def _f(values) -> tuple:
@@ -122,6 +149,13 @@ def calibration_constants(design: Design, cal: Calibration) -> CalibrationConsta
     if len(radii) > MAX_RADII or len(speeds) > MAX_SPEEDS:
         raise CalibrationRangeError(f"the firmware takes at most {MAX_RADII} play radii and "
                                     f"{MAX_SPEEDS} sign speeds")
+    wide = np.flatnonzero(np.abs(cal.backlash_play_rad[3:]) > MAX_GIMBAL_PLAY_RAD)
+    if wide.size:
+        j = int(wide[0]) + 3
+        raise CalibrationRangeError(
+            f"joint {j + 1}'s backlash, {cal.backlash_play_rad[j]:.4g} rad, is more than the "
+            f"board's gimbal step holds to 0.01 % FS ({MAX_GIMBAL_PLAY_RAD} rad): a unit with "
+            "that much play needs a tighter encoder holder")
     mm = 1e-3
     a = design.a_mm + cal.delta_a_mm
     b = design.b_mm + cal.delta_b_mm
@@ -257,6 +291,8 @@ def render(design: Design, cal: Calibration, design_label: str, calibration_labe
                   f"    {cv.knots},  // knots",
                   f"    {{{', '.join(TORQUE_NAMES)}}},  // torque",
                   f"    {{{angle}}},  // angle",
+                  f"    {_value(cv.ed)},  // ed",
+                  f"    {_value(cv.eh)},  // eh",
                   "};"]
     lines += [
         "",
@@ -268,7 +304,8 @@ def render(design: Design, cal: Calibration, design_label: str, calibration_labe
         lines += [
             f"static_assert(delta6::kCalibrationCurvesVersion == {CURVES_VERSION} && "
             f"delta6::kCurveAngleShift == {curves.ANGLE_SHIFT} && "
-            f"delta6::kCurveTorqueShift == {curves.TORQUE_SHIFT},",
+            f"delta6::kCurveTorqueShift == {curves.TORQUE_SHIFT} && "
+            f"delta6::kCurveTurnShift == {TURN_SHIFT},",
             f'              "delta6_calibration.h was generated for other curves: rerun {COMMAND}");',
         ]
     lines += [

@@ -31,16 +31,23 @@
 // (tools/bench_virtual_board.py [--calibration CAL --model M] on the emulated ATmega328P; the
 // 4809 runs the same code within about 10 %):
 // - the analytical model: 350 Hz (wrench streams sustain 400 Hz, wrench+raw 350 Hz);
-// - a calibrated unit: 250 Hz (the calibrated solve is about 51,500 cycles of the 64,000 in a
-//   250 Hz period; a wrench+raw sample about 57,500 with the record);
+// - a calibrated unit: 250 Hz (the calibrated solve is about 49,000 cycles of the 64,000 in a
+//   250 Hz period; a wrench+raw sample about 55,000 with the record; with every joint moving
+//   and reversing every sample the CPU is 92-94 % busy);
 // - a calibrated unit with curve tables (a nonlinear spring or an encoder's periodic error):
-//   200 Hz (the tables add about 3,500-4,000 cycles a sample; 250 Hz overruns);
+//   225 Hz (the tables add about 2,200 cycles a sample: with every joint moving and reversing
+//   every sample 225 Hz keeps 9-11 % of the CPU spare, as 250 Hz does without curves; 250 Hz
+//   holds on recorded motion, 96 % busy, but in that worst case it is 96-99 % busy and has
+//   overrun now and then; docs/calibration.md, "Curve tables on the board");
 // - with an on-chip residual (over either model): 200 Hz (over a calibration the default
 //   residual adds about 8,500; codegen refuses models too costly for 200 Hz).
 // With the wrench pipeline on (a low-pass filter or a tool frame: about 19,000 more cycles
 // per sample): 250 Hz for the analytical model (300 Hz overruns), 150 Hz calibrated.
-#if DELTA6_RESIDUAL || defined(DELTA6_CALIBRATION_CURVES)
+#if DELTA6_RESIDUAL
 #define DELTA6_RATED_HZ 200UL
+#define DELTA6_RATED_PIPELINE_HZ 150UL
+#elif defined(DELTA6_CALIBRATION_CURVES)
+#define DELTA6_RATED_HZ 225UL
 #define DELTA6_RATED_PIPELINE_HZ 150UL
 #elif DELTA6_CALIBRATED
 #define DELTA6_RATED_HZ 250UL

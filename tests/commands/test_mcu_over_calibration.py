@@ -131,7 +131,7 @@ def test_a_model_too_costly_for_the_rated_rate_is_refused(over_cal, unit_logs, t
 
 def test_over_a_calibration_with_curves_only_the_default_model_is_taken(over_cal, unit_logs,
                                                                         tmp_path, capsys):
-    """The curve tables take about 3,600 cycles and 1,600 B more: over such a calibration the
+    """The curve tables take about 2,200 cycles and 1,560 B more: over such a calibration the
     board keeps 200 Hz (and the emulated ATmega328P's 32 KB) with the default linear map of
     the counts (36 multiply-accumulates), not with a hidden layer."""
     from support.calibrations import with_curves

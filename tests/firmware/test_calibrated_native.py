@@ -13,7 +13,11 @@ from delta6.build.nativecalibrated import native_calibrated
 from delta6.core import calibration as C
 from delta6.core.calibrated import CalibratedModel, counts_from_angles
 from delta6.core.spec import full_scale
-from delta6_codegen.calibration_header import CalibrationRangeError, calibration_constants
+from delta6_codegen.calibration_header import (
+    CalibrationRangeError,
+    calibration_constants,
+    curve_constants,
+)
 
 from support.calibrations import random_calibration, with_curves
 
@@ -21,9 +25,10 @@ TOLERANCE_PCT = 0.01
 
 
 def random_path(seed: int, n: int, limit: int) -> np.ndarray:
-    """Counts inside the box: random walks with reversals and jumps (history exercised)."""
+    """Counts inside the box: random walks with reversals and jumps (history exercised), with
+    steps on both sides of the speed filter's table of steps (kSpeedSteps, 8 counts)."""
     rng = np.random.default_rng(seed)
-    steps = rng.integers(-6, 7, size=(n, 6)) * (rng.random((n, 1)) < 0.9)
+    steps = rng.integers(-12, 13, size=(n, 6)) * (rng.random((n, 1)) < 0.9)
     jumps = (rng.random((n, 6)) < 0.01) * rng.integers(-300, 301, size=(n, 6))
     return np.clip(np.cumsum(steps + jumps, axis=0) + rng.integers(-limit, limit, 6),
                    -limit, limit)
@@ -104,6 +109,21 @@ def test_curves_over_the_joint_box_and_along_a_twin_trajectory(baseline, libdir)
     assert (np.abs(with_ - without) / fs * 100).max() > 100 * TOLERANCE_PCT
 
 
+def test_the_largest_backlash_with_curves_fits_the_fixed_point_angle(baseline, libdir):
+    """The curved solve sums the backlash angle and the encoder error between the knots in
+    int32 units of 2^-31 rad: the file's largest backlash (0.2 rad) fits with room to spare;
+    a backlash at the top of the small rotation's range (the gimbal's turn to first order,
+    |e| < 0.01 rad) over the widest direction play agrees with Python, reversals included."""
+    curved = with_curves(random_calibration(baseline, 23), 23)
+    widest = curve_constants(baseline, curved.with_(backlash_play_rad=np.full(6, 0.2)))
+    assert widest.eh == (round(0.1 * 2 ** 31),) * 6 and max(widest.eh) < 2 ** 30
+    cal = curved.with_(backlash_play_rad=np.full(6, 0.018), direction_half_counts=64)
+    cv = curve_constants(baseline, cal)
+    assert cv.ed == (round(0.009 / 64 * 2 ** 31),) * 6
+    counts = random_path(23, 400, 1365)
+    assert worst_pct(baseline, cal, counts, 0.004, libdir) < TOLERANCE_PCT
+
+
 @pytest.mark.parametrize("which", [(True, False), (False, True), (True, True)])
 def test_the_generated_header_holds_the_same_curves(baseline, libdir, which):
     cal = with_curves(random_calibration(baseline, 13), 13, *which)
@@ -150,3 +170,26 @@ def test_the_header_holds_curve_tables_only_for_the_curves_present(baseline, spr
     assert ("kCurveAngle1" in text) == encoder
     if not (spring or encoder):
         assert "const CalibrationConstants kCalibrationConstants DELTA6_FLASH" in text
+
+
+def test_gimbal_play_beyond_the_boards_first_order_turn_is_refused(baseline, libdir):
+    """The gimbal joints' backlash turns their angle to first order on the board: at the
+    largest play codegen takes it agrees with Python within the tolerance; beyond it the
+    disagreement grows with the square of the play and codegen refuses the file in one line."""
+    from delta6_codegen.calibration_header import MAX_GIMBAL_PLAY_RAD
+    cal = random_calibration(baseline, 29)
+    play = np.array(cal.backlash_play_rad, float)
+    play[3:] = MAX_GIMBAL_PLAY_RAD
+    at_limit = cal.with_(backlash_play_rad=play.copy())
+    counts = random_path(29, 400, 1365)
+    assert worst_pct(baseline, at_limit, counts, 0.004, libdir) < TOLERANCE_PCT
+    play[4] = 1.5 * MAX_GIMBAL_PLAY_RAD
+    beyond = cal.with_(backlash_play_rad=play)
+    with pytest.raises(CalibrationRangeError, match="joint 5's backlash"):
+        calibration_constants(baseline, beyond)
+    from delta6.core.errors import UserError
+    assert issubclass(CalibrationRangeError, UserError)      # one line on the command line
+    from delta6.calibration.families import board_play_checks
+    assert board_play_checks(beyond, "backlash")[0]["ratio"] == pytest.approx(1.5)
+    assert board_play_checks(at_limit, "backlash")[0]["ratio"] == pytest.approx(1.0)
+    assert board_play_checks(beyond, "joint_friction") == []

@@ -24,7 +24,7 @@ from delta6.sim import avrsim, solverbench, virtualboard
 from delta6_codegen import render, render_calibration
 
 from conftest import DESIGNS
-from support.calibrations import random_calibration
+from support.calibrations import random_calibration, with_curves
 
 REQUIRED_CYCLES = 40_000
 AVR_TOLERANCE_FS = 5e-4       # the required accuracy on the AVR: 0.05 % FS
@@ -169,11 +169,15 @@ def test_the_runner_takes_options_in_any_order_and_the_equals_form():
         assert proc.returncode == 3, proc.stderr             # ran, hit the cycle limit
 
 
-@pytest.mark.parametrize("seed", [5, 6])
-def test_simulated_avr_calibrated_solver_matches_the_python_model(tmp_path, baseline, seed):
+@pytest.mark.parametrize("seed,curved", [(5, False), (6, False), (7, True)])
+def test_simulated_avr_calibrated_solver_matches_the_python_model(tmp_path, baseline, seed,
+                                                                  curved):
     # The calibrated solver compiled for the ATmega328P, along the bench's random walk (history
-    # included), against delta6.core.calibrated: the same 0.01 % FS as the native check.
+    # included), against delta6.core.calibrated: the same 0.01 % FS as the native check; with
+    # both curve tables, the curved solve's 16-bit products and fixed-point angle on the AVR.
     cal = random_calibration(baseline, seed)
+    if curved:
+        cal = with_curves(cal, seed)
     generated = tmp_path / "generated"
     generated.mkdir()
     (generated / "delta6_design.h").write_text(render(baseline, "designs/delta6.toml"))

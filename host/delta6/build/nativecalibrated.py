@@ -49,7 +49,7 @@ class CCurved(ctypes.Structure):
     """Mirror of delta6::CurvedCalibrationConstants."""
 
     _fields_ = [("base", CCalibration), ("knots", ctypes.c_uint8), ("torque", _I16P * 6),
-                ("angle", _I16P * 6)]
+                ("angle", _I16P * 6), ("ed", _I * 6), ("eh", _I * 6)]
 
 
 def _fill(ctype, value):
@@ -85,6 +85,8 @@ def c_curved(design: Design, cal: Calibration) -> CCurved | None:
     if cv.angle is not None:
         out._angles = [np.ascontiguousarray(t, dtype=np.int16) for t in cv.angle]
         out.angle = (_I16P * 6)(*(t.ctypes.data_as(_I16P) for t in out._angles))
+    out.ed = (_I * 6)(*cv.ed)
+    out.eh = (_I * 6)(*cv.eh)
     return out
 
 

@@ -36,6 +36,7 @@ from delta6.diagnosis.terms import (
     Term,
     force_rotation,
 )
+from delta6_codegen.calibration_header import MAX_GIMBAL_PLAY_RAD
 
 
 @dataclass
@@ -126,6 +127,17 @@ def curve_table_checks(design, cal: Calibration, effect: str) -> list[dict]:
         checks.append(("board_table_angle_rad", np.abs(v.angle).max(), curves.ANGLE_RANGE_RAD))
     return [{"quantity": q, "largest": float(x), "limit": lim, "ratio": float(x) / lim}
             for q, x, lim in checks]
+
+
+def board_play_checks(cal: Calibration, effect: str) -> list[dict]:
+    """The backlash on the gimbal joints against what the board's first-order turn holds to
+    0.01 % FS (``MAX_GIMBAL_PLAY_RAD``; codegen refuses more), as
+    ``Family.plausibility``'s checks."""
+    if effect != "backlash":
+        return []
+    largest = float(np.abs(np.asarray(cal.backlash_play_rad)[3:]).max())
+    return [{"quantity": "board_gimbal_play_rad", "largest": largest,
+             "limit": MAX_GIMBAL_PLAY_RAD, "ratio": largest / MAX_GIMBAL_PLAY_RAD}]
 
 
 def without_vanishing_curves(design, cal: Calibration) -> Calibration:

@@ -88,10 +88,10 @@ def calibration_text(design: design_mod.Design, design_path: Path, cal_path: Pat
 #: The largest on-chip model (multiply-accumulates per sample) measured to hold the model
 #: image's rated 200 Hz on the ATmega328P at 16 MHz, over each base (docs/ondevice-model.md:
 #: the analytical default, 672, at 74,300 cycles of work per 80,000-cycle period; over a
-#: calibration, whose solve takes 51,000, the 144-MAC network at 75,400).
-#: Over a calibration with curve tables (about 3,500 cycles and 1,600 B more), the default
-#: linear map of the counts, 36: 67,000 cycles a sample and 32,470 B of the emulated
-#: ATmega328P's 32 KB (a 108-MAC network reading the wrench overflows them).
+#: calibration, whose solve took 51,000 then (49,000 now), the 144-MAC network at 75,400).
+#: Over a calibration with curve tables (about 2,200 cycles and 1,560 B more), the default
+#: linear map of the counts, 36: 65,000 cycles a sample and 32,240 B of the emulated
+#: ATmega328P's 32 KB (flash holds it there: a 108-MAC network reading the wrench overflows).
 MAX_MODEL_MACS = {"analytical": 672, "calibrated": 144, "calibrated with curves": 36}
 
 

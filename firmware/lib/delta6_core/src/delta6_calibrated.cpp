@@ -69,44 +69,53 @@ inline const int16_t* flash_i16_table(const int16_t* const* p) {
 #endif
 }
 
+// The knot interval of the count biased = x + origin, clamped to the tables: knot i and the
+// weight L of knot i + 1 in 2^-12 (0..4096; the count's 64ths, times 64).
+struct KnotSpan {
+    uint8_t i;
+    int16_t weight;
+};
+
+inline KnotSpan knot_span(const CurvedCalibrationConstants* cv, int16_t b) {
+    const uint8_t last = static_cast<uint8_t>(flash::byte(&cv->knots) - 1);
+    KnotSpan k = {0, 0};
+    if (b > 0) {
+        if (static_cast<uint16_t>(b) >= static_cast<uint16_t>(last) << 6) {
+            k.i = static_cast<uint8_t>(last - 1);
+            k.weight = 4096;
+        } else {
+            k.i = static_cast<uint8_t>(static_cast<uint16_t>(b << 2) >> 8);
+            k.weight = static_cast<int16_t>(static_cast<uint16_t>(b & 63) << 6);
+        }
+    }
+    return k;
+}
+
 // The curve tables' joint torque at count x, 2^-kTorqueShift N*m: linear between the knots
-// i and i + 1 around x + origin (kTableStep apart), held at the end knots outside;
-// (t_i 2^6 + (t_(i+1) - t_i) l) in 2^-(kCurveTorqueShift + 6) N*m, shifted to the sum's unit.
-// Codegen keeps neighbouring knots within an int16 of each other.
+// i and i + 1 around x + origin (kTableStep apart), held at the end knots outside:
+// t_i (4096 - L) + t_(i+1) L in 2^-(kCurveTorqueShift + 12) N*m, the sum's unit (two 16-bit
+// by 16-bit products, no shifts of 32-bit values).
+static_assert(kTorqueShift == kCurveTorqueShift + 12, "the curve's products are in 2^-28 N*m");
 inline int32_t curve_torque(const CurvedCalibrationConstants* cv, uint8_t j, int16_t x,
                             int16_t origin) {
     const int16_t* t = flash_i16_table(&cv->torque[j]);
-    const uint8_t last = static_cast<uint8_t>(flash::byte(&cv->knots) - 1);
-    const int16_t b = static_cast<int16_t>(x + origin);
-    uint8_t i = 0, l = 0;
-    if (b > 0) {
-        i = static_cast<uint8_t>(static_cast<uint16_t>(b) >> 6);
-        l = static_cast<uint8_t>(b & 63);
-        if (static_cast<uint16_t>(b) >= static_cast<uint16_t>(last) << 6) {
-            i = static_cast<uint8_t>(last - 1);
-            l = 64;
-        }
-    }
-    const int16_t lo = flash::i16(t + i);
-    const int16_t step = static_cast<int16_t>(flash::i16(t + i + 1) - lo);
-    // Products, not left shifts: shifting a negative value left is undefined before C++20
-    // (the compilers emit the same shifts for these constant powers of two).
-    const int32_t v = static_cast<int32_t>(lo) * 64 + static_cast<int32_t>(step) * l;
-    return v * (static_cast<int32_t>(1) << (kTorqueShift - kCurveTorqueShift - 6));
+    const KnotSpan k = knot_span(cv, static_cast<int16_t>(x + origin));
+    return static_cast<int32_t>(flash::i16(t + k.i)) * static_cast<int16_t>(4096 - k.weight)
+           + static_cast<int32_t>(flash::i16(t + k.i + 1)) * k.weight;
 }
 
-// The encoder error beyond knot i of the count biased = x + origin (inside the box), rad:
-// (e_(i+1) - e_i) l 2^-(kCurveAngleShift + 6).
-inline float curve_angle_between_knots(const CurvedCalibrationConstants* cv, uint8_t j,
-                                       uint16_t biased) {
+// The encoder error beyond knot i of the count biased = x + origin (inside the box), in
+// 2^-kCurveTurnShift rad: (e_(i+1) - e_i) L, L the weight of knot i + 1 in 2^-12.
+// Codegen keeps neighbouring knots within an int16 of each other.
+static_assert(kCurveTurnShift == kCurveAngleShift + 12, "the curve's turn is in 2^-31 rad");
+inline int32_t curve_angle_between_knots(const CurvedCalibrationConstants* cv, uint8_t j,
+                                         uint16_t biased) {
     const int16_t* a = flash_i16_table(&cv->angle[j]);
-    if (a == nullptr) return 0.0f;
+    if (a == nullptr) return 0;
     const uint8_t i = static_cast<uint8_t>(static_cast<uint16_t>(biased << 2) >> 8);
-    const uint8_t l = static_cast<uint8_t>(biased & 63u);
-    const int32_t r = static_cast<int32_t>(static_cast<int16_t>(
-                          flash::i16(a + i + 1) - flash::i16(a + i))) * l;
-    if (r == 0) return 0.0f;
-    return scale_down(static_cast<float>(r), kCurveAngleShift + 6);
+    const int16_t weight = static_cast<int16_t>(static_cast<uint16_t>(biased & 63u) << 6);
+    return static_cast<int32_t>(static_cast<int16_t>(flash::i16(a + i + 1) - flash::i16(a + i)))
+           * weight;
 }
 
 // The stages below are separate functions on purpose: inlined into one, the AVR build runs
@@ -143,10 +152,17 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
             play[r] = y;
             sum += flash::i32(&kw[r]) * static_cast<int16_t>(x - y);
         }
-        // A joint standing still (often, at the board's rates) costs one multiply, not three.
+        // A joint standing still (often, at the board's rates) costs one multiply, not three;
+        // a step of a few counts, one multiply and one addition: g times the step comes from
+        // the state's table (the same float product, computed when the period was set).
         const int16_t step = static_cast<int16_t>(x - st.last[j]);
         float v = speed_a * st.speed[j];
-        if (step != 0) v += speed_g * static_cast<float>(step);
+        if (step != 0) {
+            const uint16_t size = static_cast<uint16_t>(step < 0 ? -step : step);
+            const float g = size <= kSpeedSteps ? st.speed_step[size - 1]
+                                                : speed_g * static_cast<float>(size);
+            v = step < 0 ? v - g : v + g;
+        }
         st.speed[j] = v;
         st.last[j] = x;
         // Friction: the segment of |v| among the breakpoints; its offset joins the int32 sum,
@@ -181,18 +197,28 @@ DELTA6_NOINLINE void joint_trig(const CalibrationConstants& cc, int16_t origin,
         fastmath::table_cos_sin(flash::table(&cc.table[j]), fine, biased, &c0, &s0);
         // The direction is +-H (the play saturated) but during a reversal: no multiply then.
         const int16_t d2 = dir2[j];
-        float e = d2 == half ? flash_float(&cc.eh[j])
-                  : d2 == -half ? -flash_float(&cc.eh[j])
-                  : flash_float(&cc.ed[j]) * static_cast<float>(d2);
+        float e;
+        if (kCurves) {
+            // The backlash and the encoder error between the knots summed in fixed point:
+            // one conversion to float instead of a conversion and a float addition.
+            const int32_t eh = flash::i32(&cv->eh[j]);
+            int32_t turn = d2 == half ? eh : d2 == -half ? -eh
+                           : flash::i32(&cv->ed[j]) * d2;
+            turn -= curve_angle_between_knots(cv, j, biased);
+            e = turn == 0 ? 0.0f : scale_down(static_cast<float>(turn), kCurveTurnShift);
+        } else {
+            e = d2 == half ? flash_float(&cc.eh[j])
+                : d2 == -half ? -flash_float(&cc.eh[j])
+                : flash_float(&cc.ed[j]) * static_cast<float>(d2);
+        }
         if (j < 3) e += flash_float(&cc.elbow[j]) * tau[j];
-        if (kCurves) e -= curve_angle_between_knots(cv, j, biased);
         if ((fastmath::bits_of(e) & 0x7FFFFFFFul) != 0) {
-            // c' = c m - s e, s' = s m + c e with m = cos e: 1 - e^2/2 on the branches, 1 on
-            // the gimbal.
+            // c' = c m - s e, s' = s m + c e with m = cos e: 1 - e^2/2 on the branches (as
+            // c - e (s + c e/2) and s + e (c - s e/2): four multiplies), 1 on the gimbal.
             if (j < 3) {
-                const float m = 1.0f - fastmath::scale2(e * e, -1);
-                const float c1 = c0 * m - s0 * e;
-                s0 = s0 * m + c0 * e;
+                const float h = fastmath::scale2(e, -1);
+                const float c1 = c0 - e * (s0 + c0 * h);
+                s0 -= e * (s0 * h - c0);
                 c0 = c1;
             } else {
                 const float c1 = c0 - s0 * e;
@@ -205,37 +231,39 @@ DELTA6_NOINLINE void joint_trig(const CalibrationConstants& cc, int16_t origin,
     }
 }
 
-// 5: sphere centres c_i = r_i u_i + h_i z and the general trilateration: P (x, y, z) and the
-// centres' x, y. Returns a SolveStatus.
+// 5: sphere centres c_i = r_i u_i + h_i z and the general trilateration, relative to the
+// first centre: P' = P - c_1 from P' . A_j = e_j (j = 2, 3) and |P'| = lb_1, with
+// A_j = c_j - c_1 and e_j = (|A_j|^2 - lb_j^2 + lb_1^2) / 2. Fills a with A_2 and A_3
+// (x, y, z), p with P'. Returns a SolveStatus.
 DELTA6_NOINLINE uint8_t trilaterate(const CalibrationConstants& cc, float min_height_sq,
-                                    const float cs[6], const float sn[6], float cx[3],
-                                    float cy[3], float p[3]) {
-    float r[3];
+                                    const float cs[6], const float sn[6], float a[2][3],
+                                    float p[3]) {
+    float cx[3], cy[3];
     for (uint8_t i = 0; i < 3; ++i) {
-        r[i] = flash_float(&cc.d[i]) + cs[i];
-        cx[i] = r[i] * flash_float(&cc.ux[i]);
-        cy[i] = r[i] * flash_float(&cc.uy[i]);
+        const float r = flash_float(&cc.d[i]) + cs[i];
+        cx[i] = r * flash_float(&cc.ux[i]);
+        cy[i] = r * flash_float(&cc.uy[i]);
     }
-    const float h1 = sn[0];
-    // P . A_j = e_j with A_j = c_j - c_1, e_j = (|c_j|^2 - |c_1|^2 - lb_j^2 + lb_1^2) / 2,
-    // and |c_i|^2 = r_i^2 + h_i^2 (u_i is a unit vector).
-    const float a2x = cx[1] - cx[0], a2y = cy[1] - cy[0], a2z = sn[1] - h1;
-    const float a3x = cx[2] - cx[0], a3y = cy[2] - cy[0], a3z = sn[2] - h1;
-    const float h1_sq = h1 * h1;
-    const float c1_sq = r[0] * r[0] + h1_sq;
-    const float e2 = fastmath::scale2(r[1] * r[1] + sn[1] * sn[1] - c1_sq, -1)
+    const float a2x = cx[1] - cx[0], a2y = cy[1] - cy[0], a2z = sn[1] - sn[0];
+    const float a3x = cx[2] - cx[0], a3y = cy[2] - cy[0], a3z = sn[2] - sn[0];
+    a[0][0] = a2x;
+    a[0][1] = a2y;
+    a[0][2] = a2z;
+    a[1][0] = a3x;
+    a[1][1] = a3y;
+    a[1][2] = a3z;
+    const float e2 = fastmath::scale2(a2x * a2x + a2y * a2y + a2z * a2z, -1)
                      - flash_float(&cc.half_dlb_sq[1]);
-    const float e3 = fastmath::scale2(r[2] * r[2] + sn[2] * sn[2] - c1_sq, -1)
+    const float e3 = fastmath::scale2(a3x * a3x + a3y * a3y + a3z * a3z, -1)
                      - flash_float(&cc.half_dlb_sq[2]);
     const float det = a2x * a3y - a2y * a3x;
     if (!fastmath::at_least(det, flash_float(&cc.min_det))) return kSolveSingular;
     const float inv = 1.0f / det;
     const float ax = (a2y * a3z - a3y * a2z) * inv, bx = (a3y * e2 - a2y * e3) * inv;
     const float ay = (a3x * a2z - a2x * a3z) * inv, by = (a2x * e3 - a3x * e2) * inv;
-    const float ex = bx - cx[0], ey = by - cy[0];
     const float qa = ax * ax + ay * ay + 1.0f;
-    const float qb = ax * ex + ay * ey - h1;
-    const float qc = ex * ex + ey * ey + h1_sq - flash_float(&cc.lb_sq[0]);
+    const float qb = ax * bx + ay * by;
+    const float qc = bx * bx + by * by - flash_float(&cc.lb_sq[0]);
     const float disc = qb * qb - qa * qc;
     if (!fastmath::at_least(disc, min_height_sq * qa)) return kSolveNoSolution;
     const float z = (fastmath::sqrt32(disc) - qb) / qa;
@@ -245,23 +273,58 @@ DELTA6_NOINLINE uint8_t trilaterate(const CalibrationConstants& cc, float min_he
     return kSolveOk;
 }
 
-// Statics: link i carries tau_i v_i / G_i, G_i = (u_i . v_i) h_i - v_iz rho_i; the force on
-// the platform is F = -sum tau_i v_i / G_i. Returns a SolveStatus.
+// Statics: link i carries tau_i v_i / G_i, G_i = (u_i . v_i) h_i - v_iz rho_i, with
+// v_i = P - c_i (P' for the first branch, P' - A_i for the others); the force on the
+// platform is F = -sum tau_i v_i / G_i. Returns a SolveStatus.
 DELTA6_NOINLINE uint8_t statics(const CalibrationConstants& cc, float min_lever,
                                 const float cs[6], const float sn[6], const float tau[6],
-                                const float cx[3], const float cy[3], const float p[3],
-                                float f[3]) {
-    f[0] = f[1] = f[2] = 0.0f;
-    for (uint8_t i = 0; i < 3; ++i) {
-        const float vx = p[0] - cx[i], vy = p[1] - cy[i], vz = p[2] - sn[i];
-        const float uv = flash_float(&cc.ux[i]) * vx + flash_float(&cc.uy[i]) * vy;
-        const float g = uv * sn[i] - vz * cs[i];
-        if (!fastmath::at_least(absf(g), min_lever)) return kSolveSingular;
-        const float s = tau[i] / g;
-        f[0] -= s * vx;
-        f[1] -= s * vy;
-        f[2] -= s * vz;
+                                const float a[2][3], const float p[3], float f[3]) {
+    float v[3][3];
+    for (uint8_t k = 0; k < 3; ++k) {
+        v[0][k] = p[k];
+        v[1][k] = p[k] - a[0][k];
+        v[2][k] = p[k] - a[1][k];
     }
+    float s[3];
+    for (uint8_t i = 0; i < 3; ++i) {
+        const float uv = flash_float(&cc.ux[i]) * v[i][0] + flash_float(&cc.uy[i]) * v[i][1];
+        const float g = uv * sn[i] - v[i][2] * cs[i];
+        if (!fastmath::at_least(absf(g), min_lever)) return kSolveSingular;
+        s[i] = tau[i] / g;
+    }
+    for (uint8_t k = 0; k < 3; ++k) {
+        f[k] = -(s[0] * v[0][k] + s[1] * v[1][k] + s[2] * v[2][k]);
+    }
+    return kSolveOk;
+}
+
+// 6: the gimbal, F_E0 = F - w x F with w = gimbal + tilt * (M + c z x F), then eq. (12) with
+// the corrected gimbal angles, R^T = Ry^T Rx^T Rz^T, into wrench (left as it was unless
+// every value is finite). Returns a SolveStatus. (Its own function: in the caller's frame,
+// beyond the 64 bytes a load or store addresses, every value costs two more instructions.)
+DELTA6_NOINLINE uint8_t to_e(const CalibrationConstants& cc, const float tau[6],
+                             const float f[3], const float cs[6], const float sn[6],
+                             float wrench[6]) {
+    const float c = flash_float(&cc.c), tilt = flash_float(&cc.tilt);
+    const float wx = flash_float(&cc.gimbal[0]) + tilt * (tau[3] - c * f[1]);
+    const float wy = flash_float(&cc.gimbal[1]) + tilt * (tau[4] + c * f[0]);
+    const float wz = flash_float(&cc.gimbal[2]) + tilt * tau[5];
+    float w[6] = {
+        f[0] - (wy * f[2] - wz * f[1]),
+        f[1] - (wz * f[0] - wx * f[2]),
+        f[2] - (wx * f[1] - wy * f[0]),
+        tau[3], tau[4], tau[5],
+    };
+    DELTA6_PROFILE_MARK(25);
+    for (uint8_t v = 0; v < 6; v += 3) {
+        rotate_back(cs[5], sn[5], w[v], w[v + 1]);
+        rotate_back(cs[3], sn[3], w[v + 1], w[v + 2]);
+        rotate_back(cs[4], sn[4], w[v + 2], w[v]);
+    }
+    for (uint8_t i = 0; i < 6; ++i) {
+        if (!fastmath::is_finite(w[i])) return kSolveNonFinite;
+    }
+    for (uint8_t i = 0; i < 6; ++i) wrench[i] = w[i];
     return kSolveOk;
 }
 
@@ -275,10 +338,14 @@ void calibration_set_period(const CalibrationConstants& c, float period_s,
     if (!(period_s > 0.0f)) {
         s.speed_a = 1.0f;
         s.speed_g = 0.0f;
+        for (uint8_t k = 0; k < kSpeedSteps; ++k) s.speed_step[k] = 0.0f;
         return;
     }
     s.speed_a = tau / (tau + period_s);
     s.speed_g = (1.0f - s.speed_a) * kCountRad / period_s;
+    for (uint8_t k = 0; k < kSpeedSteps; ++k) {
+        s.speed_step[k] = s.speed_g * static_cast<float>(k + 1);
+    }
 }
 
 namespace {
@@ -310,36 +377,16 @@ DELTA6_ALWAYS_INLINE uint8_t solve(const SolverConstants& k, const CalibrationCo
     float cs[6], sn[6];
     joint_trig<kCurves>(cc, k.table_origin, k.fine_table, delta, dir2, tau, cs, sn, cv);
     DELTA6_PROFILE_MARK(22);
-    float cx[3], cy[3], p[3];
-    uint8_t status = trilaterate(cc, k.min_height_sq, cs, sn, cx, cy, p);
+    float a[2][3], p[3];
+    uint8_t status = trilaterate(cc, k.min_height_sq, cs, sn, a, p);
     if (status != kSolveOk) return fail(status, wrench);
     DELTA6_PROFILE_MARK(23);
     float f[3];
-    status = statics(cc, k.min_lever, cs, sn, tau, cx, cy, p, f);
+    status = statics(cc, k.min_lever, cs, sn, tau, a, p, f);
     if (status != kSolveOk) return fail(status, wrench);
     DELTA6_PROFILE_MARK(24);
-    // The gimbal: F_E0 = F - w x F, w = gimbal + tilt * (M + c z x F).
-    const float c = flash_float(&cc.c), tilt = flash_float(&cc.tilt);
-    const float wx = flash_float(&cc.gimbal[0]) + tilt * (tau[3] - c * f[1]);
-    const float wy = flash_float(&cc.gimbal[1]) + tilt * (tau[4] + c * f[0]);
-    const float wz = flash_float(&cc.gimbal[2]) + tilt * tau[5];
-    float w[6] = {
-        f[0] - (wy * f[2] - wz * f[1]),
-        f[1] - (wz * f[0] - wx * f[2]),
-        f[2] - (wx * f[1] - wy * f[0]),
-        tau[3], tau[4], tau[5],
-    };
-    DELTA6_PROFILE_MARK(25);
-    // Eq. (12) with the corrected gimbal angles: R^T = Ry^T Rx^T Rz^T.
-    for (uint8_t v = 0; v < 6; v += 3) {
-        rotate_back(cs[5], sn[5], w[v], w[v + 1]);
-        rotate_back(cs[3], sn[3], w[v + 1], w[v + 2]);
-        rotate_back(cs[4], sn[4], w[v + 2], w[v]);
-    }
-    for (uint8_t i = 0; i < 6; ++i) {
-        if (!fastmath::is_finite(w[i])) return fail(kSolveNonFinite, wrench);
-    }
-    for (uint8_t i = 0; i < 6; ++i) wrench[i] = w[i];
+    status = to_e(cc, tau, f, cs, sn, wrench);
+    if (status != kSolveOk) return fail(status, wrench);
     return kSolveOk;
 }
 

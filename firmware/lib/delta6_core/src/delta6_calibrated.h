@@ -70,6 +70,9 @@ struct CalibrationConstants {
     float min_det;                     // lower bound on the trilateration determinant, m^2
 };
 
+// Steps of the count (either sign) whose speed-filter term g * step is kept in the state.
+constexpr uint8_t kSpeedSteps = 8;
+
 // The history kept between samples (what the Python model calls ModelState).
 struct CalibrationState {
     uint8_t started;                   // 0: the next sample starts settled
@@ -78,23 +81,27 @@ struct CalibrationState {
     int16_t play[6][kMaxPlayRadii];    // hysteresis plays, counts
     float speed[6];                    // rad/s
     float speed_a, speed_g;            // v = a v + g (x - last): from the sample period
+    float speed_step[kSpeedSteps];     // g * k for k = 1..kSpeedSteps (the same products)
 };
 
 // A calibration with per-joint curves (delta6.core.curves): int16 tables at the knots
 // x_i = i * kTableStep - table_origin (the rows of the coarse trig tables, and one beyond),
 // interpolated linearly over the count x, held at the end knots outside. The encoder error at
 // each knot is already in the coarse trig table of its row; the board adds the part between
-// knots. A separate struct, so that a calibration without curves compiles to exactly the
-// code it had before.
+// knots, summed with the backlash angle in fixed point (2^-kCurveTurnShift rad). A separate
+// struct, so that a calibration without curves compiles to the code it has without them.
 constexpr uint8_t kCurveAngleShift = 19;    // angle tables: 2^-19 rad
 constexpr uint8_t kCurveTorqueShift = 16;   // torque tables: 2^-16 N*m
-constexpr uint16_t kCalibrationCurvesVersion = 1;
+constexpr uint8_t kCurveTurnShift = 31;     // the angle's varying part: 2^-31 rad
+constexpr uint16_t kCalibrationCurvesVersion = 2;
 
 struct CurvedCalibrationConstants {
     CalibrationConstants base;
     uint8_t knots;                     // table entries per joint
     const int16_t* torque[6];          // s(x) - k ratio e(x), 2^-kCurveTorqueShift N*m
     const int16_t* angle[6];           // e(x), 2^-kCurveAngleShift rad; null: no encoder curve
+    int32_t ed[6];                     // base.ed in 2^-kCurveTurnShift rad per half count
+    int32_t eh[6];                     // base.eh in 2^-kCurveTurnShift rad
 };
 
 // Forget the history: the next sample starts settled (after a zero change or a gap).
