@@ -5,6 +5,9 @@ behind docs/diagnosis.md's note on it ("What is left"). Development seeds only (
     .venv/bin/python tools/study_leftover_correlation.py --study noise   # ~15 s
     .venv/bin/python tools/study_leftover_correlation.py --study runs --seeds 4102 4103 \
         --withhold geometry_error         # proximal encoder errors without the geometry family
+    .venv/bin/python tools/study_leftover_correlation.py --study nuisance \
+        --withhold geometry_error         # the angle test against a nuisance basis, ~3 min
+    .venv/bin/python tools/study_leftover_correlation.py --study nuisance-sim   # ~3 min
 
 The leftover's white noise comes mostly from the reference sensor's wrench noise mapped through
 G^-1, so it is correlated across joints. The candidate test for joint j runs the verdict's angle
@@ -30,10 +33,23 @@ own angle does not leak into joint j).
   part removed): the power of both tests; and the level on simulated white noise with the
   sensor's cross-axis covariance, alone and with a curve on another joint or a pose-dependent
   force on the plate.
+- ``nuisance``: the same runs, the angle test against a nuisance basis: per joint, the
+  held-out gain of [own-angle polynomial + nuisance] over [constant + nuisance], both fitted on
+  the same training stretches (``beyond_nuisance_test``), with the nuisance the other five
+  joints' angles, linear and quadratic with their cross products (``others``), those plus the
+  cross products with the joint's own angle (``others+cross``), or the joint torques of a
+  wrench on the plate affine in the plate's position (``plate``); per joint old and new p, and
+  the verdict's joints and shape with each.
+- ``nuisance-sim``: the nuisance test's power and level by simulation on the white leftover
+  of a run without effects: a curve on one joint (alone, and beside a pose-dependent slow part
+  of 0.1 or 0.2 mN*m on the joint: what of the curve's held-out fit survives); and the share of
+  joints without a curve of their own that pass, on white noise, noise correlated in time, a
+  curve on another joint, and a pose-dependent force on the plate.
 """
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 import numpy as np
@@ -137,15 +153,20 @@ def run(design, seed: int, effects, withhold=()) -> dict:
             "theta": data.theta[idx], "formulations": [e.formulation for e in made]}
 
 
-def verdict_joints(data, left, tests) -> list[int]:
-    """The leftover verdict's joints with each joint's angle test taken from ``tests``."""
+def verdict_with(data, left, tests) -> dict:
+    """The leftover verdict with each joint's angle test taken from ``tests``."""
     calls = iter(tests)
     angle_test = leftover.angle_test
     leftover.angle_test = lambda *a, **k: next(calls)
     try:
-        return leftover.analyse(data, left)["joints"]
+        return leftover.analyse(data, left)
     finally:
         leftover.angle_test = angle_test
+
+
+def verdict_joints(data, left, tests) -> list[int]:
+    """The leftover verdict's joints with each joint's angle test taken from ``tests``."""
+    return verdict_with(data, left, tests)["joints"]
 
 
 def study_noise(design) -> None:
@@ -267,18 +288,222 @@ def study_white(design) -> None:
             for k, v in ps.items()))
 
 
+def nuisance_basis(kind: str, theta: np.ndarray, j: int, torque_of=None,
+                   position=None) -> np.ndarray:
+    """Columns that explain joint j's leftover without its own angle alone (see ``nuisance``)."""
+    z = (theta - theta.mean(axis=0)) / theta.std(axis=0)
+    others = np.delete(z, j, axis=1)
+    if kind == "plate":
+        p = (position - position.mean(axis=0)) / position.std(axis=0)
+        cols = []
+        for axis in range(6):
+            for m in (np.ones(len(p)), *p.T):
+                w = np.zeros((len(p), 6))
+                w[:, axis] = m
+                cols.append(torque_of(w)[:, j])
+        return np.stack(cols, axis=1)
+    first = 0 if kind == "others+cross" else 1
+    iu = np.triu_indices(6)
+    pairs = [(a, b) for a, b in zip(*iu) if (a, b) != (j, j)
+             and (first == 0 or j not in (a, b))]
+    return np.hstack([others, np.stack([z[:, a] * z[:, b] for a, b in pairs], axis=1)])
+
+
+def beyond_nuisance_test(tau: np.ndarray, angle: np.ndarray, nuisance: np.ndarray,
+                         folds: int = leftover.ANGLE_FOLDS,
+                         degree: int = leftover.ANGLE_DEGREE) -> dict:
+    """``leftover.angle_test`` scored against a nuisance: per held-out stretch, the gain of the
+    fit on [own-angle polynomial, nuisance] over the fit on [constant, nuisance], both on the
+    other stretches (held-out values clipped to their range, as the verdict's test does)."""
+    n = len(tau)
+    s = (angle - angle.mean()) / (angle.std() or 1.0)
+    full = np.hstack([np.stack([s**k for k in range(degree + 1)], axis=1), nuisance])
+    null = [0] + list(range(degree + 1, full.shape[1]))
+    bounds = np.linspace(0, n, folds + 1).astype(int)
+    parts = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+    grams = np.stack([full[q].T @ full[q] for q in parts])
+    moments = np.stack([full[q].T @ tau[q] for q in parts])
+    gains = np.empty(folds)
+    for k, q in enumerate(parts):
+        gram, moment = grams.sum(0) - grams[k], moments.sum(0) - moments[k]
+        coef = np.linalg.lstsq(gram, moment, rcond=None)[0]
+        coef_null = np.linalg.lstsq(gram[np.ix_(null, null)], moment[null], rcond=None)[0]
+        train = np.ones(n, bool)
+        train[q] = False
+        lo, hi = full[train].min(axis=0), full[train].max(axis=0)
+        held_s = np.clip(s[q], s[train].min(), s[train].max())
+        held = np.hstack([np.stack([held_s**d for d in range(degree + 1)], axis=1),
+                          np.clip(nuisance[q], lo[degree + 1:], hi[degree + 1:])])
+        gains[k] = (np.sum((tau[q] - held[:, null] @ coef_null) ** 2)
+                    - np.sum((tau[q] - held @ coef) ** 2))
+    sd = gains.std(ddof=1)
+    t = float(gains.mean() / (sd / np.sqrt(folds))) if sd > 0 else 0.0
+    wins = int(np.sum(gains > 0))
+    p_sign = float(sum(math.comb(folds, k) for k in range(wins, folds + 1))) / 2.0**folds
+    return {"explained_var": max(float(gains.sum()) / n, 0.0), "t": t, "wins": wins,
+            "p": min(1.0, 2.0 * min(leftover.student_t_sf(t, folds - 1), p_sign))}
+
+
+NUISANCES = ("others", "others+cross", "plate")
+
+
+def study_nuisance(design, seeds=None, withhold=()) -> None:
+    print("per run; per joint (+: the effect acts on it): p old | p with each nuisance "
+          f"({', '.join(NUISANCES)}); * <= 1.67e-4")
+    kinds = ("old",) + NUISANCES
+    false = dict.fromkeys(kinds, 0)
+    false_verdict = dict.fromkeys(kinds, 0)
+    found = dict.fromkeys(kinds, 0)
+    right = dict.fromkeys(kinds, 0)
+    acting_total = runs_total = 0
+    for seed, effects in RUNS:
+        if seeds and seed not in seeds:
+            continue
+        c = run(design, seed, effects, withhold)
+        tau, theta, data = c["tau"], c["theta"], c["data"]
+        idx = np.arange(0, len(data), max(1, len(data) // leftover.SHAPE_SAMPLES))
+        tests = {"old": [leftover.angle_test(tau[:, j], theta[:, j]) for j in range(6)]}
+        for kind in NUISANCES:
+            tests[kind] = [beyond_nuisance_test(tau[:, j], theta[:, j], nuisance_basis(
+                kind, theta, j, lambda w: data.joint_torque_of(w, idx),
+                data.position_mm[idx])) for j in range(6)]
+        verdicts = {k: verdict_with(data, c["left"], v) for k, v in tests.items()}
+        joints = {k: v["joints"] for k, v in verdicts.items()}
+        acting = set(effects[0][2] or range(1, 7)) if effects else set()
+        per_joint = bool(effects) and effects[0][2] is not None
+        named = [s["added"] for s in c["verdict"]["ladder"]]
+        label = ", ".join(f"{n} on {j or 'all'}" for n, _, j in effects) or "no effect"
+        print(f"\n{seed} {label}; ladder {named}")
+        for j in range(6):
+            ps = [tests[k][j]["p"] for k in kinds]
+            if j + 1 in acting or min(ps) < 1e-2:
+                print(f"  joint {j + 1}{'+' if j + 1 in acting else ' '} " + " | ".join(
+                    f"{p:.0e}{'*' if p <= LEVEL else ' '}" for p in ps))
+        for k in kinds:
+            flagged = {j + 1 for j in range(6) if tests[k][j]["p"] <= LEVEL}
+            false[k] += len(flagged - acting)
+            false_verdict[k] += len(set(joints[k]) - acting)
+            if per_joint:
+                found[k] += len(flagged & acting)
+                right[k] += set(joints[k]) == acting
+        if per_joint:
+            acting_total += len(acting)
+            runs_total += 1
+        print("  verdict joints " + ", ".join(f"{k} {joints[k]}" for k in kinds))
+        print("  verdict shape " + ", ".join(f"{k} {verdicts[k]['shape']}" for k in kinds))
+    print(f"\nper-joint effects: of {acting_total} joints, passing the angle test "
+          + ", ".join(f"{k} {found[k]}" for k in kinds)
+          + f"; of {runs_total} runs, verdict joints exactly right "
+          + ", ".join(f"{k} {right[k]}" for k in kinds))
+    print("joints the effect does not act on, passing: "
+          + ", ".join(f"{k} {false[k]}" for k in kinds)
+          + "; in the verdict: " + ", ".join(f"{k} {false_verdict[k]}" for k in kinds))
+
+
+def study_nuisance_sim(design, draws: int = 40) -> None:
+    c = run(design, 4116, [])
+    data, left = c["data"], c["left"]
+    theta = data.theta
+    g = sensitivity.torque_map(data.params, theta)
+    jac = sensitivity.angle_jacobian(data.params, theta)
+    base = data.joint_torque_of(left * data.fs)
+
+    def torque_of(w):
+        return np.linalg.solve(g, w[..., None])[..., 0]
+    pos = data.position_mm / 1e3
+    pos = pos - pos.mean(axis=0)
+    bases = {k: [nuisance_basis(k, theta, j, torque_of, pos) for j in range(6)]
+             for k in NUISANCES}
+    kinds = ("old",) + NUISANCES
+
+    def test(kind, tau, j):
+        if kind == "old":
+            return leftover.angle_test(tau[:, j], theta[:, j])
+        return beyond_nuisance_test(tau[:, j], theta[:, j], bases[kind][j])
+
+    def pose_force(rng, scale):
+        a = rng.standard_normal((3, 3)) / pos.std()
+        force = np.zeros((len(g), 6))
+        force[:, :3] = (pos @ a.T + pos**2 @ a / pos.std()) * scale
+        return torque_of(force)
+    rng = np.random.default_rng(5)
+    print("a curve on one joint added to the white leftover of a run without effects: share "
+          "of 10 phases found (p <= 1.67e-4) and the median held-out angle fit (mN*m), "
+          + " / ".join(kinds))
+    for slow in (0.0, 0.1, 0.2):
+        for j in range(3 if slow else 6):
+            s = (theta[:, j] - theta[:, j].mean()) / theta[:, j].std()
+            line = []
+            for bend in (0.03, 0.05):
+                hit = {k: [] for k in kinds}
+                for phase in rng.uniform(0, 2 * np.pi, 10):
+                    f = np.sin(2.5 * s + phase)
+                    f -= np.polyval(np.polyfit(s, f, 1), s)
+                    sig = torque_of(jac[:, :, j] * f[:, None])
+                    tau = base + sig * bend * 1e-3 / sig[:, j].std()
+                    if slow:    # a force on the plate, quadratic in its position
+                        extra = pose_force(rng, 1.0)
+                        tau = tau + extra * slow * 1e-3 / extra[:, j].std()
+                    for k in kinds:
+                        r = test(k, tau, j)
+                        hit[k].append((r["p"] <= LEVEL, 1e3 * np.sqrt(r["explained_var"])))
+                line.append(f"{bend:.2f} mN*m: " + " / ".join(
+                    f"{np.mean([h for h, _ in v]):.1f} ({np.median([e for _, e in v]):.3f})"
+                    for v in hit.values()))
+            print(f"  joint {j + 1}, slow part {slow:.1f} mN*m: " + "; ".join(line))
+    chol = np.linalg.cholesky(robust_cov(np.diff(left * data.fs, axis=0)))
+    sd_axes = np.sqrt(np.diag(chol @ chol.T))
+    print(f"\n{draws} draws of simulated noise (the sensor's cross-axis covariance through "
+          "G^-1): share of the joints without a curve of their own at p <= 0.05 / 0.01 / "
+          "1.67e-4, and the share of stretches that gain, " + " ; ".join(kinds))
+    for kind in ("white", "correlated in time", "curve on joint 1", "curve on joint 5",
+                 "pose-dependent force"):
+        ps = {k: [] for k in kinds}
+        wins = {k: [] for k in kinds}
+        for _ in range(draws):
+            e = rng.standard_normal((len(g), 6)) @ chol.T
+            if kind == "correlated in time":    # white plus an AR(1) of 4 s
+                ar = np.empty_like(e)
+                ar[0] = e[0]
+                for i in range(1, len(e)):
+                    ar[i] = 0.995 * ar[i - 1] + 0.0999 * e[i]
+                e = e + 3 * ar
+            tau = torque_of(e)
+            carrier = []
+            if kind.startswith("curve"):
+                k = int(kind[-1]) - 1
+                s = (theta[:, k] - theta[:, k].mean()) / theta[:, k].std()
+                sig = torque_of(jac[:, :, k] * np.sin(2.5 * s + rng.uniform(0, 2 * np.pi))[:, None])
+                tau += sig * 3 * tau[:, k].std() / sig[:, k].std()
+                carrier = [k]
+            elif kind.startswith("pose"):
+                tau += pose_force(rng, 2 * sd_axes[:3])
+            for k in kinds:
+                for j in set(range(6)) - set(carrier):
+                    r = test(k, tau, j)
+                    ps[k].append(r["p"])
+                    wins[k].append(r["wins"] / leftover.ANGLE_FOLDS)
+        print(f"  {kind}: " + "; ".join(
+            f"{k} " + " / ".join(f"{np.mean(np.array(v) <= a):.3f}" for a in (0.05, 0.01, LEVEL))
+            + f" ({np.mean(wins[k]):.2f})" for k, v in ps.items()))
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--study", choices=("noise", "runs", "white", "all"), default="all")
+    parser.add_argument("--study", choices=("noise", "runs", "white", "all", "nuisance",
+                                            "nuisance-sim"), default="all",
+                        help="all: noise, white and runs")
     parser.add_argument("--seeds", type=int, nargs="+", help="runs: only these of its seeds")
     parser.add_argument("--withhold", nargs="+", default=[], choices=[t.name for t in TERMS],
                         help="runs: families withheld beside the three newest")
     args = parser.parse_args()
     design = load_checked(DEFAULT_DESIGN)    # the shipped design: the twin's runs
     studies = (("noise", study_noise), ("white", study_white),
-               ("runs", lambda d: study_runs(d, args.seeds, args.withhold)))
+               ("runs", lambda d: study_runs(d, args.seeds, args.withhold)),
+               ("nuisance", lambda d: study_nuisance(d, args.seeds, args.withhold)),
+               ("nuisance-sim", study_nuisance_sim))
     for name, study in studies:
-        if args.study in (name, "all"):
+        if args.study == name or (args.study == "all" and not name.startswith("nuisance")):
             print(f"== {name}")
             study(design)
             sys.stdout.flush()
