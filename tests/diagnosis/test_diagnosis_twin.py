@@ -109,8 +109,8 @@ def test_a_cable_clamped_off_the_centre_is_followed_in_a_second_pass(baseline, m
     assert verdict["present"][:1] == ["harness"], verdict["present"]
     monkeypatch.setattr(run_module, "KEEP_COLUMNS_SAMPLES", 0)
     monkeypatch.setattr(stream, "PIECE_SAMPLES", 5000)
-    # The first pass's column cache (gigabytes on a long log) is gone before the decision
-    # reads the second's; the selection is made once per pass.
+    # The second pass's column cache holds the harness's columns only (the first pass's,
+    # gigabytes on a long log, gives the others); the selection is made once per pass.
     caches, selections, on_disk = [], [], []
     cache_init, select, decide = (stream.ColumnCache.__init__, run_module.select_plausible,
                                   run_module._decide)
@@ -124,7 +124,7 @@ def test_a_cable_clamped_off_the_centre_is_followed_in_a_second_pass(baseline, m
         return select(*args, **kwargs)
 
     def checking_decide(*args, **kwargs):
-        on_disk.extend(c.path.exists() for c in caches)
+        on_disk.extend(c.path.stat().st_size if c.path.exists() else None for c in caches)
         return decide(*args, **kwargs)
 
     monkeypatch.setattr(stream.ColumnCache, "__init__", recording_init)
@@ -132,7 +132,10 @@ def test_a_cable_clamped_off_the_centre_is_followed_in_a_second_pass(baseline, m
     monkeypatch.setattr(run_module, "_decide", checking_decide)
     streamed = diagnose(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c),
                         baseline, seed=0)
-    assert on_disk == [False, True] and len(selections) == 2
+    first_width = len(next(t for t in run_module.TERMS if t.name == "harness").param_names)
+    new_columns = caches[1].width - (caches[0].width - first_width)
+    assert on_disk == [len(r.t) * 6 * caches[0].width * 4, len(r.t) * 6 * new_columns * 4]
+    assert len(selections) == 2
     assert streamed["present"] == verdict["present"]
     assert np.allclose(streamed["harness_clamp_mm"], verdict["harness_clamp_mm"], atol=1e-6)
     assert np.allclose(streamed["ladder"][-1]["heldout_p99_pct"],

@@ -296,3 +296,27 @@ def test_implausible_families_leave_one_at_a_time_the_furthest_out_first():
               "encoder_offset": check(0.2)}
     assert verdicts.furthest_out_of_bounds(checks, ["stiffness_mismatch", "geometry_error"]) \
         == "geometry_error"
+
+
+@given(arrays(float, (300, 6), elements=st.floats(-1, 1)),
+       st.lists(arrays(np.float32, (300, 6), elements=st.floats(-1, 1, width=32)),
+                min_size=1, max_size=4))
+def test_the_ladder_one_axis_at_a_time_is_the_ladder_of_all_axes_at_once(y, preds):
+    """The ladder settles each axis on its own column (long logs: one column's trials in
+    memory, not six); every figure is the one the six axes at once give, to the bit."""
+    weights, p99s, final, sses, refits = ladder.monotone(y, preds)
+    before, before_p99 = np.zeros_like(y), ladder.baseline_p99(y)
+    for pred, a_got, p99_got, sse_got, refit_got in zip(preds, weights, p99s, sses, refits):
+        assert np.array_equal(refit_got, ladder.p99_of_difference(y, pred))
+        step = np.subtract(pred, before, dtype=float)
+        a, after, open_axes = np.zeros(6), before_p99.copy(), np.ones(6, dtype=bool)
+        for alpha in ladder.ALPHAS[ladder.ALPHAS > 0]:
+            trial = ladder.p99_of_difference(y, before + alpha * step)
+            take = open_axes & (trial <= before_p99)
+            a[take], after[take] = alpha, trial[take]
+            open_axes &= ~take
+        before[:, a > 0] += a[a > 0] * step[:, a > 0]
+        assert np.array_equal(a_got, a) and np.array_equal(p99_got, after)
+        assert sse_got == ladder.squared_error(y, before)
+        before_p99 = after
+    assert np.array_equal(final, before)

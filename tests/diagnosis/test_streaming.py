@@ -76,3 +76,88 @@ def test_column_cache_round_trips_in_float32(tmp_path):
     assert np.allclose(cache.read(4, 15), whole[4:15].astype(np.float32))
     with pytest.raises(AssertionError):
         cache.write(0, parts[0])              # out of order
+
+
+def test_a_long_logs_play_states_in_pieces_are_the_whole_scans(history_log, monkeypatch):
+    """Play states of a long log are scanned a piece at a time, each piece from the outputs
+    of the sample before it: exactly the states of one scan over the whole log (a running
+    clamp has no rounding), and the state handed to the next view is the whole scan's."""
+    from delta6.diagnosis import data as data_mod
+    from delta6.diagnosis.signals import play_output, play_state
+
+    radii = (0.01, 0.05)
+    whole = play_state(history_log.theta, radii)
+    monkeypatch.setattr(data_mod, "PIECE", 777)
+    handoff = 5 * 777 + 13
+    log = history_log.piece(0, len(history_log), handoff=handoff)
+    assert len(log) > 5 * 777
+    assert np.array_equal(log.play_state(radii), whole)
+    assert np.array_equal(log.carry_out[("play", radii)],
+                          play_output(history_log.theta, radii)[handoff])
+
+
+@given(arrays(float, (40, 3), elements=st.floats(-3, 3)),
+       arrays(float, 40, elements=st.floats(0.5, 1.5)), st.integers(1, 4))
+def test_smooth_velocity_is_the_local_linear_fit_of_shifted_copies(x, dt, half_width):
+    """The velocity from shifted slices, one column at a time, is the plain formula's (the
+    weighted sum of the log shifted by each offset, np.gradient at the ends) to the bit."""
+    from delta6.diagnosis.signals import smooth_velocity
+
+    t = np.cumsum(dt)
+    k = np.arange(-half_width, half_width + 1, dtype=float)
+    want = np.zeros_like(x)
+    for w, shift in zip(k / (k @ k), k.astype(int)):
+        want += w * np.roll(x, -shift, axis=0)
+    want /= 0.9
+    edge = np.gradient(x, t, axis=0)
+    want[:half_width], want[-half_width:] = edge[:half_width], edge[-half_width:]
+    assert np.array_equal(smooth_velocity(x, t, half_width, step=0.9), want)
+
+
+def test_predictions_kept_on_disk_are_those_kept_in_memory(history_log, tmp_path):
+    """The ladder's held-out predictions wait in scratch files on long logs: read back, they
+    are the float32 predictions kept in memory, and the p99s do not change."""
+    terms = [t for t in TERMS if t.name in ("backlash", "spring_hysteresis")]
+    problem = selection.build_problem(history_log, terms, keep_columns=True)
+    models = {name: (problem.cols([name]), selection.fold_coefficients(problem, [name]))
+              for name in ("backlash", "spring_hysteresis")}
+    args = (history_log, terms, problem.bounds, problem.fold_of_block, models, set(models))
+    in_memory = stream.predict(*args, x_all=problem.x)
+    on_disk = stream.predict(*args, x_all=problem.x, spill=tmp_path)
+    for name in models:
+        assert np.array_equal(on_disk["p99"][name], in_memory["p99"][name])
+        got = on_disk["pred"][name].read()
+        assert got.dtype == np.float32 and np.array_equal(got, in_memory["pred"][name].read())
+    assert not list(tmp_path.iterdir())                     # each file goes once read
+
+
+def test_a_second_cache_stores_only_its_new_columns_and_reads_the_rest_from_the_first(
+        tmp_path):
+    """A second pass that changes one family writes that family's columns only; read back,
+    its columns are those it was given (float32), whichever cache holds them."""
+    rng = np.random.default_rng(1)
+    first = stream.ColumnCache(tmp_path, width=5)
+    (tmp_path / "second").mkdir()
+    source = np.array([0, -1, 3, -1, -1, 4])              # columns 1, 3 and 4 are new
+    second = stream.ColumnCache(tmp_path / "second", width=6, reuse=(first, source))
+    x1, x2 = rng.normal(size=(23, 6, 5)), rng.normal(size=(23, 6, 6))
+    x2[:, :, source >= 0] = x1[:, :, source[source >= 0]]
+    for a, b in ((0, 9), (9, 23)):
+        first.write(a, x1[a:b])
+        second.write(a, x2[a:b])
+    assert second.path.stat().st_size == 23 * 6 * 3 * 4
+    want = x2.astype(np.float32)
+    assert np.array_equal(second.read(4, 17), want[4:17].astype(float))
+    assert np.array_equal(second.rows([20, 2, 7]), want[[20, 2, 7]])
+    assert np.array_equal(first.rows([5]), x1[[5]].astype(np.float32))
+
+
+def test_the_columns_a_second_pass_reuses_are_those_of_its_unchanged_families():
+    import dataclasses
+
+    terms = list(TERMS[:3])
+    changed = dataclasses.replace(terms[1], param_names=terms[1].param_names[:2])
+    widths = [len(t.param_names) for t in terms]
+    got = stream.reused_columns(terms, [terms[0], changed, terms[2]])
+    assert np.array_equal(got, list(range(widths[0])) + [-1, -1]
+                          + list(range(widths[0] + widths[1], sum(widths))))

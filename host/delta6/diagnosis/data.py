@@ -112,10 +112,27 @@ class GapData:
         radii = tuple(float(r) for r in radii)
         cache = self.__dict__.setdefault("_play_cache", {})
         if radii not in cache:
-            out = self._continued(("play", radii),
-                                  lambda y0: play_output(self.theta, radii, y0))
-            cache[radii] = (self.theta[:, :, None] - out) / np.asarray(radii)
+            cache[radii] = self._play_state(radii)
         return cache[radii]
+
+    def _play_state(self, radii: tuple) -> np.ndarray:
+        """:meth:`play_state` computed ``PIECE`` samples at a time, each piece's plays started
+        from the outputs of the sample before it: the same numbers (a play is a running clamp,
+        exact however it is cut), while the scan's intermediate arrays, several times the
+        states' size, stay one piece's (a long log's whole-log states would take gigabytes)."""
+        key = ("play", radii)
+        r = np.asarray(radii)
+        out = np.empty(self.theta.shape + (len(radii),))
+        y0 = self.carry.get(key)
+        for a in range(0, len(self), PIECE):
+            theta = self.theta[a:a + PIECE]
+            y = play_output(theta, radii, y0)
+            if self.handoff is not None and a <= self.handoff < a + len(theta):
+                self.carry_out[key] = np.array(y[self.handoff - a], copy=True)
+            y0 = np.array(y[-1], copy=True)
+            np.subtract(theta[:, :, None], y, out=y)          # the state, in place
+            np.divide(y, r, out=out[a:a + len(theta)])
+        return out
 
     def lagged_temp(self, tau_s: float) -> np.ndarray:
         """The temperature through a first-order lag of ``tau_s`` (``signals.lagged``)."""

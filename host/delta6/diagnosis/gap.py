@@ -140,8 +140,15 @@ def by_temperature(data: GapData) -> dict | None:
 
 
 def where(data: GapData) -> dict:
-    """Everything above, in one dict."""
-    return {"table_v": table_v(data), "cross_axis": cross_axis_sensitivity(data.residual, data.reference, data.fs),
-            "region": by_region(data), "direction": by_direction(data),
-            "speed": by_speed(data), "time": over_time(data), "band": by_band(data),
+    """Everything above, in one dict. A whole-log map that only one breakdown uses (the
+    TCP's position, the joints' speed) is dropped from ``data`` once that breakdown is made:
+    on a long log each is 50 to 100 MB, and the spectrum's arrays come after them."""
+    out = {"table_v": table_v(data),
+           "cross_axis": cross_axis_sensitivity(data.residual, data.reference, data.fs),
+           "region": by_region(data)}
+    data.__dict__.pop("position_mm", None)
+    out["direction"] = by_direction(data)
+    out["speed"] = by_speed(data)
+    data.__dict__.pop("velocity", None)
+    return {**out, "time": over_time(data), "band": by_band(data),
             "temperature": by_temperature(data)}

@@ -62,25 +62,28 @@ def monotone(y: np.ndarray, preds) -> tuple[list[np.ndarray], list[np.ndarray], 
     before = np.zeros_like(y)
     before_p99 = baseline_p99(y)
     for pred in preds:
-        refits.append(p99_of_difference(y, pred))
-        step = np.subtract(pred, before, dtype=float)        # pred - before
         a = np.zeros(y.shape[1])
         after_p99 = before_p99.copy()
-        open_axes = np.ones(y.shape[1], dtype=bool)
-        for alpha in ALPHAS[ALPHAS > 0]:
-            trial_p99 = p99_of_difference(y, before + alpha * step)
-            take = open_axes & (trial_p99 <= before_p99)
-            a[take] = alpha
-            after_p99[take] = trial_p99[take]
-            open_axes &= ~take
-            if not open_axes.any():
-                break
-        # An axis the step does not take keeps the step before exactly (0 * inf is NaN).
-        taken = a > 0
-        before[:, taken] += a[taken] * step[:, taken]
+        refit = np.empty(y.shape[1])
+        # One axis at a time (the p99 of an axis is its own): a long log's trials take
+        # arrays of one column, not of six.
+        for j in range(y.shape[1]):
+            y_j, before_j, pred_j = y[:, j], before[:, j], pred[:, j]
+            refit[j] = p99_of_difference(y_j, pred_j)
+            step = np.subtract(pred_j, before_j, dtype=float)      # pred - before
+            for alpha in ALPHAS[ALPHAS > 0]:
+                trial_p99 = p99_of_difference(y_j, before_j + alpha * step)
+                if trial_p99 <= before_p99[j]:
+                    a[j] = alpha
+                    after_p99[j] = trial_p99
+                    break
+            # An axis the step does not take keeps the step before exactly.
+            if a[j] > 0:
+                before_j += a[j] * step                             # a view: into ``before``
+            del step
+        refits.append(refit)
         weights.append(a)
         p99s.append(after_p99)
         sses.append(squared_error(y, before))
         before_p99 = after_p99
-        del step
     return weights, p99s, before, sses, refits

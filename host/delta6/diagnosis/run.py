@@ -259,13 +259,7 @@ def _rows(problem: selection.Problem, cache, rows: slice, n: int, cols: np.ndarr
         return problem.x[rows][:, :, cols]
     if cache is None:
         return None
-    row = 6 * cache.width
-    out = []
-    with open(cache.path, "rb") as f:
-        for i in range(*rows.indices(n)):
-            f.seek(i * row * 4)
-            out.append(np.fromfile(f, dtype=np.float32, count=row).reshape(6, cache.width)[:, cols])
-    return np.asarray(out, dtype=float)
+    return cache.rows(range(*rows.indices(n)))[:, :, cols].astype(float)
 
 
 def others_at_search(data: GapData, problem: selection.Problem, first: "Selected", cache=None):
@@ -382,7 +376,9 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
         progress("model and breakdowns")
     where = gap.where(data)
     baseline_p99 = ladder_mod.baseline_p99(data.residual / data.fs).tolist()
-    for name in ("velocity", "residual_pct", "position_mm"):   # long logs: 50..100 MB each
+    # Long logs: 50..100 MB each. The model's wrench too, now that the residual is made
+    # (the pieces compute their own; a later caller gets it again on demand).
+    for name in ("velocity", "residual_pct", "position_mm", "model"):
         data.__dict__.pop(name, None)
 
     vocabulary = TERMS if terms is None else tuple(terms)
@@ -412,8 +408,11 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
             second_cache = None
             if cache is not None:
                 Path(scratch, "second").mkdir()
+                # Only the harness's columns are new: the others are read from the first
+                # pass's cache (a long log's is gigabytes of disk).
                 second_cache = stream.ColumnCache(
-                    Path(scratch, "second"), sum(len(t.param_names) for t in second_terms))
+                    Path(scratch, "second"), sum(len(t.param_names) for t in second_terms),
+                    reuse=(cache, stream.reused_columns(terms, second_terms)))
             second = selection.build_problem(data, second_terms, progress=progress,
                                              signatures=signatures, keep_columns=keep,
                                              cache=second_cache)
@@ -421,9 +420,6 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
                                        min_gain=min_gain, confidence=confidence,
                                        min_share=min_share)
             if "harness" in second_selected.kept:
-                # The first pass's columns are not read again: on a long log its cache is
-                # gigabytes of disk.
-                _drop(cache)
                 problem, terms, cache, first = second, second_terms, second_cache, \
                     second_selected
             else:
@@ -434,7 +430,8 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
             del second
         result = _decide(data, problem, terms, skipped, where, baseline_p99, cache, started,
                          seed=seed, progress=progress, min_gain=min_gain,
-                         confidence=confidence, min_share=min_share, first=first)
+                         confidence=confidence, min_share=min_share, first=first,
+                         scratch=None if keep else scratch)
         result["harness_clamp_mm"] = None if clamp is None else [float(v) for v in clamp]
         result["harness_cable"] = None if cable is None else {
             "direction": [float(v) for v in cable[0]], "slack_mm": float(cable[1])}
@@ -495,8 +492,10 @@ def _drop(cache) -> None:
 
 
 def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, *, seed,
-            progress, min_gain, confidence, min_share, first: Selected | None = None) -> dict:
-    """``first``: this problem's selection when it is already made (:func:`selected`)."""
+            progress, min_gain, confidence, min_share, first: Selected | None = None,
+            scratch=None) -> dict:
+    """``first``: this problem's selection when it is already made (:func:`selected`);
+    ``scratch``: a directory where the ladder's held-out predictions wait (long logs)."""
     design = data.design
     names = [t.name for t in terms]
     if first is None:
@@ -541,7 +540,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
                                         selection.fold_coefficients(problem, chosen))
     held = stream.predict(data, terms, problem.bounds, problem.fold_of_block, models,
                           store={k for k in models if k[0] == "step"}, x_all=problem.x,
-                          cache=cache, progress=progress)
+                          cache=cache, progress=progress, spill=scratch)
 
     candidates = []
     for term in terms:
@@ -557,7 +556,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
 
     y = data.residual / data.fs
     weights, step_p99, final_pred, step_sse, refit_p99 = ladder_mod.monotone(
-        y, (held["pred"].pop(("step", s.added)) for s in steps_found))
+        y, (held["pred"].pop(("step", s.added)).read() for s in steps_found))
     steps = []
     notes: list[str] = []
     chosen = []
@@ -592,7 +591,6 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
                                                        base_sse.sum(), final_sse)
     leftover_fs = np.subtract(y, final_pred, out=final_pred)    # the prediction is not needed
     del y
-    final_pct = 100.0 * leftover_fs
     base_total = float(base_sse.sum())
     left = float(current)
     # Plausibility of every named family's fit, and of each candidate's fit alone.
@@ -601,6 +599,11 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         c["plausibility"] = verdicts.plausibility(
             problem, [c["name"]], selection.fit(problem, [c["name"]]))[c["name"]]
     left_verdict = leftover.analyse(data, leftover_fs)
+    # The leftover's whole-log features (a long log's largest arrays) are not needed again.
+    for name in ("smooth_velocity", "_play_cache", "position_mm"):
+        data.__dict__.pop(name, None)
+    final_pct = 100.0 * leftover_fs
+    del leftover_fs
     # When a sizeable structured leftover shows the vocabulary misses something, a family that
     # carries only a small share of the gap is as likely absorbing part of the missing effect
     # as being there, and so is one that explains less than that leftover whatever its size:

@@ -43,13 +43,21 @@ def smooth_velocity(x: np.ndarray, t: np.ndarray, half_width: int = 2,
     k = np.arange(-half_width, half_width + 1, dtype=float)
     weights = k / (k @ k)
     dt = np.median(np.diff(t)) if step is None else step
+    # Shifted slices, one column at a time: a long log's velocity takes one (n, j) array and
+    # one (n,) temporary, not a shifted copy of the whole log per weight.
     vel = np.zeros_like(x)
-    for w, shift in zip(weights, k.astype(int)):
-        vel += w * np.roll(x, -shift, axis=0)
-    vel /= dt
-    edge = np.gradient(x, t, axis=0)
-    vel[:half_width] = edge[:half_width]
-    vel[-half_width:] = edge[-half_width:]
+    inner = slice(half_width, n - half_width)
+    tmp = np.empty(n - 2 * half_width)
+    for j in range(x.shape[1]):
+        for w, shift in zip(weights, k.astype(int)):
+            np.multiply(x[half_width + shift:n - half_width + shift, j], w, out=tmp)
+            vel[inner, j] += tmp
+        vel[:, j] /= dt
+        # The ends by central differences (np.gradient of the whole column: whether it takes
+        # the grid as uniform depends on all of ``t``).
+        edge = np.gradient(x[:, j], t)
+        vel[:half_width, j] = edge[:half_width]
+        vel[-half_width:, j] = edge[-half_width:]
     return vel
 
 

@@ -86,25 +86,75 @@ def columns(view: GapData, terms, keep: slice) -> np.ndarray:
 class ColumnCache:
     """The columns of a streamed pass, kept on disk (float32) for the next pass: building them
     costs far more than reading them back. Plain file reads, not a memory map, so the cache
-    never counts against the process's memory."""
+    never counts against the process's memory.
 
-    def __init__(self, directory, width: int):
+    ``reuse``: (an earlier pass's cache, per column of this pass the column of that cache it
+    repeats, -1 for a new one). Only the new columns are written to this cache's file; the
+    others are read from the earlier one (a second pass that changes one family of ~270
+    columns stores that family's, not gigabytes more of scratch disk on a long log)."""
+
+    def __init__(self, directory, width: int, reuse: tuple["ColumnCache", np.ndarray] | None
+                 = None):
         self.path = Path(directory) / "columns.f32"
         self.width = width
+        self.base, self.source = (None, None) if reuse is None else \
+            (reuse[0], np.asarray(reuse[1], dtype=int))
+        self.own = np.arange(width) if reuse is None else np.flatnonzero(self.source < 0)
         self.path.write_bytes(b"")
         self.written = 0
 
     def write(self, a: int, x: np.ndarray) -> None:
         assert a == self.written, "pieces are cached in order"
+        if self.base is not None:
+            x = x[:, :, self.own]
         with open(self.path, "ab") as f:
             f.write(np.ascontiguousarray(x, dtype=np.float32).tobytes())
         self.written += len(x)
 
     def read(self, a: int, b: int) -> np.ndarray:
-        row = 6 * self.width
-        out = np.fromfile(self.path, dtype=np.float32, count=(b - a) * row,
-                          offset=a * row * 4)
-        return out.reshape(b - a, 6, self.width).astype(float)
+        return self.read32(a, b).astype(float)
+
+    def read32(self, a: int, b: int) -> np.ndarray:
+        """Samples [a, b) as written, (b - a, 6, width) float32."""
+        row = 6 * len(self.own)
+        own = np.fromfile(self.path, dtype=np.float32, count=(b - a) * row,
+                          offset=a * row * 4).reshape(b - a, 6, len(self.own))
+        return self._with_base(own, lambda: self.base.read32(a, b))
+
+    def rows(self, indices) -> np.ndarray:
+        """The samples ``indices`` (a few thousand, read one by one), (m, 6, width) float32."""
+        row = 6 * len(self.own)
+        with open(self.path, "rb") as f:
+            out = []
+            for i in indices:
+                f.seek(int(i) * row * 4)
+                out.append(np.fromfile(f, dtype=np.float32, count=row))
+        own = np.asarray(out, dtype=np.float32).reshape(len(out), 6, len(self.own))
+        return self._with_base(own, lambda: self.base.rows(indices))
+
+    def _with_base(self, own: np.ndarray, base) -> np.ndarray:
+        if self.base is None:
+            return own
+        out = np.empty(own.shape[:2] + (self.width,), dtype=np.float32)
+        out[:, :, self.own] = own
+        shared = self.source >= 0
+        out[:, :, shared] = base()[:, :, self.source[shared]]
+        return out
+
+
+def reused_columns(first_terms, second_terms) -> np.ndarray:
+    """Per column of ``second_terms``, the column of ``first_terms`` that is the same (the same
+    term object at either place), or -1 (a changed family's): ``ColumnCache``'s ``reuse``."""
+    at, start = 0, {}
+    for term in first_terms:
+        start[id(term)] = at
+        at += len(term.param_names)
+    out = []
+    for term in second_terms:
+        width = len(term.param_names)
+        first = start.get(id(term))
+        out.extend(range(first, first + width) if first is not None else [-1] * width)
+    return np.asarray(out, dtype=int)
 
 
 def blocks_in(bounds: np.ndarray, a: int, b: int) -> Iterator[tuple[int, int, int]]:
@@ -202,15 +252,18 @@ class Tails:
 def predict(data: GapData, terms, bounds: np.ndarray, fold_of_block: np.ndarray,
             models: dict, store: set, x_all: np.ndarray | None = None,
             cache: ColumnCache | None = None,
-            progress: Callable[[str], None] | None = None) -> dict:
+            progress: Callable[[str], None] | None = None, spill=None) -> dict:
     """One pass: the held-out prediction of every model (name -> (column indices, coefficients
     per fold (K, c))), each sample predicted with the coefficients of its block's fold.
     Returns name -> p99 of the held-out error per axis (% FS) and, for the names in
-    ``store``, name -> the FS-normalised prediction itself (float32, (n, 6)). ``x_all``: the
-    whole log's columns when they were kept, ``cache`` the columns of an earlier pass (no
-    columns are built then)."""
+    ``store``, name -> the FS-normalised prediction itself (a :class:`KeptPrediction`, float32,
+    (n, 6)). ``x_all``: the whole log's columns when they were kept, ``cache`` the columns of
+    an earlier pass (no columns are built then). ``spill``: a directory where the stored
+    predictions wait on disk, not in memory (long logs)."""
     tails = {name: Tails(len(data)) for name in models}
-    kept = {name: np.empty((len(data), 6), dtype=np.float32) for name in store}
+    kept = {name: KeptPrediction(len(data), None if spill is None
+                                 else Path(spill) / f"prediction-{i}.f32")
+            for i, name in enumerate(sorted(store, key=repr))}
     stored = x_all is not None or cache is not None
     spans = ([(a, min(len(data), a + PIECE_SAMPLES), None, None)
               for a in range(0, len(data), PIECE_SAMPLES)] if stored else pieces(data))
@@ -232,6 +285,38 @@ def predict(data: GapData, terms, bounds: np.ndarray, fold_of_block: np.ndarray,
                 pred = np.zeros_like(y)
             tails[name].add(100.0 * (y - pred))
             if name in kept:
-                kept[name][a:b] = pred
+                kept[name].write(a, pred)
         del x
     return {"p99": {name: t.percentile() for name, t in tails.items()}, "pred": kept}
+
+
+class KeptPrediction:
+    """A held-out prediction (n, 6) kept in float32, written piece by piece in time order: in
+    memory, or in a scratch file at ``path`` (a long log's ladder steps are used one at a
+    time: only the one in use is in memory)."""
+
+    def __init__(self, n: int, path: Path | None = None):
+        self.n = n
+        self.path = path
+        self.array = np.empty((n, 6), dtype=np.float32) if path is None else None
+        self.written = 0
+        if path is not None:
+            path.write_bytes(b"")
+
+    def write(self, a: int, pred: np.ndarray) -> None:
+        assert a == self.written, "pieces are kept in order"
+        if self.array is not None:
+            self.array[a:a + len(pred)] = pred
+        else:
+            with open(self.path, "ab") as f:
+                f.write(np.ascontiguousarray(pred, dtype=np.float32).tobytes())
+        self.written += len(pred)
+
+    def read(self) -> np.ndarray:
+        """The whole prediction; a scratch file is removed once read."""
+        assert self.written == self.n, "every piece must be written first"
+        if self.array is not None:
+            return self.array
+        out = np.fromfile(self.path, dtype=np.float32).reshape(self.n, 6)
+        self.path.unlink()
+        return out
