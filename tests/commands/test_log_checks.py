@@ -136,3 +136,23 @@ def test_table_columns_never_run_into_each_other(big, axis):
     for line in text.splitlines()[2:]:
         numbers = line.split()[2:]
         assert len(numbers) == 6 and float(numbers[axis]) == pytest.approx(big, abs=0.01)
+
+
+def test_a_long_log_without_scratch_room_is_refused_before_the_work(tmp_path, baseline,
+                                                                     capsys, monkeypatch):
+    """A log past the in-memory columns' length keeps them in the scratch folder (13 GB at
+    2 x 10^6 samples): without that room the diagnosis says so in one line, at once."""
+    from collections import namedtuple
+
+    from delta6.diagnosis import run
+    log = synthetic_log(baseline, "none", n=run.KEEP_COLUMNS_SAMPLES + 1000)
+    path = write(tmp_path / "long.csv", log)
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(run.shutil, "disk_usage", lambda _: usage(10**9, 10**9 - 10**6, 10**6))
+    assert main(["diagnose", str(path), "--design", DESIGN, "--quiet"]) == 2
+    err = one_line(capsys)
+    assert "GB of scratch disk" in err and "TMPDIR" in err
+    import re
+    need = float(re.search(r"about ([0-9.]+) GB", err).group(1))
+    per_column = run.SCRATCH_MARGIN * len(log.t) * 6 * 4 / 1e9     # float32, six axes
+    assert 200 * per_column <= need <= 400 * per_column             # ~270 columns

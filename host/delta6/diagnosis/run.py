@@ -9,6 +9,7 @@ kept whole.
 """
 from __future__ import annotations
 
+import shutil
 import tempfile
 import time
 from dataclasses import dataclass
@@ -21,7 +22,7 @@ from delta6.core.model import AXES
 from delta6.diagnosis import blas, excitation, gap, leftover, physics, selection, stream, verdicts
 from delta6.diagnosis import ladder as ladder_mod
 from delta6.diagnosis import terms as terms_mod
-from delta6.diagnosis.data import GapData
+from delta6.diagnosis.data import DiagnosisInputError, GapData
 from delta6.diagnosis.terms import TERMS
 from delta6.link.logfile import LogData
 
@@ -45,6 +46,23 @@ NAME_SHARE = 0.015
 SMALL_SHARE = 0.05
 #: Logs up to this many samples keep their columns in memory (no second pass).
 KEEP_COLUMNS_SAMPLES = 30_000
+
+
+#: Scratch disk a long log's diagnosis needs beyond its first pass's columns: the harness's
+#: second pass (27 of ~270 columns) and the ladder's predictions, with room to spare.
+SCRATCH_MARGIN = 1.25
+
+
+def check_scratch(directory, samples: int, width: int) -> None:
+    """Refuse, in one line and before the hours of work, a log whose columns the scratch
+    folder cannot hold (float32, six axes; ``stream.ColumnCache``)."""
+    need = SCRATCH_MARGIN * samples * 6 * width * 4
+    free = shutil.disk_usage(directory).free
+    if free < need:
+        raise DiagnosisInputError(
+            f"a log of {samples} samples needs about {need / 1e9:.1f} GB of scratch disk for "
+            f"its columns, but {Path(directory).parent} has {free / 1e9:.1f} GB free: set "
+            "TMPDIR to a folder with more room")
 
 
 def missing_share(problem: selection.Problem, left_sse: float, base_sse: float) -> float:
@@ -387,8 +405,10 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
     signatures = {t.name: t.signature for t in terms if t.signature is not None}
     keep = len(data) <= KEEP_COLUMNS_SAMPLES
     with tempfile.TemporaryDirectory(prefix="delta6-diagnose-") as scratch:
-        cache = None if keep else stream.ColumnCache(scratch, sum(len(t.param_names)
-                                                                  for t in terms))
+        width = sum(len(t.param_names) for t in terms)
+        if not keep:
+            check_scratch(scratch, len(data), width)
+        cache = None if keep else stream.ColumnCache(scratch, width)
         problem = selection.build_problem(data, terms, progress=progress,
                                           signatures=signatures, keep_columns=keep,
                                           cache=cache)
