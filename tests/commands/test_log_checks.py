@@ -156,3 +156,25 @@ def test_a_long_log_without_scratch_room_is_refused_before_the_work(tmp_path, ba
     need = float(re.search(r"about ([0-9.]+) GB", err).group(1))
     per_column = run.SCRATCH_MARGIN * len(log.t) * 6 * 4 / 1e9     # float32, six axes
     assert 200 * per_column <= need <= 400 * per_column             # ~270 columns
+
+
+def test_milliseconds_are_caught_by_the_headers_rate(tmp_path, clean, capsys):
+    """A 1 kHz log in milliseconds has rows 1.0 apart, within the step's limit; its header's
+    rate_hz (what `delta6 log` writes) gives it away. A log whose rows match its rate reads."""
+    fast = type(clean)(t=np.arange(len(clean.t)) * 1.0, theta=clean.theta,
+                       wrench=clean.wrench)
+    path = write(tmp_path / "ms.csv", fast, meta={"design": "delta6", "rate_hz": "1000"})
+    assert main(["evaluate", str(path), "--design", DESIGN]) == 2
+    assert "rate_hz=1000" in one_line(capsys)
+    right = write(tmp_path / "s.csv", clean, meta={"design": "delta6", "rate_hz": "50"})
+    assert main(["evaluate", str(right), "--design", DESIGN]) == 0
+    capsys.readouterr()
+
+
+def test_a_byte_order_mark_does_not_let_other_text_in(tmp_path, clean, capsys):
+    path = write(tmp_path / "plain.csv", clean)
+    text = path.read_text().replace("\n0.040000,", "\n0.0400\u0661\u0662,", 1)
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+    assert main(["evaluate", str(bom), "--design", DESIGN]) == 2
+    assert "non-ASCII" in one_line(capsys)

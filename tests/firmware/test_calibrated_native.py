@@ -172,24 +172,35 @@ def test_the_header_holds_curve_tables_only_for_the_curves_present(baseline, spr
         assert "const CalibrationConstants kCalibrationConstants DELTA6_FLASH" in text
 
 
-def test_gimbal_play_beyond_the_boards_first_order_turn_is_refused(baseline, libdir):
+@pytest.mark.parametrize("seed", [0, 2, 5, 8])
+def test_gimbal_play_beyond_the_boards_first_order_turn_is_refused(baseline, libdir, seed):
     """The gimbal joints' backlash turns their angle to first order on the board: at the
-    largest play codegen takes it agrees with Python within the tolerance; beyond it the
-    disagreement grows with the square of the play and codegen refuses the file in one line."""
+    largest play codegen takes it agrees with Python within the tolerance (with and without
+    curves, every joint at the limit); beyond it the disagreement grows with the square of
+    the play and codegen refuses the file in one line."""
     from delta6_codegen.calibration_header import MAX_GIMBAL_PLAY_RAD
-    cal = random_calibration(baseline, 29)
-    play = np.array(cal.backlash_play_rad, float)
-    play[3:] = MAX_GIMBAL_PLAY_RAD
-    at_limit = cal.with_(backlash_play_rad=play.copy())
-    counts = random_path(29, 400, 1365)
-    assert worst_pct(baseline, at_limit, counts, 0.004, libdir) < TOLERANCE_PCT
-    play[4] = 1.5 * MAX_GIMBAL_PLAY_RAD
-    beyond = cal.with_(backlash_play_rad=play)
+    counts = random_path(seed, 400, 1365)
+    base = random_calibration(baseline, seed)
+    for cal in (base, with_curves(base, seed)):
+        at_limit = cal.with_(backlash_play_rad=np.full(6, MAX_GIMBAL_PLAY_RAD))
+        assert worst_pct(baseline, at_limit, counts, 0.004, libdir) < TOLERANCE_PCT
+    play = np.full(6, MAX_GIMBAL_PLAY_RAD)
+    play[4] *= 1.5
     with pytest.raises(CalibrationRangeError, match="joint 5's backlash"):
-        calibration_constants(baseline, beyond)
+        calibration_constants(baseline, base.with_(backlash_play_rad=play))
     from delta6.core.errors import UserError
     assert issubclass(CalibrationRangeError, UserError)      # one line on the command line
-    from delta6.calibration.families import board_play_checks
-    assert board_play_checks(beyond, "backlash")[0]["ratio"] == pytest.approx(1.5)
-    assert board_play_checks(at_limit, "backlash")[0]["ratio"] == pytest.approx(1.0)
-    assert board_play_checks(beyond, "joint_friction") == []
+
+
+def test_the_fit_holds_gimbal_plays_at_the_boards_limit(baseline):
+    """The calibration's backlash family keeps the gimbal plays within the board's limit (the
+    bounded fit holds them there) and leaves the branches' free."""
+    from delta6.calibration.families import families
+    from delta6_codegen.calibration_header import MAX_GIMBAL_PLAY_RAD
+    family = families(C.neutral(baseline))["backlash"]
+    a, lower = family.constraints(C.neutral(baseline))
+    inside = np.array([0.05, -0.05, 0.04, MAX_GIMBAL_PLAY_RAD, -MAX_GIMBAL_PLAY_RAD, 0.0])
+    outside = inside.copy()
+    outside[5] = 1.01 * MAX_GIMBAL_PLAY_RAD
+    assert np.all(a @ inside >= lower - 1e-15)
+    assert not np.all(a @ outside >= lower)

@@ -40,7 +40,6 @@ from delta6 import __version__
 from delta6.calibration import bounded
 from delta6.calibration.families import (
     Context,
-    board_play_checks,
     curve_table_checks,
     families,
     without_vanishing_curves,
@@ -265,8 +264,7 @@ def _worst_implausible(fitter: _Fitter, cal: Calibration, chosen) -> tuple | Non
     worst, worst_ratio = None, 1.0
     for effect in chosen:
         failed = fitter.families[effect].implausible(cal) + [
-            c for c in curve_table_checks(fitter.data.design, cal, effect)
-            + board_play_checks(cal, effect) if c["ratio"] > 1.0]
+            c for c in curve_table_checks(fitter.data.design, cal, effect) if c["ratio"] > 1.0]
         ratio = max((c["ratio"] for c in failed), default=0.0)
         if ratio > worst_ratio:
             worst, worst_ratio = (effect, failed), ratio

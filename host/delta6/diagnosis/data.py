@@ -25,6 +25,9 @@ MIN_SAMPLES = 2000
 #: A log sampled more slowly than this (median step, s) is no sensor stream: most likely its
 #: time is in milliseconds.
 MAX_SAMPLE_STEP_S = 1.0
+#: A log whose rows are this many times closer or further apart than its header's ``rate_hz``
+#: says has its time in other units (a millisecond log at 1 kHz passes the step's limit).
+RATE_MISMATCH = 5.0
 #: Samples per piece when a per-sample map of the whole log is computed (bounds the memory
 #: the model's intermediate arrays take on long logs).
 PIECE = 50_000
@@ -211,6 +214,15 @@ class GapData:
         return self.joint_torque_of(self.residual)
 
 
+def _stated_rate_hz(meta: dict) -> float | None:
+    """The rate a log's header states (``rate_hz``, written by ``delta6 log``), if any."""
+    try:
+        value = float(meta.get("rate_hz", ""))
+    except ValueError:
+        return None
+    return value if np.isfinite(value) and value > 0 else None
+
+
 def check_log(log: LogData, design: Design, min_samples: int = MIN_SAMPLES) -> None:
     """The checks a log passes before any model is fitted to it or scored on it (the
     diagnosis, ``delta6 calibrate``, ``delta6 evaluate``): enough samples, finite values, time
@@ -219,20 +231,28 @@ def check_log(log: LogData, design: Design, min_samples: int = MIN_SAMPLES) -> N
     :class:`DiagnosisInputError` naming the problem."""
     n = len(log.t)
     if n < min_samples:
-        raise DiagnosisInputError(f"too few samples: {n} (the diagnosis needs at least "
-                                  f"{min_samples} for time-blocked held-out scoring)")
+        why = " for time-blocked held-out scoring" if min_samples == MIN_SAMPLES else ""
+        raise DiagnosisInputError(f"too few samples: {n} (at least {min_samples}{why})")
     for name, values in (("t", log.t), ("theta_e", log.theta), ("wrench", log.wrench)):
         if not np.all(np.isfinite(values)):
             raise DiagnosisInputError(f"NaN or infinite {name} values in the log")
     steps = np.diff(log.t)
     if np.any(steps <= 0):
         raise DiagnosisInputError("time is not strictly increasing")
-    if n > 1 and np.median(steps) > MAX_SAMPLE_STEP_S:
-        step = float(np.median(steps))
+    step = float(np.median(steps)) if n > 1 else 0.0
+    if step > MAX_SAMPLE_STEP_S:
         raise DiagnosisInputError(
             f"the log's median sample step is {step:.4g} s ({1 / step:.3g} Hz), slower than "
             f"any force sensor's stream: t must be in seconds (milliseconds?)")
-    jumps = np.abs(np.diff(log.theta, axis=0)) > np.pi
+    stated = _stated_rate_hz(log.meta)
+    if step > 0 and stated and not 1 / RATE_MISMATCH < step * stated < RATE_MISMATCH:
+        raise DiagnosisInputError(
+            f"the log's header says rate_hz={stated:g}, but its rows are {step:.4g} apart in t "
+            f"({1 / step:.3g} Hz): t must be in seconds (milliseconds?)")
+    # A wrapped 14-bit count jumps by a whole turn; no two samples inside the (tolerated) joint
+    # box are that far apart, whatever the design.
+    delta = np.abs(np.diff(log.theta, axis=0))
+    jumps = (np.abs(delta - 2 * np.pi) < np.pi / 4) & (delta > 3 * design.joint_limit_rad)
     if jumps.any():
         row, joint = (int(v) for v in np.argwhere(jumps)[0])
         step = log.theta[row + 1, joint] - log.theta[row, joint]

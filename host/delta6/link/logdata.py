@@ -78,12 +78,13 @@ def check_rows(path, t: np.ndarray, theta: np.ndarray, wrench: np.ndarray,
     and strictly increasing time. ``place(i)`` names row i in the reader's terms ("line 7" of
     a CSV file, "sample 3" of an MCAP file) for the one-line error."""
     if require_complete_rows:
-        values = np.concatenate([theta, wrench], axis=1)
-        bad = np.isnan(values).any(axis=1)
-        if bad.any():
-            # The first row in the file's order, whichever column it is in.
-            row = int(np.argmax(bad))
-            name = COMPLETE_COLUMNS[int(np.argmax(np.isnan(values[row])))]
+        # The first row in the file's order, whichever column it is in (no copy of a long
+        # log's columns: one flag per row of each).
+        rows = [np.isnan(values).any(axis=1) for values in (theta, wrench)]
+        if rows[0].any() or rows[1].any():
+            row = min(int(np.argmax(r)) if r.any() else len(r) for r in rows)
+            values = np.concatenate([theta[row], wrench[row]])
+            name = COMPLETE_COLUMNS[int(np.argmax(np.isnan(values)))]
             raise LogError(f"{path}: missing or NaN {name} value at {place(row)}")
     steps = np.diff(t)
     if (steps <= 0).any():

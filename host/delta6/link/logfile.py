@@ -268,9 +268,12 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
         return mcaplog.read_mcap(path, require_complete_rows=require_complete_rows)
     try:
         cut = path.name.endswith(PARTIAL_SUFFIX) and not _ends_with_newline(path)
-        # A spreadsheet's UTF-8 byte-order mark before the first line is no content.
-        with open(path, encoding="utf-8-sig" if _has_bom(path) else "ascii",
-                  newline=None) as f:
+        # A spreadsheet's UTF-8 byte-order mark before the first line is no content; the rest
+        # is ASCII either way.
+        with open(path, "rb") as raw, io.TextIOWrapper(raw, encoding="ascii",
+                                                       newline=None) as f:
+            if raw.read(3) != BOM:
+                raw.seek(0)
             meta, columns, body_start = _read_header(path, f)
             table, line_of = _read_body(path, f, len(columns), body_start, drop_last=cut)
         if cut:
@@ -307,9 +310,8 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
                    temp_c=optional("temp_c"), meta=meta)
 
 
-def _has_bom(path: Path) -> bool:
-    with open(path, "rb") as f:
-        return f.read(3) == b"\xef\xbb\xbf"
+#: The UTF-8 byte-order mark spreadsheets write before a CSV file's first line.
+BOM = b"\xef\xbb\xbf"
 
 
 def _read_header(path: Path, f) -> tuple[dict, list[str], int]:
