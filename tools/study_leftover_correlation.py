@@ -232,13 +232,18 @@ def study_runs(design, seeds=None, withhold=()) -> None:
           f"new {false_verdict['new']}")
 
 
-def study_white(design) -> None:
+def white_run(design):
+    """A run without effects (seed 4116) and its white leftover: the log's data, the leftover
+    (FS units), the angles, the torque map and angle Jacobian, and the leftover's torques."""
     c = run(design, 4116, [])
     data, left = c["data"], c["left"]
     theta = data.theta
-    g = sensitivity.torque_map(data.params, theta)
-    jac = sensitivity.angle_jacobian(data.params, theta)
-    base = data.joint_torque_of(left * data.fs)
+    return (data, left, theta, sensitivity.torque_map(data.params, theta),
+            sensitivity.angle_jacobian(data.params, theta), data.joint_torque_of(left * data.fs))
+
+
+def study_white(design) -> None:
+    data, left, theta, g, jac, base = white_run(design)
     rng = np.random.default_rng(5)
     print("a curve on one joint added to a white leftover: share of 10 phases found "
           "(p <= 1.67e-4), old / new")
@@ -401,12 +406,7 @@ def study_nuisance(design, seeds=None, withhold=()) -> None:
 
 
 def study_nuisance_sim(design, draws: int = 40) -> None:
-    c = run(design, 4116, [])
-    data, left = c["data"], c["left"]
-    theta = data.theta
-    g = sensitivity.torque_map(data.params, theta)
-    jac = sensitivity.angle_jacobian(data.params, theta)
-    base = data.joint_torque_of(left * data.fs)
+    data, left, theta, g, jac, base = white_run(design)
 
     def torque_of(w):
         return np.linalg.solve(g, w[..., None])[..., 0]
