@@ -112,14 +112,17 @@ def test_curves_over_the_joint_box_and_along_a_twin_trajectory(baseline, libdir)
 def test_the_largest_backlash_with_curves_fits_the_fixed_point_angle(baseline, libdir):
     """The curved solve sums the backlash angle and the encoder error between the knots in
     int32 units of 2^-31 rad: the file's largest backlash (0.2 rad) fits with room to spare;
-    a backlash at the top of the small rotation's range (the gimbal's turn to first order,
-    |e| < 0.01 rad) over the widest direction play agrees with Python, reversals included."""
+    a backlash at the top of what codegen takes on the gimbal (its first-order turn,
+    MAX_GIMBAL_PLAY_RAD) over the widest direction play agrees with Python, reversals
+    included."""
+    from delta6_codegen.calibration_header import MAX_GIMBAL_PLAY_RAD
     curved = with_curves(random_calibration(baseline, 23), 23)
     widest = curve_constants(baseline, curved.with_(backlash_play_rad=np.full(6, 0.2)))
     assert widest.eh == (round(0.1 * 2 ** 31),) * 6 and max(widest.eh) < 2 ** 30
-    cal = curved.with_(backlash_play_rad=np.full(6, 0.018), direction_half_counts=64)
+    cal = curved.with_(backlash_play_rad=np.full(6, MAX_GIMBAL_PLAY_RAD),
+                       direction_half_counts=64)
     cv = curve_constants(baseline, cal)
-    assert cv.ed == (round(0.009 / 64 * 2 ** 31),) * 6
+    assert cv.ed == (round(MAX_GIMBAL_PLAY_RAD / 2 / 64 * 2 ** 31),) * 6
     counts = random_path(23, 400, 1365)
     assert worst_pct(baseline, cal, counts, 0.004, libdir) < TOLERANCE_PCT
 

@@ -244,7 +244,7 @@ def check_log(log: LogData, design: Design, min_samples: int = MIN_SAMPLES) -> N
         raise DiagnosisInputError(
             f"the log's median sample step is {step:.4g} s ({1 / step:.3g} Hz), slower than "
             f"any force sensor's stream: t must be in seconds (milliseconds?)")
-    stated = _stated_rate_hz(log.meta)
+    stated = _stated_rate_hz(getattr(log, "meta", None) or {})   # a twin run has no header
     if step > 0 and stated and not 1 / RATE_MISMATCH < step * stated < RATE_MISMATCH:
         raise DiagnosisInputError(
             f"the log's header says rate_hz={stated:g}, but its rows are {step:.4g} apart in t "
