@@ -89,13 +89,16 @@ def choose_design(log: LogData, name, given: str | None, force: bool):
     label = f"design '{log.meta.get('design', '?')}' (hash 0x{recorded or 0:08x})"
     called = log.meta.get("design") or None
     if given is not None:
-        if recorded is not None and not force and load(given).hash32() != recorded:
+        if force:
+            return given
+        design = load(given)
+        if recorded is not None and design.hash32() != recorded:
             raise UserError(f"{name} was recorded with {label}, but {given} has hash "
-                            f"0x{load(given).hash32():08x}: pass the log's design, or --force "
+                            f"0x{design.hash32():08x}: pass the log's design, or --force "
                             "to diagnose against this one")
-        if recorded is None and called and not force and load(given).name != called:
+        if recorded is None and called and design.name != called:
             raise UserError(f"{name} names design '{called}' in its header, but {given} is "
-                            f"'{load(given).name}': pass the log's design, or --force to "
+                            f"'{design.name}': pass the log's design, or --force to "
                             "diagnose against this one")
         return given
     if recorded is None:

@@ -201,17 +201,17 @@ def load(path: str | Path) -> Design:
     return validate(raw, source)
 
 
+def _shipped(matches) -> Path | None:
+    """The first shipped design file (``designs/``) whose design ``matches``."""
+    return next((path for path in sorted(DESIGNS_DIR.glob("*.toml")) if matches(load(path))),
+                None)
+
+
 def shipped_design_named(name: str) -> Path | None:
-    """The shipped design file (``designs/``) whose design is called ``name``."""
-    for path in sorted(DESIGNS_DIR.glob("*.toml")):
-        if load(path).name == name:
-            return path
-    return None
+    """The shipped design file whose design is called ``name``."""
+    return _shipped(lambda d: d.name == name)
 
 
 def shipped_design(design_hash: int) -> Path | None:
-    """The shipped design file (``designs/``) whose physics hashes to ``design_hash``."""
-    for path in sorted(DESIGNS_DIR.glob("*.toml")):
-        if load(path).hash32() == design_hash:
-            return path
-    return None
+    """The shipped design file whose physics hashes to ``design_hash``."""
+    return _shipped(lambda d: d.hash32() == design_hash)

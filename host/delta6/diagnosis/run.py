@@ -394,9 +394,10 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
         progress("model and breakdowns")
     where = gap.where(data)
     baseline_p99 = ladder_mod.baseline_p99(data.residual / data.fs).tolist()
-    # Long logs: 50..100 MB each. The model's wrench too, now that the residual is made
-    # (the pieces compute their own; a later caller gets it again on demand).
-    for name in ("velocity", "residual_pct", "position_mm", "model"):
+    # Long logs: 50..100 MB each (gap.where drops the position and the speed it used). The
+    # model's wrench too, now that the residual is made (the pieces compute their own; a
+    # later caller gets it again on demand).
+    for name in ("residual_pct", "model"):
         data.__dict__.pop(name, None)
 
     vocabulary = TERMS if terms is None else tuple(terms)
