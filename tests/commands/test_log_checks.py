@@ -103,7 +103,19 @@ def test_the_first_missing_value_in_the_file_is_named(tmp_path, clean, capsys):
     lines[header + 2000] = ",".join(cells)
     path.write_text("\n".join(lines) + "\n")
     assert main(["evaluate", str(path), "--design", DESIGN]) == 2
-    assert f"missing or NaN Fy value at line {header + 101}" in one_line(capsys)
+    err = one_line(capsys)
+    assert f"missing or NaN Fy value at line {header + 101}" in err
+    assert "2 incomplete rows" in err and "--complete-rows" in err
+    # What the line points to: the complete rows, every other one kept, the gaps left gaps.
+    kept = tmp_path / "kept.csv"
+    assert main(["convert", str(path), str(kept), "--complete-rows"]) == 0
+    assert "2498 samples" in capsys.readouterr().err
+    log, full = read_log(kept), read_log(path, require_complete_rows=False)
+    gone = np.array([99, 1999])
+    assert len(log) == len(full) - 2 and not np.isin(full.t[gone], log.t).any()
+    for column in ("t", "theta", "wrench"):
+        assert np.array_equal(getattr(log, column), np.delete(getattr(full, column), gone, 0))
+    assert main(["evaluate", str(kept), "--design", DESIGN]) == 0
 
 
 def test_spreadsheet_habits_are_read(tmp_path, clean):

@@ -105,49 +105,71 @@ def test_evaluate_row_is_the_integer_reference_over_the_calibration(over_cal, ba
     assert np.allclose(rows["onchip"]["p99_pct"], p["p99"])
 
 
+def _widened(model_path, out_path, width: int):
+    """The trained one-hidden-layer model with its hidden layer repeated up to ``width``
+    neurons: a valid model file too costly for a board (train refuses to make one)."""
+    body = json.loads(model_path.read_text())
+    first, last = body["network"]["layers"]
+    reps = -(-width // len(first["weights"]))
+    for key in ("weights", "bias", "multiplier", "shift"):
+        first[key] = (first[key] * reps)[:width]
+    last["weights"] = [(row * reps)[:width] for row in last["weights"]]
+    out_path.write_text(json.dumps(body))
+    return out_path
+
+
 def test_a_model_too_costly_for_the_rated_rate_is_refused(over_cal, unit_logs, tmp_path,
                                                           capsys):
     """Over a calibration the board keeps 200 Hz with at most MAX_MODEL_MACS['calibrated']
-    multiply-accumulates: a bigger network is refused in one line, a smaller one taken."""
+    multiply-accumulates: train refuses to make a bigger network (before training), codegen
+    and evaluate refuse a bigger model file, each in one line; a smaller one is taken."""
     from delta6.commands.codegen import MAX_MODEL_MACS
     _, cal_path, _, _ = over_cal
     header = tmp_path / "generated" / "delta6_design.h"
-    for hidden, ok in (("16", False), ("4", True)):
-        model = tmp_path / f"h{hidden}.json"
-        assert main(["train", str(unit_logs[0]), "--target", "mcu", "--residual-over",
-                     str(cal_path), "--epochs", "1", "--hidden", hidden, "--quiet",
-                     "-o", str(model)]) == 0
+    costly = tmp_path / "h16.json"
+    assert main(["train", str(unit_logs[0]), "--target", "mcu", "--residual-over",
+                 str(cal_path), "--epochs", "1", "--hidden", "16", "--quiet",
+                 "-o", str(costly)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "192 multiply-accumulates" in err, err
+    assert "at most 144" in err and not costly.exists()
+    small = tmp_path / "h4.json"
+    assert main(["train", str(unit_logs[0]), "--target", "mcu", "--residual-over",
+                 str(cal_path), "--epochs", "1", "--hidden", "4", "--quiet",
+                 "-o", str(small)]) == 0
+    _widened(small, costly, 16)
+    for model, ok in ((small, True), (costly, False)):
         macs = residualmodel.load(model).net.macs
         assert (macs <= MAX_MODEL_MACS["calibrated"]) == ok, macs
-        capsys.readouterr()
-        status = main(["codegen", "designs/delta6.toml", "--calibration", str(cal_path),
-                       "--model", str(model), "-o", str(header)])
-        err = capsys.readouterr().err.strip()
-        if ok:
-            assert status == 0, err
-        else:
-            assert status == 2 and len(err.splitlines()) == 1 and "at most 144" in err, err
+        for command in (["codegen", "designs/delta6.toml", "-o", str(header)],
+                        ["evaluate", str(unit_logs[1])]):
+            capsys.readouterr()
+            status = main([*command, "--calibration", str(cal_path), "--model", str(model)])
+            err = capsys.readouterr().err.strip()
+            if ok:
+                assert status == 0, err
+            else:
+                assert status == 2 and len(err.splitlines()) == 1 and "at most 144" in err, err
 
 
 def test_over_a_calibration_with_curves_only_the_default_model_is_taken(over_cal, unit_logs,
                                                                         tmp_path, capsys):
     """The curve tables take about 2,200 cycles and 1,560 B more: over such a calibration the
     board keeps 200 Hz (and the emulated ATmega328P's 32 KB) with the default linear map of
-    the counts (36 multiply-accumulates), not with a hidden layer."""
+    the counts (36 multiply-accumulates), not with a hidden layer: train refuses one, codegen
+    refuses a model trained over the calibration without curves."""
     from support.calibrations import with_curves
-    cal, _, _, _ = over_cal
+    cal, cal_path, _, _ = over_cal
     curved = calibration_mod.save(with_curves(cal, 4).with_(name="curved"), tmp_path / "c.toml")
     header = tmp_path / "generated" / "delta6_design.h"
-    for hidden, ok in (("0", True), ("4", False)):
-        model = tmp_path / f"h{hidden}.json"
-        args = ["--hidden", hidden] if hidden != "0" else []
-        assert main(["train", str(unit_logs[0]), "--target", "mcu", "--residual-over",
-                     str(curved), "--epochs", "1", "--quiet", "-o", str(model), *args]) == 0
-        capsys.readouterr()
-        status = main(["codegen", "designs/delta6.toml", "--calibration", str(curved),
-                       "--model", str(model), "-o", str(header)])
-        err = capsys.readouterr().err.strip()
-        if ok:
-            assert status == 0, err
-        else:
-            assert status == 2 and len(err.splitlines()) == 1 and "at most 36" in err, err
+    model = tmp_path / "h0.json"
+    assert main(["train", str(unit_logs[0]), "--target", "mcu", "--residual-over",
+                 str(curved), "--epochs", "1", "--quiet", "-o", str(model)]) == 0
+    capsys.readouterr()
+    assert main(["codegen", "designs/delta6.toml", "--calibration", str(curved),
+                 "--model", str(model), "-o", str(header)]) == 0
+    assert main(["train", str(unit_logs[0]), "--target", "mcu", "--residual-over",
+                 str(curved), "--epochs", "1", "--quiet", "--hidden", "4",
+                 "-o", str(tmp_path / "h4.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "at most 36" in err, err

@@ -53,6 +53,18 @@ def test_decode_turns_a_capture_into_the_documented_csv(tmp_path, capsys):
     assert (log.status[1:] == P.Status.CONFIG_DEFAULTS).all()
 
 
+def test_decode_says_when_the_capture_ends_inside_a_frame(tmp_path, capsys):
+    data, _ = capture_from_sim()
+    cut = data.rindex(b"\x00", 0, len(data) - 1) + 11     # ten bytes into the last frame
+    cap_file = tmp_path / "cut.bin"
+    cap_file.write_bytes(data[:cut])
+    assert main(["decode", str(cap_file), "-o", str(tmp_path / "cut.csv")]) == 0
+    assert "ends 10 bytes into an unfinished frame" in capsys.readouterr().err
+    cap_file.write_bytes(data)
+    assert main(["decode", str(cap_file), "-o", str(tmp_path / "whole.csv")]) == 0
+    assert "unfinished frame" not in capsys.readouterr().err
+
+
 def test_decode_of_a_wrench_only_capture_leaves_angles_empty(tmp_path):
     data, _ = capture_from_sim(raw=False)
     cap_file = tmp_path / "c.bin"

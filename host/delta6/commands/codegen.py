@@ -9,8 +9,8 @@ from typing import NamedTuple
 
 from delta6.build import avrbuild
 from delta6.core import calibration as calibration_mod
-from delta6.core import curves, paths, residualmodel
 from delta6.core import design as design_mod
+from delta6.core import paths, residualmodel
 from delta6.core.errors import UserError
 from delta6.core.workspace import load_checked
 from delta6.link.protocol import VERSION as PROTOCOL_VERSION
@@ -85,14 +85,8 @@ def calibration_text(design: design_mod.Design, design_path: Path, cal_path: Pat
     return cal, render_calibration(design, cal, source_label(design_path), source_label(cal_path))
 
 
-#: The largest on-chip model (multiply-accumulates per sample) measured to hold the model
-#: image's rated 200 Hz on the ATmega328P at 16 MHz, over each base (docs/ondevice-model.md:
-#: the analytical default, 672, at 74,300 cycles of work per 80,000-cycle period; over a
-#: calibration, whose solve took 51,000 then (49,000 now), the 144-MAC network at 75,400).
-#: Over a calibration with curve tables (about 2,200 cycles and 1,560 B more), the default
-#: linear map of the counts, 36: 65,000 cycles a sample and 32,240 B of the emulated
-#: ATmega328P's 32 KB (flash holds it there: a 108-MAC network reading the wrench overflows).
-MAX_MODEL_MACS = {"analytical": 672, "calibrated": 144, "calibrated with curves": 36}
+#: Re-exported: the cost limits live with the model file (evaluate and train check them too).
+MAX_MODEL_MACS = residualmodel.MAX_MODEL_MACS
 
 
 def model_text(design: design_mod.Design, design_path: Path, model_path: Path | None, cal=None):
@@ -104,14 +98,7 @@ def model_text(design: design_mod.Design, design_path: Path, model_path: Path | 
     from delta6_codegen import render_model
     model = residualmodel.load(model_path)
     residualmodel.check_base(model, design, cal)
-    base = "analytical" if cal is None else "calibrated"
-    over = f"the {base} model"
-    if cal is not None and curves.has_curves(design, cal):
-        base, over = "calibrated with curves", "a calibration with curve tables"
-    if model.net.macs > MAX_MODEL_MACS[base]:
-        raise UserError(f"{model_path}: {model.net.macs} multiply-accumulates per sample; over "
-                        f"{over} the board keeps its 200 Hz with at most "
-                        f"{MAX_MODEL_MACS[base]} (train a smaller one: --hidden)")
+    residualmodel.check_cost(model.net.macs, design, cal, str(model_path))
     return model, render_model(model, source_label(design_path), source_label(model_path))
 
 

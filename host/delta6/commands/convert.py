@@ -5,6 +5,8 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from delta6.core.errors import UserError
 from delta6.core.outputs import check_output_file
 from delta6.link.logfile import OPTIONAL_COLUMNS, open_log_writer, read_log
@@ -20,6 +22,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                                       "CSV otherwise")
     parser.add_argument("--frame-id", metavar="ID",
                         help="frame id of the wrench messages (default: the log's, or delta6_e)")
+    parser.add_argument("--complete-rows", action="store_true",
+                        help="keep only the rows with every angle and wrench value (a stream's "
+                             "failed reads leave them empty), for the commands that need "
+                             "complete rows (diagnose, calibrate, train, evaluate); the time "
+                             "gaps stay gaps")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -32,11 +39,19 @@ def run(args: argparse.Namespace) -> int:
     if args.frame_id is not None:
         meta["frame_id"] = args.frame_id
     optional = tuple(c for c in OPTIONAL_COLUMNS if getattr(log, c) is not None)
+    keep = (np.isfinite(log.theta).all(axis=1) & np.isfinite(log.wrench).all(axis=1)
+            if args.complete_rows else np.ones(len(log), dtype=bool))
+    if not keep.any():
+        raise UserError(f"{source}: no row has every angle and wrench value")
     with open_log_writer(output, meta, optional=optional) as writer:
         for start in range(0, len(log), BLOCK_ROWS):
-            part = slice(start, start + BLOCK_ROWS)
-            writer.write_block(log.t[part], log.theta[part], log.wrench[part],
-                               **{c: getattr(log, c)[part] for c in optional})
-    print(f"{output}: {len(log)} samples, columns t, theta_e1..6, Fx..Mz"
-          + "".join(f", {c}" for c in optional), file=sys.stderr)
+            part = np.flatnonzero(keep[start:start + BLOCK_ROWS]) + start
+            if len(part):
+                writer.write_block(log.t[part], log.theta[part], log.wrench[part],
+                                   **{c: getattr(log, c)[part] for c in optional})
+    dropped = len(log) - int(keep.sum())
+    print(f"{output}: {int(keep.sum())} samples, columns t, theta_e1..6, Fx..Mz"
+          + "".join(f", {c}" for c in optional)
+          + (f" ({dropped} incomplete rows left out)" if args.complete_rows else ""),
+          file=sys.stderr)
     return 0

@@ -117,6 +117,8 @@ def run(args: argparse.Namespace) -> int:
           f"{s.bytes_discarded} bytes discarded, {capture.duplicates} duplicates{unknown}"
           + ("" if theta is not None or zero is None else "; no raw counts: angles left empty")
           + ("" if infos else "; no device info: angles left empty")
+          + (f"; the capture ends {capture.trailing_bytes} bytes into an unfinished frame"
+             if capture.trailing_bytes else "")
           + _sessions_note(capture, args.session), file=sys.stderr)
     return 0
 

@@ -10,6 +10,7 @@ from delta6.commands._port import Progress, number
 from delta6.core import calibration as calibration_mod
 from delta6.core.accuracy import format_table
 from delta6.core.errors import UserError
+from delta6.core.model import AXES
 from delta6.core.outputs import check_output_file
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
@@ -65,7 +66,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress display")
 
 
+#: Options of one target that the other would ignore: refused instead.
+HOST_ONLY = (("--preset", lambda a: a.preset != "default"),
+             ("--max-minutes", lambda a: a.max_minutes is not None),
+             ("--threads", lambda a: a.threads != 1))
+MCU_ONLY = (("--hidden", lambda a: a.hidden is not None),
+            ("--name", lambda a: a.name is not None))
+
+
+def _refuse_other_target(args) -> None:
+    other = MCU_ONLY if args.target == "host" else HOST_ONLY
+    given = [option for option, used in other if used(args)]
+    if given:
+        what = "--target mcu" if args.target == "host" else "a host model (--target host)"
+        raise UserError(f"{', '.join(given)}: only for {what}")
+
+
 def run(args: argparse.Namespace) -> int:
+    _refuse_other_target(args)
     if args.target == "mcu":
         return run_mcu(args)
     if args.model is None:
@@ -118,6 +136,15 @@ def run(args: argparse.Namespace) -> int:
     if s.get("holdout_base_pct_fs"):
         print(format_table(_rows(s["holdout_base_pct_fs"]),
                            title="calibrated" if calibration else args.residual_over))
+    if base != "analytical":
+        print(format_table(_rows(s["holdout_analytical_pct_fs"]), title="analytical"))
+    worse = [axis for axis, model_p99, plain_p99 in
+             zip(AXES, s["holdout_pct_fs"]["p99"], s["holdout_analytical_pct_fs"]["p99"])
+             if model_p99 > plain_p99]
+    if worse:
+        print(f"note: on the held-out tail the model is worse than the analytical model on "
+              f"{', '.join(worse)} (p99): a longer calibration run helps (docs/learning.md, "
+              "\"how long to calibrate\")")
     return 0
 
 
@@ -135,6 +162,18 @@ def _hidden(text: str) -> tuple[int, ...]:
     if not sizes or any(not 1 <= s <= 48 for s in sizes) or len(sizes) > 4:
         raise UserError("--hidden: 0 (linear) or one to four layers of 1..48 neurons")
     return sizes
+
+
+def _check_companion(onnx_path: Path, output: Path) -> None:
+    """The float network goes to MODEL.onnx: replace only an earlier on-chip export there, never
+    a host model or any other file a user keeps under that name."""
+    if not onnx_path.exists():
+        return
+    from delta6.learning.card import onnx_metadata
+    if "delta6_model" not in (onnx_metadata(onnx_path) or {}):
+        raise UserError(f"-o {output}: its float network would replace {onnx_path}, which is "
+                        "not an on-chip model's (a host model of delta6 train?); give another "
+                        "name")
 
 
 def _mcu_base(args, design):
@@ -166,6 +205,7 @@ def run_mcu(args: argparse.Namespace) -> int:
         raise UserError("-o: the model file is JSON (MODEL.json); the ONNX goes next to it")
     check_output_file(output, "-o")
     check_output_file(output.with_suffix(".onnx"), "-o")
+    _check_companion(output.with_suffix(".onnx"), output)
     design = load_checked(args.design)
     base = _mcu_base(args, design)
     log = read_log(args.log)
@@ -183,6 +223,11 @@ def run_mcu(args: argparse.Namespace) -> int:
     say = None if args.quiet else (lambda text: print(f"  {text}", file=sys.stderr, flush=True))
     settings = mcu.default_settings(base, epochs=args.epochs or 30, seed=args.seed,
                                     **({} if hidden is None else {"hidden": hidden}))
+    # Before the minutes of training: a model no firmware image runs at its rate is no use.
+    residualmodel.check_cost(residualmodel.planned_macs(6 * len(settings.features),
+                                                        settings.hidden),
+                             design, getattr(base, "calibration", None),
+                             f"--hidden {args.hidden}" if args.hidden else "the model")
     result = mcu.train_mcu(log, design, base, name=name, settings=settings, progress=say,
                            source=Path(args.log).name)
     path = residualmodel.save(result.model, output)

@@ -77,6 +77,43 @@ class ResidualModel:
         return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "big")
 
 
+#: The largest on-chip model (multiply-accumulates per sample) measured to hold the model
+#: image's rated 200 Hz on the ATmega328P at 16 MHz, over each base (docs/ondevice-model.md:
+#: the analytical default, 672, at 74,300 cycles of work per 80,000-cycle period; over a
+#: calibration, whose solve took 51,000 then (49,000 now), the 144-MAC network at 75,400).
+#: Over a calibration with curve tables (about 2,200 cycles and 1,560 B more), the default
+#: linear map of the counts, 36: 65,000 cycles a sample and 32,240 B of the emulated
+#: ATmega328P's 32 KB (flash holds it there: a 108-MAC network reading the wrench overflows).
+MAX_MODEL_MACS = {"analytical": 672, "calibrated": 144, "calibrated with curves": 36}
+
+
+def planned_macs(inputs: int, hidden: tuple[int, ...]) -> int:
+    """Multiply-accumulates per sample of a network with ``inputs`` inputs, the ``hidden``
+    layer widths and six outputs (what :attr:`Int8Net.macs` will count)."""
+    widths = (inputs, *hidden, 6)
+    return sum(a * b for a, b in zip(widths[:-1], widths[1:]))
+
+
+def cost_limit(design, calibration=None) -> tuple[int, str]:
+    """The largest model (multiply-accumulates) the firmware over this base runs at its rated
+    rate, and the base as a phrase for messages."""
+    from delta6.core import curves
+    if calibration is None:
+        return MAX_MODEL_MACS["analytical"], "the analytical model"
+    if curves.has_curves(design, calibration):
+        return MAX_MODEL_MACS["calibrated with curves"], "a calibration with curve tables"
+    return MAX_MODEL_MACS["calibrated"], "the calibrated model"
+
+
+def check_cost(macs: int, design, calibration=None, source: str = "the model") -> None:
+    """Refuse a model no firmware image over this base runs at its rated 200 Hz."""
+    limit, over = cost_limit(design, calibration)
+    if macs > limit:
+        raise UserError(f"{source}: {macs} multiply-accumulates per sample; over {over} the "
+                        f"board keeps its 200 Hz with at most {limit} (train a smaller one: "
+                        "--hidden)")
+
+
 def check_base(model: ResidualModel, design, calibration=None) -> None:
     """The model must correct what runs under it: ``design``'s analytical wrench without a
     calibration, the calibrated wrench of that very calibration with one (one line, else)."""

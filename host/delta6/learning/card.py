@@ -17,6 +17,16 @@ PREFIX = "delta6."
 BASES = ("none", "analytical", "calibration")
 
 
+def onnx_metadata(path) -> dict[str, str] | None:
+    """An ONNX file's ``metadata_props`` (None: not a readable ONNX file)."""
+    import onnx
+    try:
+        proto = onnx.load(str(path), load_external_data=False)
+    except Exception:   # onnx raises protobuf's and its own errors for a file that is not ONNX
+        return None
+    return {p.key: p.value for p in proto.metadata_props}
+
+
 class ModelFileError(UserError):
     """A model file is unreadable, not a Delta6 model, or not for this design or calibration."""
 
@@ -57,6 +67,11 @@ class ModelCard:
             if "schema" in own:
                 raise ModelFileError(f"{source}: model schema {own['schema']!r} is not "
                                      f"supported (this version reads {SCHEMA})")
+            if "delta6_model" in props:
+                raise ModelFileError(
+                    f"{source}: the float network of on-chip model '{props['delta6_model']}' "
+                    "(delta6 train --target mcu), not a host estimator: give its .json to "
+                    "delta6 evaluate --model, codegen --model or virtual --model")
             raise ModelFileError(f"{source}: an ONNX model, but not a Delta6 learned estimator "
                                  "(no delta6 metadata)")
 

@@ -42,6 +42,7 @@ def check_log(log: LogData, design: Design, calibration: Calibration | None, sou
     if len(log.t) < MIN_SAMPLES:
         raise UserError(f"{source}: too few samples to train on ({len(log.t)}; at least "
                         f"{MIN_SAMPLES})")
+    dataset_mod.check_motion(log.theta, source)
 
 
 def base_model(name: str, design: Design, calibration: Calibration | None, rate_hz: float):
@@ -82,6 +83,9 @@ def fit(log: LogData, design: Design, preset: Preset, *, base: str = "none",
         "holdout_pct_fs": _table(held, data.wrench[split:], fs),
         "holdout_base_pct_fs": _table(data.base[split:], data.wrench[split:], fs)
         if base != "none" else None,
+        # What the model has to beat to be worth using (the base of a residual is shown above).
+        "holdout_analytical_pct_fs": _table(AnalyticalBase(design).batch(None, data.theta[split:]),
+                                            data.wrench[split:], fs),
     }
     card = ModelCard(kind=preset.net.kind, design_name=design.name, design_hash=design.hash32(),
                      base=base, window=data.window, rate_hz=rate, norm=data.norm,

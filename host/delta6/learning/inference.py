@@ -53,6 +53,11 @@ class LearnedEstimator:
                  calibration: Calibration | None = None, threads: int = 1):
         self.path = Path(path)
         self.name = self.path.stem
+        if self.path.suffix.lower() == ".json" and self.path.is_file():
+            raise ModelFileError(f"{self.path}: an on-chip model file (delta6 train --target "
+                                 "mcu) runs on the board (delta6 codegen --model, delta6 virtual "
+                                 "--model) or in delta6 evaluate --model; here a host model "
+                                 "(MODEL.onnx) is needed")
         self.session = open_session(self.path, threads)
         self.card = ModelCard.from_props(
             dict(self.session.get_modelmeta().custom_metadata_map), str(self.path))

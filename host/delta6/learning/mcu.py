@@ -27,6 +27,7 @@ from delta6.core.int8quant import FeatureSpec, FloatNet
 from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.core.residualmodel import ResidualModel
 from delta6.core.spec import full_scale
+from delta6.learning.dataset import check_motion
 
 #: The default features over the analytical model (docs/ondevice-model.md says why): the base
 #: wrench, the counts, the base wrench's step over one model period, and plays of 4, 16 and 64
@@ -112,7 +113,13 @@ class McuEstimator:
         self.path = Path(path)
         self.name = self.path.stem
         self.model = residualmodel.load(self.path)
+        # A model over the analytical model runs over it whatever calibration the table also
+        # scores (as a host model does); one over a calibration needs that very calibration.
+        if self.model.base == "analytical":
+            calibration = None
         residualmodel.check_base(self.model, design, calibration)
+        # Its row is what the board would stream: a model no image runs has no such row.
+        residualmodel.check_cost(self.model.net.macs, design, calibration, str(self.path))
         self.design = design
         self.base = (AnalyticalBase(design) if calibration is None
                      else CalibratedBase(design, calibration))
@@ -158,6 +165,7 @@ def train_mcu(log, design: Design, base, *, name: str, settings: McuSettings = M
     n = len(log.t)
     if n < MIN_SAMPLES:
         raise UserError(f"too few samples to train on: {n} (at least {MIN_SAMPLES})")
+    check_motion(log.theta, source or "the log")
     fs = full_scale(design)
     rate = nominal_rate(log.t)
     base_wrench = base.predict(log)

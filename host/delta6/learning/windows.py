@@ -109,10 +109,15 @@ class Normalisation:
         return cls(**values)
 
 
+#: A spread below this is rounding, not motion (rad, N, N*m): such a column keeps scale 1.
+NO_SPREAD = 1e-9
+
+
 def _spread(x: np.ndarray) -> np.ndarray:
-    """Standard deviation per column, never zero (a joint that never moved keeps scale 1)."""
+    """Standard deviation per column, never (numerically) zero: a column that never changed
+    keeps scale 1 instead of dividing by the rounding error of its mean."""
     sd = np.asarray(x, dtype=float).std(axis=0)
-    return np.where(sd > 0, sd, 1.0)
+    return np.where(sd > NO_SPREAD, sd, 1.0)
 
 
 def _tup(a) -> tuple[float, ...]:

@@ -85,7 +85,10 @@ def check_rows(path, t: np.ndarray, theta: np.ndarray, wrench: np.ndarray,
             row = min(int(np.argmax(r)) if r.any() else len(r) for r in rows)
             values = np.concatenate([theta[row], wrench[row]])
             name = COMPLETE_COLUMNS[int(np.argmax(np.isnan(values)))]
-            raise LogError(f"{path}: missing or NaN {name} value at {place(row)}")
+            count = int((rows[0] | rows[1]).sum())
+            raise LogError(f"{path}: missing or NaN {name} value at {place(row)} ({count} "
+                           f"incomplete row{'s' if count > 1 else ''}: failed reads? `delta6 "
+                           "convert IN OUT --complete-rows` keeps the complete ones)")
     steps = np.diff(t)
     if (steps <= 0).any():
         raise LogError(f"{path}: time is not strictly increasing at {place(int(np.argmax(steps <= 0)) + 1)}")
