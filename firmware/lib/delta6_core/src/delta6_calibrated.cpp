@@ -25,6 +25,11 @@
 #define DELTA6_NOINLINE
 #define DELTA6_ALWAYS_INLINE inline
 #endif
+#if defined(__AVR__)
+#define DELTA6_FOR_SIZE __attribute__((optimize("Os")))
+#else
+#define DELTA6_FOR_SIZE
+#endif
 // -O2 for this file on the AVR (the image is built -Os): about 1,000 cycles less per sample
 // for about 650 bytes of flash.
 #if defined(__AVR__)
@@ -156,10 +161,10 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
         // that moved part of the step (a reversal inside it) takes a multiply of its own. A
         // joint standing still moves no play: its sum stands.
         if (step != 0) {
+            const int16_t last = st.last[j];
             int32_t sum = st.count_sum[j];
             int32_t k = flash::i32(&cc.kx[j]);
             const int32_t kd = flash::i32(&cc.kd[j]);
-            const int16_t last = st.last[j];
             const int16_t y2_new = clamp_play(y2, x2, half);
             if (y2_new == y2) {
                 k = wrapping_add(k, wrapping_add(kd, kd));
@@ -391,23 +396,27 @@ void calibration_set_period(const CalibrationConstants& c, float period_s,
 
 namespace {
 
+// The history settled at the first sample's counts: every play at x, the direction play at 2x,
+// no speed. Once per start: compiled for size.
+DELTA6_NOINLINE DELTA6_FOR_SIZE void start_settled(const CalibrationConstants& cc,
+                                                   CalibrationState& st, const int16_t delta[6]) {
+    for (uint8_t j = 0; j < 6; ++j) {
+        st.last[j] = delta[j];
+        st.direction2[j] = static_cast<int16_t>(2 * delta[j]);
+        for (uint8_t r = 0; r < kMaxPlayRadii; ++r) st.play[j][r] = delta[j];
+        st.speed[j] = 0.0f;
+        st.count_sum[j] = wrapping_add(wrapping_mul(flash::i32(&cc.kx[j]), delta[j]),
+                                       flash::i32(&cc.k0[j]));
+    }
+    st.started = 1;
+}
+
 // Inlined into each overload, so that the one without curves is the code it was before.
 template <bool kCurves>
 DELTA6_ALWAYS_INLINE uint8_t solve(const SolverConstants& k, const CalibrationConstants& cc,
               const CurvedCalibrationConstants* cv, CalibrationState& st,
               const int16_t delta[6], float wrench[6]) {
-    if (!st.started) {
-        for (uint8_t j = 0; j < 6; ++j) {
-            st.last[j] = delta[j];
-            st.direction2[j] = static_cast<int16_t>(2 * delta[j]);
-            for (uint8_t r = 0; r < kMaxPlayRadii; ++r) st.play[j][r] = delta[j];
-            st.speed[j] = 0.0f;
-            // Settled: every play at x, the direction play at 2x.
-            st.count_sum[j] = wrapping_add(wrapping_mul(flash::i32(&cc.kx[j]), delta[j]),
-                                           flash::i32(&cc.k0[j]));
-        }
-        st.started = 1;
-    }
+    if (!st.started) start_settled(cc, st, delta);
     float tau[6];
     int16_t dir2[6];
     joint_torques<kCurves>(cc, st, delta, tau, dir2, cv, k.table_origin);
