@@ -31,14 +31,13 @@
 // (tools/bench_virtual_board.py [--calibration CAL --model M] on the emulated ATmega328P; the
 // 4809 runs the same code within about 10 %):
 // - the analytical model: 350 Hz (wrench streams sustain 400 Hz, wrench+raw 350 Hz);
-// - a calibrated unit: 250 Hz (the calibrated solve is about 49,000 cycles of the 64,000 in a
-//   250 Hz period; a wrench+raw sample about 55,000 with the record; with every joint moving
-//   and reversing every sample the CPU is 92-94 % busy);
+// - a calibrated unit: 250 Hz (the calibrated solve is about 44,000 cycles of the 64,000 in a
+//   250 Hz period; a wrench+raw sample about 50,000 with the record; with every joint moving
+//   and reversing every sample the CPU is about 90 % busy);
 // - a calibrated unit with curve tables (a nonlinear spring or an encoder's periodic error):
-//   225 Hz (the tables add about 2,200 cycles a sample: with every joint moving and reversing
-//   every sample 225 Hz keeps 9-11 % of the CPU spare, as 250 Hz does without curves; 250 Hz
-//   holds on recorded motion, 96 % busy, but in that worst case it is 96-99 % busy and has
-//   overrun now and then; docs/calibration.md, "Curve tables on the board");
+//   250 Hz too (the tables add about 2,500 cycles a sample: with every joint moving and
+//   reversing every sample the CPU is 92-93 % busy, 7-8 % spare; docs/calibration.md,
+//   "The worst case at 250 Hz");
 // - with an on-chip residual (over either model): 200 Hz (over a calibration the default
 //   residual adds about 8,500; codegen refuses models too costly for 200 Hz).
 // With the wrench pipeline on (a low-pass filter or a tool frame: about 19,000 more cycles
@@ -47,7 +46,7 @@
 #define DELTA6_RATED_HZ 200UL
 #define DELTA6_RATED_PIPELINE_HZ 150UL
 #elif defined(DELTA6_CALIBRATION_CURVES)
-#define DELTA6_RATED_HZ 225UL
+#define DELTA6_RATED_HZ 250UL
 #define DELTA6_RATED_PIPELINE_HZ 150UL
 #elif DELTA6_CALIBRATED
 #define DELTA6_RATED_HZ 250UL

@@ -54,14 +54,47 @@ extern "C" void delta6_capture_reset_cause() {
   wdt_disable();
 }
 
-ISR(USART_UDRE_vect) {
-  uint8_t b;
-  if (uartq::txTake(&b)) {
-    UDR0 = b;
-  } else {
-    UCSR0B &= static_cast<uint8_t>(~_BV(UDRIE0));
-  }
+// The transmit interrupt runs once per byte sent (about 37 a record): in assembly it saves
+// only the three registers it uses, about 15 cycles a byte less than the compiler's version.
+// It does what uartq::txTake and the clear of UDRIE would: the next byte to UDR0 if the ring
+// holds one, otherwise no more interrupts until the main loop queues bytes.
+ISR(USART_UDRE_vect, ISR_NAKED) {
+  asm volatile(
+      "push r24\n\t"
+      "in r24, __SREG__\n\t"
+      "push r24\n\t"
+      "push r30\n\t"
+      "push r31\n\t"
+      "lds r30, %[tail]\n\t"
+      "lds r24, %[head]\n\t"
+      "cp r30, r24\n\t"
+      "breq 1f\n\t"
+      "ldi r31, 0\n\t"
+      "subi r30, lo8(-(%[buf]))\n\t"
+      "sbci r31, hi8(-(%[buf]))\n\t"
+      "ld r24, Z\n\t"
+      "sts %[udr], r24\n\t"
+      "lds r24, %[tail]\n\t"
+      "inc r24\n\t"
+      "sts %[tail], r24\n\t"
+      "rjmp 2f\n"
+      "1:\n\t"
+      "lds r24, %[ucsrb]\n\t"
+      "andi r24, %[no_udrie]\n\t"
+      "sts %[ucsrb], r24\n"
+      "2:\n\t"
+      "pop r31\n\t"
+      "pop r30\n\t"
+      "pop r24\n\t"
+      "out __SREG__, r24\n\t"
+      "pop r24\n\t"
+      "reti\n\t"
+      :
+      : [tail] "i"(&uartq::tx_tail), [head] "i"(&uartq::tx_head), [buf] "i"(uartq::tx_buffer),
+        [udr] "n"(_SFR_MEM_ADDR(UDR0)), [ucsrb] "n"(_SFR_MEM_ADDR(UCSR0B)),
+        [no_udrie] "n"(0xFF & ~_BV(UDRIE0)));
 }
+static_assert(uartq::kTxSize == 256, "the transmit interrupt's index wraps at 256");
 
 ISR(USART_RX_vect) { uartq::rxPut(UDR0); }
 

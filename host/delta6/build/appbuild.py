@@ -31,7 +31,8 @@ def solver_sources() -> list[Path]:
 def app_sources() -> list[Path]:
     """The sketch, the application and both board layers (each compiles only for its MCU),
     plus the portable core."""
-    return [*sorted(APP_DIR.glob("*.cpp")), *solver_sources(), *nativebuild.core_sources()]
+    return [*sorted(APP_DIR.glob("*.cpp")), *sorted(APP_DIR.glob("*.S")), *solver_sources(),
+            *nativebuild.core_sources()]
 
 
 def build_app(include_dir: Path | None = None, *, name: str = "delta6-app",

@@ -25,10 +25,23 @@
 #define DELTA6_NOINLINE
 #define DELTA6_ALWAYS_INLINE inline
 #endif
-// -O2 for this file on the AVR (the image is built -Os): about 1,000 cycles less per sample
-// for about 650 bytes of flash.
 #if defined(__AVR__)
+#define DELTA6_FOR_SIZE __attribute__((optimize("Os")))
+#else
+#define DELTA6_FOR_SIZE
+#endif
+// -O2 for this file on the AVR (the image is built -Os): about 1,000 cycles less per sample
+// for about 800 bytes of flash. Not in an image with an on-chip residual too (its generated
+// header next to the design's, as the application includes it): that image fills the
+// ATmega328P's 32 KB and runs at 200 Hz, where the cycles are not needed.
+#if defined(__AVR__)
+#if defined(__has_include)
+#if !__has_include("generated/delta6_model.h")
 #pragma GCC optimize("O2")
+#endif
+#else
+#pragma GCC optimize("O2")
+#endif
 #endif
 
 namespace delta6 {
@@ -51,6 +64,16 @@ inline int16_t clamp_play(int16_t y, int16_t x, int16_t r) {
 inline float scale_down(float x, uint8_t k) {
     if (fastmath::bits_of(x) == 0) return x;
     return fastmath::float_of(fastmath::bits_of(x) - (static_cast<uint32_t>(k) << 23));
+}
+
+// a + b and a * b modulo 2^32: the count terms' sum is kept by its changes, whose
+// intermediate products may leave the int32 range although the sum itself never does.
+inline int32_t wrapping_add(int32_t a, int32_t b) {
+    return static_cast<int32_t>(static_cast<uint32_t>(a) + static_cast<uint32_t>(b));
+}
+inline int32_t wrapping_mul(int32_t a, int16_t b) {
+    return static_cast<int32_t>(static_cast<uint32_t>(a) *
+                                static_cast<uint32_t>(static_cast<int32_t>(b)));
 }
 
 inline bool negative(float x) { return (fastmath::bits_of(x) & 0x80000000ul) != 0; }
@@ -138,24 +161,55 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
     for (uint8_t j = 0; j < 6; ++j) {
         const int16_t x = delta[j];
         const int16_t x2 = static_cast<int16_t>(2 * x);
-        const int16_t y2 = clamp_play(st.direction2[j], x2, half);
-        st.direction2[j] = y2;
+        const int16_t step = static_cast<int16_t>(x - st.last[j]);
+        int16_t y2 = st.direction2[j];
+        // The count terms change by their coefficients times the changes of x - y_r and of
+        // 2x - y2: every play that stood still changes with x, so their coefficients are
+        // summed and take one multiply; a play that moved with x changes nothing; only a play
+        // that moved part of the step (a reversal inside it) takes a multiply of its own. A
+        // joint standing still moves no play: its sum stands.
+        if (step != 0) {
+            const int16_t last = st.last[j];
+            int32_t sum = st.count_sum[j];
+            int32_t k = flash::i32(&cc.kx[j]);
+            const int32_t kd = flash::i32(&cc.kd[j]);
+            const int16_t y2_new = clamp_play(y2, x2, half);
+            if (y2_new == y2) {
+                k = wrapping_add(k, wrapping_add(kd, kd));
+            } else {
+                // 2x - y2 before and after, both within the play's radius.
+                const int16_t change = static_cast<int16_t>(
+                    static_cast<int16_t>(x2 - y2_new)
+                    - static_cast<int16_t>(static_cast<int16_t>(2 * last) - y2));
+                if (change != 0) sum = wrapping_add(sum, wrapping_mul(kd, change));
+                y2 = y2_new;
+                st.direction2[j] = y2;
+            }
+            int16_t* play = st.play[j];
+            const int32_t* kw = cc.kw[j];
+            for (uint8_t r = 0; r < radii; ++r) {
+                const int16_t y = play[r];
+                const int16_t y_new = clamp_play(y, x, flash::i16(&cc.radius[r]));
+                if (y_new == y) {
+                    k = wrapping_add(k, flash::i32(&kw[r]));
+                } else {
+                    const int16_t change = static_cast<int16_t>(
+                        static_cast<int16_t>(x - y_new) - static_cast<int16_t>(last - y));
+                    if (change != 0) {
+                        sum = wrapping_add(sum, wrapping_mul(flash::i32(&kw[r]), change));
+                    }
+                    play[r] = y_new;
+                }
+            }
+            st.count_sum[j] = wrapping_add(sum, wrapping_mul(k, step));
+        }
         const int16_t d2 = static_cast<int16_t>(x2 - y2);
         dir2[j] = d2;
-        int32_t sum = flash::i32(&cc.kx[j]) * x + flash::i32(&cc.kd[j]) * d2
-                      + flash::i32(&cc.k0[j]);
+        int32_t sum = st.count_sum[j];
         if (kCurves) sum += curve_torque(cv, j, x, origin);
-        int16_t* play = st.play[j];
-        const int32_t* kw = cc.kw[j];
-        for (uint8_t r = 0; r < radii; ++r) {
-            const int16_t y = clamp_play(play[r], x, flash::i16(&cc.radius[r]));
-            play[r] = y;
-            sum += flash::i32(&kw[r]) * static_cast<int16_t>(x - y);
-        }
         // A joint standing still (often, at the board's rates) costs one multiply, not three;
         // a step of a few counts, one multiply and one addition: g times the step comes from
         // the state's table (the same float product, computed when the period was set).
-        const int16_t step = static_cast<int16_t>(x - st.last[j]);
         float v = speed_a * st.speed[j];
         if (step != 0) {
             const uint16_t size = static_cast<uint16_t>(step < 0 ? -step : step);
@@ -350,20 +404,27 @@ void calibration_set_period(const CalibrationConstants& c, float period_s,
 
 namespace {
 
+// The history settled at the first sample's counts: every play at x, the direction play at 2x,
+// no speed. Once per start: compiled for size.
+DELTA6_NOINLINE DELTA6_FOR_SIZE void start_settled(const CalibrationConstants& cc,
+                                                   CalibrationState& st, const int16_t delta[6]) {
+    for (uint8_t j = 0; j < 6; ++j) {
+        st.last[j] = delta[j];
+        st.direction2[j] = static_cast<int16_t>(2 * delta[j]);
+        for (uint8_t r = 0; r < kMaxPlayRadii; ++r) st.play[j][r] = delta[j];
+        st.speed[j] = 0.0f;
+        st.count_sum[j] = wrapping_add(wrapping_mul(flash::i32(&cc.kx[j]), delta[j]),
+                                       flash::i32(&cc.k0[j]));
+    }
+    st.started = 1;
+}
+
 // Inlined into each overload, so that the one without curves is the code it was before.
 template <bool kCurves>
 DELTA6_ALWAYS_INLINE uint8_t solve(const SolverConstants& k, const CalibrationConstants& cc,
               const CurvedCalibrationConstants* cv, CalibrationState& st,
               const int16_t delta[6], float wrench[6]) {
-    if (!st.started) {
-        for (uint8_t j = 0; j < 6; ++j) {
-            st.last[j] = delta[j];
-            st.direction2[j] = static_cast<int16_t>(2 * delta[j]);
-            for (uint8_t r = 0; r < kMaxPlayRadii; ++r) st.play[j][r] = delta[j];
-            st.speed[j] = 0.0f;
-        }
-        st.started = 1;
-    }
+    if (!st.started) start_settled(cc, st, delta);
     float tau[6];
     int16_t dir2[6];
     joint_torques<kCurves>(cc, st, delta, tau, dir2, cv, k.table_origin);

@@ -79,6 +79,9 @@ struct CalibrationState {
     int16_t last[6];                   // the previous count
     int16_t direction2[6];             // direction play, half counts
     int16_t play[6][kMaxPlayRadii];    // hysteresis plays, counts
+    // The torque's count terms, kx x + kd (2x - y2) + sum_r kw_r (x - y_r) + k0, kept up to
+    // date by their changes (wrapping int32: the same value as the sum itself).
+    int32_t count_sum[6];
     float speed[6];                    // rad/s
     float speed_a, speed_g;            // v = a v + g (x - last): from the sample period
     float speed_step[kSpeedSteps];     // g * k for k = 1..kSpeedSteps (the same products)
