@@ -16,9 +16,11 @@ F_CPU = avrbuild.NANO.f_cpu
 def main() -> None:
     src = avrbuild.REPO_ROOT / "firmware"
     core = src / "lib" / "delta6_core" / "src"
+    # The firmware's float multiply (src/fast_mulsf3.S) too, as every board image links it.
     image = avrbuild.build_image(
         "wrenchpath-bench", [src / "bench" / "wrenchpath_bench.cpp", core / "delta6_filter.cpp",
-                             core / "delta6_toolframe.cpp"], [core], arduino=False)
+                             core / "delta6_toolframe.cpp", src / "src" / "fast_mulsf3.S"],
+        [core], arduino=False)
     result = avrsim.run(image.elf)
     base = np.mean(result.spans(5, 6))
     for label, (start, stop) in (("low-pass filter, 6 axes", (1, 2)),
