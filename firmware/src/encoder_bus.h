@@ -66,6 +66,9 @@ inline void clockIn16(uint16_t* w) {
     delayNs<kHalfPeriodNs>();      // low phase: the sensor put this bit out at the falling edge
     Pins::clockHigh();
     const uint8_t s = Pins::readData();
+    // None of the shuffling before the rising edge (the shifts do not need the bit and could
+    // be hoisted): it is what fills the high phase. The clobber orders it after the port read.
+    asm volatile("" : "+r"(w0), "+r"(w1), "+r"(w2), "+r"(w3), "+r"(w4), "+r"(w5) : : "memory");
     w0 = static_cast<uint16_t>(w0 << 1);
     w1 = static_cast<uint16_t>(w1 << 1);
     w2 = static_cast<uint16_t>(w2 << 1);

@@ -1,9 +1,9 @@
 /*
  * The float multiply (__mulsf3, which avr-gcc calls for every float product) with a fast path:
  * two normal operands whose product is normal take one pass here (unpack, the 24-by-24-bit
- * product in nine MULs, round to nearest even, pack), about 85 cycles instead of about 140
- * through avr-libc's __mulsf3x and __fp_round (three calls, a generic unpacking and
- * normalisation). Everything else (zero, subnormal, infinite or NaN operands, a product
+ * product in nine MULs, round to nearest even, pack), about 105 cycles with the call instead
+ * of about 137 through avr-libc's __mulsf3x and __fp_round (three calls, a generic unpacking
+ * and normalisation). Everything else (zero, subnormal, infinite or NaN operands, a product
  * outside the normal range) goes through avr-libc's own sequence, so every result is the
  * one avr-libc gives, bit for bit (tests/sim/test_fast_mulsf3.py compares the two in simavr).
  * The calibrated solve makes about 140 products a sample.

@@ -1,7 +1,7 @@
 """The scripted session of firmware/native/avr_session.cpp, on the emulated AVR and natively.
 
-The same device core, the same inputs: the emulated ATmega328P (avr-gcc 5.4, avr-libc float)
-must send exactly the bytes the native build (host g++, the one every other test and the
+The same device core, the same inputs: the emulated ATmega328P (avr-gcc 5.4, avr-libc float
+with the application's multiply) must send exactly the bytes the native build (host g++, the one every other test and the
 simulated device use) sends. Also the source of the AVR cycle figures of the benchmark.
 """
 from __future__ import annotations
@@ -25,8 +25,14 @@ SCRIPT = [("samples", 20), ("command", (P.Command.START, 0x22, 500)), ("samples"
           ("command", (P.Command.GET_INFO, 0x20)), ("command", (P.Command.GET_TELEMETRY, 0x2B))]
 
 
+#: The application's float multiply (avr-libc's results, faster): the session's cycles are
+#: the board's.
+FAST_MULTIPLY = avrbuild.FIRMWARE / "src" / "fast_mulsf3.S"
+
+
 def run_on_avr() -> avrsim.AvrRun:
-    image = avrbuild.build_image("protocol_session", [SOURCE, *nativebuild.core_sources()],
+    image = avrbuild.build_image("protocol_session",
+                                 [SOURCE, FAST_MULTIPLY, *nativebuild.core_sources()],
                                  [nativebuild.FIRMWARE_CORE], arduino=False)
     return avrsim.run(image.elf, max_cycles=50_000_000, timeout_s=60)
 
