@@ -1,8 +1,9 @@
 """The scripted session of firmware/native/avr_session.cpp, on the emulated AVR and natively.
 
 The same device core, the same inputs: the emulated ATmega328P (avr-gcc 5.4, avr-libc float
-with the application's multiply) must send exactly the bytes the native build (host g++, the one every other test and the
-simulated device use) sends. Also the source of the AVR cycle figures of the benchmark.
+with the application's multiply) must send exactly the bytes the native build (host g++, the
+one every other test and the simulated device use) sends. Also the source of the AVR cycle
+figures of the benchmark.
 """
 from __future__ import annotations
 
