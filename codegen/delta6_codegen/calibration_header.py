@@ -188,8 +188,15 @@ def calibration_constants(design: Design, cal: Calibration) -> CalibrationConsta
              + (np.abs(kw) * radii).sum(axis=1) + np.abs(k0)
              + np.abs(offset).max(axis=1, initial=0.0) + curve_nm) * 2.0 ** TORQUE_SHIFT
     if np.any(worst >= 2.0 ** 31 - 64):
-        raise CalibrationRangeError("the calibration's torque terms exceed the firmware's "
-                                    "fixed-point range (hysteresis weights too large?)")
+        j = int(np.argmax(worst))
+        spring = float(np.abs(kx[j]) * sc.limit_counts)
+        total = float(worst[j]) * 2.0 ** -TORQUE_SHIFT
+        cause = ("the design's spring over its joint box alone" if spring >= 0.5 * total
+                 else "mostly the calibration's terms")
+        raise CalibrationRangeError(
+            f"joint {j + 1}'s torque sum can reach {total:.3g} N*m ({cause}: the spring "
+            f"{spring:.3g} N*m), beyond the calibrated firmware's fixed-point range of "
+            f"{2.0 ** (31 - TORQUE_SHIFT):g} N*m")
     # Each joint's coarse table holds its constant angle corrections, as the solver's tables,
     # and the encoder curve at its knots (the rows; the board adds the part between them).
     rows = sc.branch_table.shape[0]

@@ -156,7 +156,10 @@ def test_torques_beyond_the_fixed_point_range_are_refused(baseline):
     # design with springs 30 times stiffer does not fit, and codegen says so.
     calibration_constants(baseline, C.neutral(baseline).with_(hysteresis_nm=np.full((6, 3), 0.5)))
     stiff = baseline.replace(k_nm_per_rad=[20.0] * 6)
-    with pytest.raises(CalibrationRangeError):
+    # The line names the cause: the design's own spring span, not the calibration's terms.
+    with pytest.raises(CalibrationRangeError, match=r"joint 1's torque sum can reach .* "
+                       r"\(the design's spring over its joint box alone: the spring 10\.5 "
+                       r"N\*m\), beyond the calibrated firmware's fixed-point range of 8 N\*m"):
         calibration_constants(stiff, C.neutral(stiff))
 
 
