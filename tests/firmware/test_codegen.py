@@ -90,6 +90,24 @@ def test_bad_design_is_one_line_and_status_2(tmp_path, capsys):
     assert not (tmp_path / "x.h").exists()
 
 
+def test_a_design_whose_counts_the_wire_can_lose_gets_a_note(tmp_path, capsys):
+    """A flat design (no rest angle: the links start straight) moves the plate by less than a
+    force LSB per count somewhere in its box; its firmware is still written, with a note."""
+    text = (DESIGNS / "delta6.toml").read_text()
+    flat = tmp_path / "flat.toml"
+    flat.write_text(re.sub(r"(?m)^name = .*$", 'name = "flat"',
+                           re.sub(r"(?m)^theta_offset_rad = .*$", "theta_offset_rad = 0.0",
+                                  text)))
+    capsys.readouterr()
+    assert main(["codegen", str(flat), "-o", str(tmp_path / "g" / "delta6_design.h")]) == 0
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "note: design flat" in err, err
+    assert "a force step of joints 1..3 (margin 0." in err and "moment" not in err
+    assert main(["codegen", str(DESIGNS / "delta6.toml"), "-o",
+                 str(tmp_path / "s" / "delta6_design.h")]) == 0
+    assert capsys.readouterr().err == ""
+
+
 def test_unwritable_output_is_a_user_error(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("")

@@ -3,6 +3,7 @@ with ``--wire`` the core's wire layout header."""
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 from pathlib import Path
 from typing import NamedTuple
@@ -191,6 +192,9 @@ def run(args: argparse.Namespace) -> int:
     for line in write_headers(out, headers):
         print(line)
     design, cal, model = headers.design, headers.cal, headers.model
+    note = resolution_note(design)
+    if note:
+        print(note, file=sys.stderr)
     if args.build:
         image = build_image(design, include_dir_of(out), cal, model)
         sizes = image.sizes
@@ -198,6 +202,28 @@ def run(args: argparse.Namespace) -> int:
               f"{avrbuild.NANO.flash_bytes}, static RAM {sizes.ram} B of {avrbuild.NANO.ram_bytes}"
               + avrbuild.flash_note(sizes.flash))
     return 0
+
+
+@functools.lru_cache(maxsize=16)
+def _resolution(design_hash: int, design):
+    """The box search takes about a second: once per design in a process (the hash names it)."""
+    from delta6.link.wirescale import resolution_check
+    return resolution_check(design)
+
+
+def resolution_note(design) -> str | None:
+    """A line when the wire's LSB is coarser than one encoder count's smallest step somewhere
+    in the joint box (docs/protocol.md, "One encoder count is never lost"): the design works,
+    but the stream drops such steps."""
+    r = _resolution(design.hash32(), design)
+    lost = [f"{what} (margin {margin:.2f})" for what, margin in
+            (("a force step of joints 1..3", r.force_margin),
+             ("a moment step of joints 4..6", r.moment_margin)) if margin < 1.0]
+    if not lost:
+        return None
+    return (f"note: design {design.name}: one encoder count can change the wrench by less "
+            f"than one wire LSB somewhere in the joint box: {', '.join(lost)}; the stream "
+            "loses such steps (docs/protocol.md, section 7)")
 
 
 def run_wire(args: argparse.Namespace) -> int:
