@@ -67,7 +67,8 @@ def test_wrong_design_is_refused(baseline):
 def test_log_naming_another_calibration_or_design_is_refused(baseline):
     cal = C.neutral(baseline)
     C.check_log_meta({"design_hash": f"0x{baseline.hash32():08x}"}, baseline, cal)
-    with pytest.raises(C.CalibrationError, match="recorded with design"):
+    with pytest.raises(C.CalibrationError, match="recorded with design .* pass that design's "
+                       "file with --design"):
         C.check_log_meta({"design_hash": "0x12345678"}, baseline, cal)
     with pytest.raises(C.CalibrationError, match="calibration"):
         C.check_log_meta({"calibration_hash": "0x12345678"}, baseline, cal)

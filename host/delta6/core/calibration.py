@@ -444,7 +444,8 @@ def check_log_meta(meta: dict, design, calibration: Calibration | None = None,
             value = None
         if value is not None and value != design.hash32():
             raise CalibrationError(f"{source} was recorded with design {meta.get('design', '?')}"
-                                   f" ({named}), not '{design.name}' (0x{design.hash32():08x})")
+                                   f" ({named}), not '{design.name}' (0x{design.hash32():08x}): "
+                                   "pass that design's file with --design")
     elif meta.get("design") not in (None, "", design.name):
         # A header that names its design without the hash (a rig's, a simulator's) is held to
         # the name: another design's geometry would fit the log's error away.
