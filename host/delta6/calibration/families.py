@@ -18,6 +18,7 @@ which the fit imposes: a passive friction torque opposes the motion at every spe
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Callable
 
@@ -34,6 +35,7 @@ from delta6.diagnosis.terms import (
     SMOOTH_IN_ANGLE_FAMILIES,
     TERMS,
     Term,
+    for_design,
     force_rotation,
 )
 from delta6_codegen.calibration_header import MAX_GIMBAL_PLAY_RAD
@@ -68,10 +70,12 @@ class Family:
     #: Whether each parameter is also checked on its own (False: only the family's whole
     #: curve, when the term's limits are on a curve its parameters build together).
     each_parameter: bool = True
+    #: The diagnosis's term sized for the design (``terms.for_design``; None: as written).
+    sized_term: Term | None = None
 
     @property
     def term(self) -> Term:
-        return _TERMS[self.effect]
+        return self.sized_term if self.sized_term is not None else _TERMS[self.effect]
 
     @property
     def prior_sd(self) -> tuple[float, ...]:
@@ -310,8 +314,18 @@ JOINTS = tuple(f"j{i}" for i in range(1, 7))
 BRANCHES = tuple(f"b{i}" for i in range(1, 4))
 
 
-def families(cal: Calibration) -> dict[str, Family]:
-    """The families for a calibration's settings (radii and speeds fix their widths)."""
+def families(cal: Calibration, design=None) -> dict[str, Family]:
+    """The families for a calibration's settings (radii and speeds fix their widths), with
+    the diagnosis's sizes for ``design`` (None: as written, the shipped design's)."""
+    plain = _families(cal)
+    if design is None:
+        return plain
+    sized = {t.name: t for t in for_design(tuple(_TERMS[name] for name in plain), design)}
+    return {name: dataclasses.replace(f, sized_term=sized[name])
+            if sized[name] is not _TERMS[name] else f for name, f in plain.items()}
+
+
+def _families(cal: Calibration) -> dict[str, Family]:
     radii = cal.hysteresis_radii_counts
     speeds = cal.friction_speeds_rad_s
     geometry_names = tuple(f"delta_{k}_{b}_mm" for k in ("a", "b", "la", "lb") for b in BRANCHES) \

@@ -137,7 +137,7 @@ class _Fitter:
         self.dt = sample_period(data.t)
         self.settings = settings
         terms, _ = CalibratedModel(data.design, settings, saturate_curves=True).joint_terms(self.counts, self.dt)
-        self.families = families(settings)
+        self.families = families(settings, data.design)
         ctx = Context(data, terms, settings)
         all_terms = _terms(ctx, self.families) + [_latency_term(data)]
         # The families' columns come from the calibrated model run over the whole log (its

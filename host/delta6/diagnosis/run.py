@@ -400,7 +400,8 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
     for name in ("residual_pct", "model"):
         data.__dict__.pop(name, None)
 
-    vocabulary = TERMS if terms is None else tuple(terms)
+    # Sized for the design at hand (the shipped design's terms are returned as they are).
+    vocabulary = terms_mod.for_design(TERMS if terms is None else tuple(terms), data.design)
     terms = [t for t in vocabulary if t.available(data)]
     skipped = [t.name for t in vocabulary if not t.available(data)]
     signatures = {t.name: t.signature for t in terms if t.signature is not None}

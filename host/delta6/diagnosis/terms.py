@@ -100,6 +100,10 @@ class Term:
     #: gives the refinement's physical form (a stiffening spring with the nominal rate at
     #: rest), against which the refined family must show a part of its own to be named.
     straight_part: tuple[float, ...] | None = None
+    #: Per quantity of ``plausible``, a factor on its limit per value (one factor for all
+    #: values, or one per value): set by :func:`for_design` for a design whose springs or
+    #: links make the shipped design's sizes too tight (empty: the limits as written).
+    limit_scale: tuple[tuple[str, tuple[float, ...]], ...] = ()
 
     def summarize(self, coef: np.ndarray) -> dict:
         out = {name: float(v) for name, v in zip(self.param_names, coef)}
@@ -117,10 +121,18 @@ class Term:
             se = np.asarray(se, dtype=float)
             coef = np.sign(coef) * np.maximum(np.abs(coef) - 3.0 * se, 0.0)
         checks = (self.plausible(coef) if self.plausible is not None else [])
+        scales = dict(self.limit_scale)
         out = []
         for quantity, values, limit in checks:
             values = np.atleast_1d(np.asarray(values, dtype=float))
-            worst = float(np.max(np.abs(values))) if values.size else 0.0
+            if quantity in scales and values.size:
+                # Each value against its own limit; the worst one is reported.
+                limits = float(limit) * np.broadcast_to(np.asarray(scales[quantity]),
+                                                        values.shape)
+                at = int(np.argmax(np.abs(values) / limits))
+                worst, limit = float(abs(values[at])), float(limits[at])
+            else:
+                worst = float(np.max(np.abs(values))) if values.size else 0.0
             out.append({"quantity": quantity, "largest": worst, "limit": float(limit),
                         "ratio": worst / limit if limit > 0 else float("inf")})
         return out
@@ -806,3 +818,62 @@ EFFECT_NAMES = tuple(t.name for t in TERMS)
 #: periodic error): what the calibration tabulates per joint and the benchmark scores by
 #: the joints they bend.
 SMOOTH_IN_ANGLE_FAMILIES = tuple(t.name for t in TERMS if t.group == SMOOTH_IN_ANGLE)
+
+
+# --- sizes for the design at hand -----------------------------------------------------------
+
+#: The families whose sizes are torques at the joints (their parameters joint-major, every one
+#: in N*m or N*m per speed), and the quantities of their plausibility checks that are.
+TORQUE_FAMILIES = {"spring_hysteresis": ("loop_half_width_nm",),
+                   "joint_friction": ("coulomb_equiv_nm", "viscous_equiv_nm_s_per_rad")}
+#: The link compliance's parameters and quantities in rad per N*m (a bend at the elbow and
+#: the plate's tilt), which grow as the links get shorter.
+COMPLIANCE_PARAMS = slice(3, 7)
+COMPLIANCE_QUANTITIES = ("bending_rad_per_nm", "tilt_rad_per_nm")
+
+
+@functools.lru_cache(maxsize=1)
+def _reference():
+    """The shipped design the sizes above were chosen for."""
+    from delta6.core.design import load
+    from delta6.core.paths import DEFAULT_DESIGN
+    return load(DEFAULT_DESIGN)
+
+
+def design_scales(design) -> tuple[np.ndarray, float]:
+    """Per joint, how much larger the design's spring torque over its joint box is than the
+    shipped design's, and how much more a link of its length bends per N*m (the inverse of
+    the product of its two link lengths, against the shipped one's); 1 for the shipped design
+    and any design at or below it (the sizes are then as written: rubbing torques and printed
+    links do not get smaller with a softer spring)."""
+    ref = _reference()
+    span = np.asarray(design.k, float) * design.joint_limit_rad
+    ref_span = np.asarray(ref.k, float) * ref.joint_limit_rad
+    torque = span / ref_span
+    bend = (ref.la_mm * ref.lb_mm) / (design.la_mm * design.lb_mm)
+    # Exactly 1 at or below the shipped design: its fits stay bit for bit what they were.
+    return np.where(torque > 1.0 + 1e-9, torque, 1.0), bend if bend > 1.0 + 1e-9 else 1.0
+
+
+def for_design(terms, design) -> tuple[Term, ...]:
+    """``terms`` with their prior scales and plausibility limits sized for ``design``: the
+    torque families' by each joint's spring span, the link compliance's by the link lengths
+    (``design_scales``). The shipped design's terms come back unchanged."""
+    torque, bend = design_scales(design)
+    out = []
+    for term in terms:
+        if term.name in TORQUE_FAMILIES and np.any(torque != 1.0):
+            width = len(term.param_names) // 6
+            prior = (np.asarray(term.prior_sd, float).reshape(6, width) * torque[:, None])
+            term = dataclasses.replace(
+                term, prior_sd=tuple(float(v) for v in prior.ravel()),
+                limit_scale=tuple((q, tuple(float(v) for v in torque))
+                                  for q in TORQUE_FAMILIES[term.name]))
+        elif term.name == "link_compliance" and bend != 1.0:
+            prior = np.asarray(term.prior_sd, float)
+            prior[COMPLIANCE_PARAMS] *= bend
+            term = dataclasses.replace(
+                term, prior_sd=tuple(float(v) for v in prior),
+                limit_scale=tuple((q, (bend,)) for q in COMPLIANCE_QUANTITIES))
+        out.append(term)
+    return tuple(out)
