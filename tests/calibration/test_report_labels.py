@@ -40,3 +40,16 @@ def test_backwards_loops_are_noted():
     assert len(note) == 1 and "joints 2, 3, 4, 5, 6" in note[0]
     assert _anti_dissipative(cal.with_(hysteresis_nm=-weights)) == []
     assert _anti_dissipative(neutral(DESIGN).with_(hysteresis_nm=weights)) == []
+
+
+def test_a_family_left_out_for_a_format_limit_is_not_called_implausible():
+    from delta6.calibration.fit import _why_out
+
+    def check(quantity):
+        return {"quantity": quantity, "largest": 2.0, "limit": 1.0, "ratio": 2.0}
+
+    assert _why_out([check("board_table_torque_nm")]) == \
+        "it needs more than the board's curve tables hold"
+    assert "file's bounds" in _why_out([check("file_bounds (field 'x': too big)")])
+    assert "plausible" in _why_out([check("loop_half_width_nm")])
+    assert "plausible" in _why_out([check("board_table_torque_nm"), check("angle_error_rad")])

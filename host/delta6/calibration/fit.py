@@ -271,6 +271,18 @@ def _worst_implausible(fitter: _Fitter, cal: Calibration, chosen) -> tuple | Non
     return worst
 
 
+def _why_out(checks) -> str:
+    """Physics or format: a curve beyond the board's int16 tables, or a value beyond the
+    calibration file's bounds, is no implausible effect."""
+    kinds = {"board" if c["quantity"].startswith("board_table") else
+             "file" if c["quantity"].startswith("file_bounds") else "physics" for c in checks}
+    if kinds == {"board"}:
+        return "it needs more than the board's curve tables hold"
+    if kinds == {"file"}:
+        return "it fits only beyond the calibration file's bounds"
+    return "it fits only out of plausible bounds"
+
+
 def _describe(checks) -> str:
     return "; ".join(f"{c['quantity']} {c['largest']:.3g} > {c['limit']:.3g}"
                      if np.isfinite(c["largest"]) else c["quantity"] for c in checks)
@@ -396,7 +408,7 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
         effect, checks = bad
         left_out[effect] = checks
         chosen.remove(effect)
-        note = f"{effect}: left out, it fits only out of plausible bounds ({_describe(checks)})"
+        note = f"{effect}: left out, {_why_out(checks)} ({_describe(checks)})"
         notes.append(note)
         if progress:
             progress(note)
