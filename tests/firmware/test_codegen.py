@@ -108,6 +108,27 @@ def test_a_design_whose_counts_the_wire_can_lose_gets_a_note(tmp_path, capsys):
     assert capsys.readouterr().err == ""
 
 
+def test_values_in_another_unit_get_a_note(tmp_path, capsys):
+    """Lengths in metres and a rate in N*mm/rad make a valid but absurd design: taken, with a
+    line naming each suspect value; the shipped designs get none."""
+    from delta6.core.design import unit_slip_notes
+    assert not [n for path in DESIGN_FILES for n in unit_slip_notes(load(path))]
+    text = (DESIGNS / "delta6.toml").read_text()
+    for key in ("a_mm", "b_mm", "c_mm", "la_mm", "lb_mm"):
+        text = re.sub(rf"(?m)^{key} = ([0-9.]+)",
+                      lambda m: f"{key} = {float(m.group(1)) / 1000:g}", text)
+    text = re.sub(r"(?m)^k_nm_per_rad = .*$", "k_nm_per_rad = 639.236", text)
+    slip = tmp_path / "slip.toml"
+    slip.write_text(re.sub(r"(?m)^name = .*$", 'name = "slip"', text))
+    capsys.readouterr()
+    assert main(["design", str(slip)]) == 0
+    err = capsys.readouterr().err
+    assert "a_mm = 0.072 is outside 1..2000 mm (metres or inches?)" in err
+    assert "k_nm_per_rad of joint 1 = 639.236 is outside 0.001..100 N*m/rad (N*mm/rad?)" in err
+    assert main(["codegen", str(slip), "-o", str(tmp_path / "g" / "delta6_design.h")]) == 0
+    assert "a_mm = 0.072" in capsys.readouterr().err
+
+
 def test_unwritable_output_is_a_user_error(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("")

@@ -192,9 +192,9 @@ def run(args: argparse.Namespace) -> int:
     for line in write_headers(out, headers):
         print(line)
     design, cal, model = headers.design, headers.cal, headers.model
-    note = resolution_note(design)
-    if note:
-        print(note, file=sys.stderr)
+    for note in design_mod.unit_slip_notes(design) + [resolution_note(design)]:
+        if note:
+            print(note, file=sys.stderr)
     if args.build:
         image = build_image(design, include_dir_of(out), cal, model)
         sizes = image.sizes

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from delta6.core import design as design_mod
 from delta6.core.paths import DEFAULT_DESIGN
@@ -41,6 +42,9 @@ def evaluate(path: str, grid: int | None) -> tuple[design_mod.Design, Spec]:
 
 def run(args: argparse.Namespace) -> int:
     results = [(path, *evaluate(path, args.grid)) for path in (args.designs or [str(DEFAULT_DESIGN)])]
+    for _, d, _ in results:
+        for note in design_mod.unit_slip_notes(d):
+            print(note, file=sys.stderr)
     if args.json:
         objects = [{"design": d.name, "file": path, "hash": f"0x{d.hash32():08x}", **s.as_dict()}
                    for path, d, s in results]

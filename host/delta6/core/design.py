@@ -182,6 +182,35 @@ def validate(raw: dict, source: str | None = None) -> Design:
                   joint_limit_rad=limit, description=description, **lengths)
 
 
+#: Sizes a hand-sized sensor of this kind plausibly has; a value far outside reads as another
+#: unit (metres or inches in a mm key, N*mm in an N*m key). Outside them a design is still
+#: taken: these are notes, not errors.
+PLAUSIBLE_LENGTH_MM = (1.0, 2000.0)
+PLAUSIBLE_K_NM_PER_RAD = (1e-3, 100.0)
+
+
+def unit_slip_notes(design: Design) -> list[str]:
+    """One line per value that looks like it was written in another unit."""
+    notes = []
+    lo, hi = PLAUSIBLE_LENGTH_MM
+    for key in LENGTH_KEYS:
+        value = getattr(design, key)
+        if key == "c_mm" and value == 0:
+            continue
+        if not lo <= value <= hi:
+            guess = "metres or inches?" if value < lo else "micrometres?"
+            notes.append(f"note: design {design.name}: {key} = {value:g} is outside "
+                         f"{lo:g}..{hi:g} mm ({guess})")
+    lo, hi = PLAUSIBLE_K_NM_PER_RAD
+    for j, value in enumerate(design.k_nm_per_rad):
+        if not lo <= value <= hi:
+            guess = "N*mm/rad?" if value > hi else "a tiny spring?"
+            notes.append(f"note: design {design.name}: k_nm_per_rad of joint {j + 1} = {value:g} "
+                         f"is outside {lo:g}..{hi:g} N*m/rad ({guess})")
+            break
+    return notes
+
+
 def load(path: str | Path) -> Design:
     """Read a design file and validate its fields. Whether the kinematics is solvable over the
     whole joint box is a geometric question: :func:`delta6.core.workspace.load_checked` loads
