@@ -205,8 +205,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 @functools.lru_cache(maxsize=16)
-def _resolution(design_hash: int, design):
-    """The box search takes about a second: once per design in a process (the hash names it)."""
+def _resolution(design):
+    """The box search takes about a second: once per design in a process."""
     from delta6.link.wirescale import resolution_check
     return resolution_check(design)
 
@@ -215,7 +215,7 @@ def resolution_note(design) -> str | None:
     """A line when the wire's LSB is coarser than one encoder count's smallest step somewhere
     in the joint box (docs/protocol.md, "One encoder count is never lost"): the design works,
     but the stream drops such steps."""
-    r = _resolution(design.hash32(), design)
+    r = _resolution(design)
     lost = [f"{what} (margin {margin:.2f})" for what, margin in
             (("a force step of joints 1..3", r.force_margin),
              ("a moment step of joints 4..6", r.moment_margin)) if margin < 1.0]
