@@ -64,6 +64,12 @@ def test_streaming_equals_batch_over_the_calibrated_model(hybrid, baseline, unit
     assert np.isnan(batch[100:125]).all() and np.isfinite(batch[125:]).all()
     scale = np.nanmax(np.abs(batch), axis=0)
     assert np.nanmax(np.abs(stream - batch) / scale) < 1e-6
+    # in blocks, the calibration's state carried from one to the next
+    live.reset()
+    blocks = np.vstack([live.update_block(t[a:a + 43], theta[a:a + 43])
+                        for a in range(0, 300, 43)])
+    assert np.array_equal(np.isnan(blocks), np.isnan(batch))
+    assert np.nanmax(np.abs(blocks - batch) / scale) < 1e-6
     # the base is the calibrated model run causally over the same samples
     finite = log.theta[:100]
     base = est.base.batch(log.t[:100], finite)

@@ -36,9 +36,15 @@ def test_streaming_equals_batch_sample_for_sample(tiny_models, baseline, unit_lo
     assert np.isfinite(batch[:120]).all()
     scale = np.nanmax(np.abs(batch), axis=0)
     assert np.nanmax(np.abs(stream - batch) / scale) < 1e-6
-    # the same after a reset and on a block
-    live.reset()
-    assert np.allclose(live.update_block(t[:50], theta[:50]), batch[:50], rtol=0, atol=1e-6 * scale)
+    # the same after a reset and in blocks of any length (the gap and the failed read
+    # inside blocks and across their edges)
+    for edges in ([0, 50, 400], [0, 1, 2, 119, 121, 249, 251, 300, 400],
+                  [0, *range(7, 400, 37), 400]):
+        live.reset()
+        blocks = np.vstack([live.update_block(t[a:b], theta[a:b])
+                            for a, b in zip(edges[:-1], edges[1:])])
+        assert np.array_equal(np.isnan(blocks), np.isnan(batch))
+        assert np.nanmax(np.abs(blocks - batch) / scale) < 1e-6
 
 
 def test_predict_on_a_log_matches_the_arrays(tiny_models, baseline, unit_logs):

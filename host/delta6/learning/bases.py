@@ -2,7 +2,7 @@
 unit's calibrated model (``delta6 calibrate``; the "hybrid").
 
 A base gives the wrench for a whole log (``batch``) and, for the streaming estimator, sample by
-sample (``update``); both must agree exactly. The learned network adds what the base misses.
+sample (``update``) or a block of samples at a time (``update_block``); all must agree. The learned network adds what the base misses.
 """
 from __future__ import annotations
 
@@ -25,6 +25,9 @@ class NoBase:
     def update(self, t: float, theta: np.ndarray) -> np.ndarray:
         return np.zeros(6)
 
+    def update_block(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        return np.zeros(np.shape(theta), dtype=float)
+
     def reset(self) -> None:
         pass
 
@@ -42,6 +45,9 @@ class AnalyticalBase:
 
     def update(self, t: float, theta: np.ndarray) -> np.ndarray:
         return model.wrench(self.params, np.asarray(theta, float)[None])[0]
+
+    def update_block(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        return model.wrench(self.params, np.asarray(theta, float))
 
     def reset(self) -> None:
         pass
@@ -74,6 +80,16 @@ class CalibrationBase:
             return np.full(6, np.nan)
         wrench, self.state = self.calibrated.run(counts_from_angles(theta), self.dt, self.state)
         return wrench[0]
+
+    def update_block(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """:meth:`update` over a block at once: the state runs on through its complete rows."""
+        theta = np.asarray(theta, dtype=float).reshape(-1, 6)
+        out = np.full(theta.shape, np.nan)
+        ok = np.isfinite(theta).all(axis=1)
+        if ok.any():
+            out[ok], self.state = self.calibrated.run(counts_from_angles(theta[ok]), self.dt,
+                                                      self.state)
+        return out
 
     def reset(self) -> None:
         self.state = None
