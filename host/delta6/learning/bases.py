@@ -2,7 +2,8 @@
 unit's calibrated model (``delta6 calibrate``; the "hybrid").
 
 A base gives the wrench for a whole log (``batch``) and, for the streaming estimator, sample by
-sample (``update``) or a block of samples at a time (``update_block``); all must agree. The learned network adds what the base misses.
+sample (``update``) or a block of samples at a time (``update_block``); all must agree. The
+learned network adds what the base misses.
 """
 from __future__ import annotations
 
