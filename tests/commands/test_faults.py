@@ -388,3 +388,52 @@ def test_a_truncated_mcap_log_keeps_rows_whose_optional_values_are_nan(tmp_path)
     cut.write_bytes(data)
     log = read_log(cut, require_complete_rows=False)
     assert len(log.t) == 4 * n and np.isnan(log.temp_c).all()
+
+
+def test_a_full_disk_ends_an_mcap_log_on_whole_chunks(tmp_path):
+    """The same for an MCAP log (its writes go through a buffered file, so the limit is the
+    process's file size, which Python turns into EFBIG): one line naming the file and the rows
+    it keeps, exactly the rows the file holds, and a file cut back to its last whole chunk."""
+    import resource
+    import subprocess
+    import sys
+    out = tmp_path / "full.mcap"
+    code = ("import sys; from delta6.cli import main; sys.exit(main(['log', '--port', "
+            f"'delta6sim://?rate=1000', '-o', {str(out)!r}, '--raw', '--duration', '20']))")
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (150_000, 150_000))
+
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, preexec_fn=limit)
+    assert run.returncode == 2, run.stderr
+    line = run.stderr.strip().splitlines()[-1]
+    partial = tmp_path / "full.mcap.partial"
+    assert f"cannot write {partial}: File too large; it keeps the " in line, line
+    kept = int(line.split("it keeps the ")[1].split()[0])
+    log = read_log(partial)
+    # Every row the line counts, each whole (the reader drops rows whose topics a cut split).
+    assert len(log) == kept > 100
+    assert partial.stat().st_size < 150_000 and not out.exists()
+    assert np.all(np.diff(log.t) > 0) and np.all(np.diff(log.seq) == 1)
+
+
+def test_an_mcap_log_whose_header_does_not_fit_leaves_no_file(tmp_path):
+    """A disk already full: one line naming the file, and no empty .partial left behind (the
+    next log would have to be forced over it)."""
+    import resource
+    import subprocess
+    import sys
+    out = tmp_path / "none.mcap"
+    code = ("import sys; from delta6.cli import main; sys.exit(main(['log', '--port', "
+            f"'delta6sim://?rate=1000', '-o', {str(out)!r}, '--duration', '1']))")
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (200, 200))
+
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, preexec_fn=limit)
+    assert run.returncode == 2, run.stderr
+    err = run.stderr.strip().splitlines()
+    assert len(err) == 1 and f"cannot write {out}.partial: File too large" in err[0], err
+    assert list(tmp_path.iterdir()) == []

@@ -95,6 +95,10 @@ class McapLogWriter(PartialOnError):
         self.rows = 0
         self._pending = 0
         self._last_stamp = -1
+        #: The file's size after the last block that reached the OS whole, and whether a write
+        #: failed since (a full disk): the file is then cut back to that size when closed.
+        self._good_size = 0
+        self._broken = False
         frame_id = meta.get("frame_id", R.DEFAULT_FRAME_ID)
         offset = meta.get("host_clock_offset")
         self.clock_offset = float(offset) if offset not in (None, "") else None
@@ -106,15 +110,22 @@ class McapLogWriter(PartialOnError):
         except OSError as exc:
             raise LogError(f"cannot create {self.partial}: {exc.strerror}") from None
         self._mcap = Writer(self._file, compression=CompressionType.ZSTD)
-        self._mcap.start(profile="ros2", library=f"delta6 {__version__}")
-        self._channels = {}
-        for topic, datatype in R.TOPICS.items():
-            schema = self._mcap.register_schema(datatype, "ros2msg",
-                                                R.definition(datatype).encode())
-            self._channels[topic] = self._mcap.register_channel(topic, "cdr", schema)
-        self._mcap.add_metadata(METADATA_NAME, {
-            **meta, "schema": str(SCHEMA_VERSION), "columns": ",".join(self.columns)})
-        self._mcap.flush()
+        try:
+            with self._writing():
+                self._mcap.start(profile="ros2", library=f"delta6 {__version__}")
+                self._channels = {}
+                for topic, datatype in R.TOPICS.items():
+                    schema = self._mcap.register_schema(datatype, "ros2msg",
+                                                        R.definition(datatype).encode())
+                    self._channels[topic] = self._mcap.register_channel(topic, "cdr", schema)
+                self._mcap.add_metadata(METADATA_NAME, {
+                    **meta, "schema": str(SCHEMA_VERSION), "columns": ",".join(self.columns)})
+                self._to_os()
+        except LogError:
+            # Not even the header fits: no file is left behind to be refused next time.
+            self._close_quietly()
+            self.partial.unlink(missing_ok=True)
+            raise
 
     # -- writing ---------------------------------------------------------------------------
 
@@ -153,48 +164,71 @@ class McapLogWriter(PartialOnError):
             for lt, data in self._diagnostics.add(t, extra[:, self.extra.index("status")],
                                                   log_time):
                 add(self._channels[R.TOPIC_STATUS], lt, data, lt, 0)
-        self.rows += n
-        self._pending += n
         with self._writing():
-            self._mcap.flush()   # the chunk to the OS: a crash of this process loses none of it
+            self._to_os()    # the chunk to the OS: a crash of this process loses none of it
+        self.rows += n       # only rows that reached the OS are counted
+        self._pending += n
         if self._pending >= self.flush_every:
             self.flush()
 
     def flush(self) -> None:
         """Everything written so far to the OS and on to the disk (fsync)."""
         with self._writing():
-            self._mcap.flush()
-            self._file.flush()
+            self._to_os()
             os.fsync(self._file.fileno())
         self._pending = 0
 
+    def _to_os(self) -> None:
+        self._mcap.flush()
+        self._file.flush()
+        self._good_size = self._file.tell()
+
     @contextlib.contextmanager
     def _writing(self):
-        """A failed write (a full disk) as one line; the chunks before it stay readable (each
-        chunk has its own CRC, so a cut one is never read as data)."""
+        """A failed write (a full disk) as one line; the file is cut back to its last whole
+        block when closed (each chunk also has its own CRC, so a cut one is never read as
+        data)."""
+        if self._broken:
+            raise LogError(f"cannot write {self.partial}: an earlier write failed")
         try:
             yield
         except OSError as exc:
-            raise LogError(f"cannot write {self.partial}: {exc.strerror or exc}") from None
+            self._broken = True
+            raise LogError(f"cannot write {self.partial}: {exc.strerror or exc}; it keeps the "
+                           f"{self.rows} rows written before") from None
+
+    def _close_quietly(self) -> None:
+        try:
+            self._file.close()
+        except OSError:     # the buffered part of the failed block: dropped by the cut below
+            pass
 
     def close(self, complete: bool = True) -> Path:
         """Finish the file (summary and footer). A complete log is renamed to its final name;
         an incomplete one keeps the ``.partial`` suffix. Returns the path on disk."""
         if self._file.closed:
             return self.path if complete else self.partial
-        try:
-            with self._writing():
-                if self._diagnostics is not None:
-                    for lt, data in self._diagnostics.finish():
-                        self._mcap.add_message(self._channels[R.TOPIC_STATUS], lt, data, lt, 0)
-                self._mcap.finish()
-                self._file.flush()
-                os.fsync(self._file.fileno())
-        finally:
+        if not self._broken:
             try:
-                self._file.close()
-            except OSError:
-                pass
+                with self._writing():
+                    if self._diagnostics is not None:
+                        for lt, data in self._diagnostics.finish():
+                            self._mcap.add_message(self._channels[R.TOPIC_STATUS], lt, data,
+                                                   lt, 0)
+                    self._mcap.finish()
+                    self._file.flush()
+                    os.fsync(self._file.fileno())
+            except LogError:
+                pass                # the file is broken now: handled below
+        self._close_quietly()
+        if self._broken:
+            # A write failed: no summary (no room for it), and the file cut back to the last
+            # block that reached the OS whole, so that it ends on a whole chunk.
+            os.truncate(self.partial, self._good_size)
+            if complete:
+                raise LogError(f"cannot complete {self.path}: a write failed; its {self.rows} "
+                               f"rows are in {self.partial}")
+            return self.partial
         if complete:
             os.replace(self.partial, self.path)
             return self.path
