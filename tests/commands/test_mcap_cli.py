@@ -81,3 +81,17 @@ def test_convert_errors_are_one_line(tmp_path, capsys):
     same.write_text("x")
     assert main(["convert", str(same), str(same)]) == 2
     assert "would overwrite the log being read" in capsys.readouterr().err
+
+
+def test_convert_never_replaces_a_log_without_force(tmp_path, capsys):
+    run = tmp_path / "run.csv"
+    assert main(["simulate", "--duration", "2", "-o", str(run)]) == 0
+    other = tmp_path / "other.csv"
+    other.write_text("a recording of its own\n")
+    capsys.readouterr()
+    assert main(["convert", str(run), str(other)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "exists" in err and "--force" in err
+    assert other.read_text() == "a recording of its own\n"
+    assert main(["convert", str(run), str(other), "--force"]) == 0
+    assert len(read_log(other)) == len(read_log(run))

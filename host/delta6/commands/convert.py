@@ -22,6 +22,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                                       "CSV otherwise")
     parser.add_argument("--frame-id", metavar="ID",
                         help="frame id of the wrench messages (default: the log's, or delta6_e)")
+    parser.add_argument("--force", action="store_true",
+                        help="replace OUT if it exists (a log is not regenerable: refused "
+                             "otherwise)")
     parser.add_argument("--complete-rows", action="store_true",
                         help="keep only the rows with every angle and wrench value (a stream's "
                              "failed reads leave them empty), for the commands that need "
@@ -33,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     source, output = Path(args.source), Path(args.output)
     if output.exists() and source.exists() and output.resolve() == source.resolve():
         raise UserError(f"{output}: the output would overwrite the log being read")
-    check_output_file(output, "OUT")
+    check_output_file(output, "OUT", force=args.force)
     log = read_log(source, require_complete_rows=False)
     meta = {k: v for k, v in log.meta.items() if k != "schema"}   # the writer writes its own
     if args.frame_id is not None:
