@@ -71,14 +71,23 @@ def next_block(dev: Device, stop, patience: float | None = None) -> SampleBlock 
         rate = dev.info().rate_hz or 1
         patience = max(1.0, 20.0 / rate)
     deadline = time.monotonic() + patience
+    before = _boots(dev)
     while not stop.is_set():
         try:
             return dev.read_block(timeout=min(POLL_S, max(deadline - time.monotonic(), 0.0)))
         except SampleTimeout:
             if time.monotonic() >= deadline:
+                why = ("the device restarted meanwhile and boots idle: start it again"
+                       if _boots(dev) > before else "did the device stop streaming?")
                 raise SampleTimeout(f"no sample from {dev.port} for {patience:g} s "
-                                    "(did the device stop streaming?)") from None
+                                    f"({why})") from None
     return None
+
+
+def _boots(dev: Device) -> int:
+    """How many restarts the device has shown (BOOT events, new boot ids)."""
+    h = dev.health()
+    return h.device_resets + h.restarts
 
 
 def flagged(status) -> int:
