@@ -86,7 +86,7 @@ def next_block(dev: Device, stop, patience: float | None = None) -> SampleBlock 
 
 def _boots(dev: Device) -> int:
     """How many restarts the device has shown (BOOT events, new boot ids)."""
-    h = dev.health()
+    h = dev.health
     return h.device_resets + h.restarts
 
 
