@@ -390,22 +390,28 @@ def test_a_truncated_mcap_log_keeps_rows_whose_optional_values_are_nan(tmp_path)
     assert len(log.t) == 4 * n and np.isnan(log.temp_c).all()
 
 
-def test_a_full_disk_ends_an_mcap_log_on_whole_chunks(tmp_path):
-    """The same for an MCAP log (its writes go through a buffered file, so the limit is the
-    process's file size, which Python turns into EFBIG): one line naming the file and the rows
-    it keeps, exactly the rows the file holds, and a file cut back to its last whole chunk."""
+def _log_under_a_file_limit(out, limit_bytes: int, *options: str):
+    """``delta6 log`` from the simulated device in a process whose files may not grow beyond
+    ``limit_bytes`` (Python turns the limit into EFBIG, as a full disk gives ENOSPC)."""
     import resource
     import subprocess
     import sys
-    out = tmp_path / "full.mcap"
     code = ("import sys; from delta6.cli import main; sys.exit(main(['log', '--port', "
-            f"'delta6sim://?rate=1000', '-o', {str(out)!r}, '--raw', '--duration', '20']))")
+            f"'delta6sim://?rate=1000', '-o', {str(out)!r}, *{list(options)!r}]))")
 
     def limit():
-        resource.setrlimit(resource.RLIMIT_FSIZE, (150_000, 150_000))
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit_bytes, limit_bytes))
 
-    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         timeout=120, preexec_fn=limit)
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120, preexec_fn=limit)
+
+
+def test_a_full_disk_ends_an_mcap_log_on_whole_chunks(tmp_path):
+    """The same for an MCAP log (its writes go through a buffered file): one line naming the
+    file and the rows it keeps, exactly the rows the file holds, and a file cut back to its
+    last whole chunk."""
+    out = tmp_path / "full.mcap"
+    run = _log_under_a_file_limit(out, 150_000, "--raw", "--duration", "20")
     assert run.returncode == 2, run.stderr
     line = run.stderr.strip().splitlines()[-1]
     partial = tmp_path / "full.mcap.partial"
@@ -421,18 +427,8 @@ def test_a_full_disk_ends_an_mcap_log_on_whole_chunks(tmp_path):
 def test_an_mcap_log_whose_header_does_not_fit_leaves_no_file(tmp_path):
     """A disk already full: one line naming the file, and no empty .partial left behind (the
     next log would have to be forced over it)."""
-    import resource
-    import subprocess
-    import sys
     out = tmp_path / "none.mcap"
-    code = ("import sys; from delta6.cli import main; sys.exit(main(['log', '--port', "
-            f"'delta6sim://?rate=1000', '-o', {str(out)!r}, '--duration', '1']))")
-
-    def limit():
-        resource.setrlimit(resource.RLIMIT_FSIZE, (200, 200))
-
-    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         timeout=120, preexec_fn=limit)
+    run = _log_under_a_file_limit(out, 200, "--duration", "1")
     assert run.returncode == 2, run.stderr
     err = run.stderr.strip().splitlines()
     assert len(err) == 1 and f"cannot write {out}.partial: File too large" in err[0], err
