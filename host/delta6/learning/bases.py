@@ -1,9 +1,9 @@
 """What a residual model is trained over: nothing (end-to-end), the analytical model, or the
 unit's calibrated model (``delta6 calibrate``; the "hybrid").
 
-A base gives the wrench for a whole log (``batch``) and, for the streaming estimator, sample by
-sample (``update``) or a block of samples at a time (``update_block``); all must agree. The
-learned network adds what the base misses.
+A base gives the wrench for a whole log (``batch``) and, for the streaming estimator, a block of
+samples at a time (``update_block``, the state carried from block to block; a sample is a block
+of one); both must agree. The learned network adds what the base misses.
 """
 from __future__ import annotations
 
@@ -23,9 +23,6 @@ class NoBase:
     def batch(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
         return np.zeros(np.shape(theta), dtype=float)
 
-    def update(self, t: float, theta: np.ndarray) -> np.ndarray:
-        return np.zeros(6)
-
     def update_block(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
         return np.zeros(np.shape(theta), dtype=float)
 
@@ -43,9 +40,6 @@ class AnalyticalBase:
 
     def batch(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
         return model.wrench(self.params, theta)
-
-    def update(self, t: float, theta: np.ndarray) -> np.ndarray:
-        return model.wrench(self.params, np.asarray(theta, float)[None])[0]
 
     def update_block(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
         return model.wrench(self.params, np.asarray(theta, float))
@@ -68,29 +62,20 @@ class CalibrationBase:
         self.state = None
 
     def batch(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        theta = np.asarray(theta, dtype=float)
-        out = np.full(theta.shape, np.nan)
-        ok = np.isfinite(theta).all(axis=1)
-        if ok.any():
-            out[ok], _ = self.calibrated.run(counts_from_angles(theta[ok]), self.dt)
-        return out
-
-    def update(self, t: float, theta: np.ndarray) -> np.ndarray:
-        theta = np.asarray(theta, dtype=float).reshape(1, 6)
-        if not np.isfinite(theta).all():
-            return np.full(6, np.nan)
-        wrench, self.state = self.calibrated.run(counts_from_angles(theta), self.dt, self.state)
-        return wrench[0]
+        return self._run(theta, None)[0]
 
     def update_block(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        """:meth:`update` over a block at once: the state runs on through its complete rows."""
+        """The state runs on from the last block through this block's complete rows."""
+        out, self.state = self._run(theta, self.state)
+        return out
+
+    def _run(self, theta, state):
         theta = np.asarray(theta, dtype=float).reshape(-1, 6)
         out = np.full(theta.shape, np.nan)
         ok = np.isfinite(theta).all(axis=1)
         if ok.any():
-            out[ok], self.state = self.calibrated.run(counts_from_angles(theta[ok]), self.dt,
-                                                      self.state)
-        return out
+            out[ok], state = self.calibrated.run(counts_from_angles(theta[ok]), self.dt, state)
+        return out, state
 
     def reset(self) -> None:
         self.state = None

@@ -39,25 +39,13 @@ class StreamingEstimator:
     def update(self, t: float, theta) -> np.ndarray:
         """The wrench (6,) for a new sample at time ``t`` (s) with encoder angles ``theta``
         (rad); NaN while the window holds a missing angle."""
-        theta = np.asarray(theta, dtype=float).reshape(6)
-        if self._last_t is None or t - self._last_t > self._gap:
-            self._buffer[:] = theta             # a new segment: the history is this reading
-        else:
-            self._buffer[:-1] = self._buffer[1:]
-            self._buffer[-1] = theta
-        self._last_t = float(t)
-        base = self.estimator.base.update(t, theta)
-        if not np.isfinite(self._buffer).all():
-            return np.full(6, np.nan)
-        norm = self.estimator.card.norm
-        z = self.estimator.network(norm.inputs(self._buffer[None]))
-        return norm.wrench(z)[0] + base
+        return self.update_block([t], np.asarray(theta, dtype=float).reshape(1, 6))[0]
 
     def update_block(self, t, theta) -> np.ndarray:
-        """:meth:`update` for each row of a block of samples ((n,) times, (n, 6) angles or None
-        when the stream carried no counts); (n, 6). The same numbers, at once: the block's
-        windows in one network call and the base over the block (a stream at 250 Hz arrives
-        in blocks, and a call per sample costs more than the model)."""
+        """The wrench (n, 6) for a block of samples ((n,) times, (n, 6) angles or None when the
+        stream carried no counts), each row as if fed alone and in order: the block's windows
+        in one network call and the base over the block (a stream at 250 Hz arrives in
+        blocks, and a call per sample costs more than the model)."""
         if theta is None:
             raise UserError(NO_ANGLES)
         t = np.asarray(t, dtype=float).reshape(-1)
