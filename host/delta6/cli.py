@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 
 from delta6 import __version__
@@ -39,9 +40,29 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: A comma-separated list that starts with a minus sign: a negative number ("-0.01,0,0.05") or
+#: the "-" that stands for none ("-,-,20,-,-,-").
+_NEGATIVE_LIST = re.compile(r"-(\.?\d[^,\s]*)?(,[^,\s]*)+")
+
+
+def joined_negative_lists(argv: list[str]) -> list[str]:
+    """``--tool -0.01,0,...`` as ``--tool=-0.01,0,...``: argparse takes a value that starts with
+    a minus sign for an option unless it is a single number, so a tool point with a negative
+    first coordinate, or limits starting with '-' (none), were refused as a missing argument."""
+    out: list[str] = []
+    for token in argv:
+        previous = out[-1] if out else ""
+        if (_NEGATIVE_LIST.fullmatch(token) and previous.startswith("--")
+                and "=" not in previous and previous != "--"):
+            out[-1] = f"{previous}={token}"
+        else:
+            out.append(token)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(joined_negative_lists(sys.argv[1:] if argv is None else argv))
     try:
         with terminate_like_interrupt():
             return int(args._run(args) or 0)

@@ -112,3 +112,25 @@ def test_config_and_info_commands(tmp_path, capsys):
         main(["config", "--port", port, "--tool", "0,0,1"])
     assert exc.value.code == 2
     assert "--tool takes 6 comma-separated numbers" in capsys.readouterr().err
+
+
+def test_a_tool_point_with_a_negative_first_coordinate_is_a_value_not_an_option(capsys):
+    """argparse reads '-0.02,0,...' after an option as another option (only a single number
+    may start with a minus sign); the command line joins it to its option."""
+    assert main(["config", "--port", "delta6sim://", "--tool", "-0.02,0,0.05,0,-90,0"]) == 0
+    assert "point -0.02, 0, 0.05 m; roll, pitch, yaw 0, -90, 0 deg" in capsys.readouterr().out
+    assert main(["config", "--port", "delta6sim://", "--limits", "-,-,20,-,-,-"]) == 0
+    assert "Fx -, Fy -, Fz 20 N, Mx -, My -, Mz -" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exc:                    # still a list of six numbers
+        main(["config", "--port", "delta6sim://", "--tool", "-0.02,0"])
+    assert exc.value.code == 2
+    assert "--tool takes 6 comma-separated numbers" in capsys.readouterr().err
+
+
+def test_joined_negative_lists_leaves_everything_else_alone():
+    from delta6.cli import joined_negative_lists
+    argv = ["config", "--port", "x", "--filter-hz", "-1", "--tool=-1,2", "--", "-3,4",
+            "--save", "-5,6", "--limits", "-,1,2,3,4,5", "--port", "-x,y", "-,"]
+    assert joined_negative_lists(argv) == [
+        "config", "--port", "x", "--filter-hz", "-1", "--tool=-1,2", "--", "-3,4",
+        "--save=-5,6", "--limits=-,1,2,3,4,5", "--port", "-x,y", "-,"]
