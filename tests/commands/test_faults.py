@@ -171,6 +171,26 @@ def test_a_stop_signal_ends_the_log_with_every_record(device, tmp_path, signum):
     assert f"{len(log)} samples over" in lines[-1]
 
 
+@pytest.mark.parametrize("gap_s", [0.0, 0.002, 0.02, 0.1])
+def test_two_quick_stop_signals_still_close_the_log_whole(device, tmp_path, gap_s):
+    """A second Ctrl-C ends the shutdown at once; wherever it lands, the log is closed whole
+    under its name, with its summary (it was left as .partial, without the summary). One that
+    lands after the summary, as the interpreter exits, may end it by SIGINT."""
+    port, sent = device
+    log_proc, out, capture = start_log(port, tmp_path, "twice")
+    wait_for_rows(log_proc, out, 50)
+    log_proc.send_signal(signal.SIGINT)
+    time.sleep(gap_s)
+    if log_proc.poll() is None:
+        log_proc.send_signal(signal.SIGINT)
+    status, err = finish(log_proc)
+    lines = err.strip().splitlines()
+    assert status in (STOPPED, -signal.SIGINT) and "Traceback" not in err, err
+    assert lines[-1].startswith(f"{out}: ") and lines[-1].endswith("(stopped by SIGINT)")
+    assert not out.with_name("twice.csv.partial").exists() and leftovers(str(tmp_path)) == []
+    check_rows(read_log(out), device_records(sent), device_records(capture), complete=False)
+
+
 def test_sigkill_of_the_log_keeps_what_reached_the_file(device, tmp_path):
     port, sent = device
     log_proc, out, capture = start_log(port, tmp_path, "killed", raw=False)

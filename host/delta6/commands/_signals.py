@@ -52,15 +52,26 @@ class StopRequest:
     def __init__(self):
         self.event = threading.Event()
         self.signum: int | None = None
+        self._holding = False
 
     def is_set(self) -> bool:
         return self.event.is_set()
 
     def __call__(self, signum, _frame):
-        if self.event.is_set():
+        if self.event.is_set() and not self._holding:
             raise Terminated(signum) if signum != signal.SIGINT else KeyboardInterrupt
-        self.signum = signum
+        self.signum = self.signum or signum
         self.event.set()
+
+    @contextlib.contextmanager
+    def holding(self):
+        """Within the block, further signals only request the stop: a file being closed is
+        closed whole (a quick second Ctrl-C left a log under its .partial name)."""
+        self._holding = True
+        try:
+            yield
+        finally:
+            self._holding = False
 
     @property
     def name(self) -> str:

@@ -137,53 +137,70 @@ def _check_outputs(args: argparse.Namespace) -> None:
             os.remove(args.capture)
 
 
-def run(args: argparse.Namespace) -> int:
-    _check_outputs(args)
+def _record(dev, args: argparse.Namespace, stop):
+    """Stream into the log until the duration, a stop signal or a device error; close the log
+    (whole, or as .partial after a write failure). Returns (path, stats, health, ending)."""
     progress = Progress()
     ending: UserError | None = None
-    with stop_requests() as stop, open_device(args, capture=args.capture) as dev:
-        rate = start_stream(dev, args)
-        info = dev.info()
-        meta = {**log_meta(info, args.port, "delta6 log --port"), "rate_hz": rate,
-                "frame_id": args.frame_id,
-                # UNIX time = host_t + this: dates the MCAP messages (docs/log-format.md)
-                "host_clock_offset": f"{time.time() - time.monotonic():.6f}"}
-        writer = open_log_writer(args.output, meta, optional=("seq", "status", "host_t"),
-                                 overwrite=args.force)
-        stats = Stats(writer)
-        session: list = []
-        started = time.monotonic()
-        next_show = started
-        try:
-            while args.duration is None or time.monotonic() - started < args.duration:
-                block = next_block(dev, stop)
-                if block is None:
-                    break
-                _write(stats, block, session)
-                now = time.monotonic()
-                if now >= next_show:
-                    limit = f" / {args.duration:g}" if args.duration else ""
-                    progress.show(f"{now - started:7.1f}{limit} s  {stats.rows} samples  "
-                                  f"{stats.rate():7.1f} Hz  lost {dev.health.samples_lost}  "
-                                  f"flagged {stats.flagged}")
-                    next_show = now + 0.5
-        except (DeviceError, LogError) as exc:
-            ending = exc
-        except KeyboardInterrupt:       # a second stop signal: end now, keep what is written
-            stop.signum = stop.signum or 2
-        finally:
-            complete = not isinstance(ending, LogError)
-            if ending is None or not isinstance(ending, (DeviceRestarted, LogError)):
-                try:
-                    _drain(dev, stats, session)
-                except LogError as exc:
-                    ending, complete = exc, False
+    rate = start_stream(dev, args)
+    info = dev.info()
+    meta = {**log_meta(info, args.port, "delta6 log --port"), "rate_hz": rate,
+            "frame_id": args.frame_id,
+            # UNIX time = host_t + this: dates the MCAP messages (docs/log-format.md)
+            "host_clock_offset": f"{time.time() - time.monotonic():.6f}"}
+    writer = open_log_writer(args.output, meta, optional=("seq", "status", "host_t"),
+                             overwrite=args.force)
+    stats = Stats(writer)
+    session: list = []
+    started = time.monotonic()
+    next_show = started
+    try:
+        while args.duration is None or time.monotonic() - started < args.duration:
+            block = next_block(dev, stop)
+            if block is None:
+                break
+            _write(stats, block, session)
+            now = time.monotonic()
+            if now >= next_show:
+                limit = f" / {args.duration:g}" if args.duration else ""
+                progress.show(f"{now - started:7.1f}{limit} s  {stats.rows} samples  "
+                              f"{stats.rate():7.1f} Hz  lost {dev.health.samples_lost}  "
+                              f"flagged {stats.flagged}")
+                next_show = now + 0.5
+    except (DeviceError, LogError) as exc:
+        ending = exc
+    except KeyboardInterrupt:       # a second stop signal: end now, keep what is written
+        stop.signum = stop.signum or 2
+    finally:
+        complete = not isinstance(ending, LogError)
+        if ending is None or not isinstance(ending, (DeviceRestarted, LogError)):
+            try:
+                _drain(dev, stats, session)
+            except LogError as exc:
+                ending, complete = exc, False
+            except KeyboardInterrupt:   # a second stop signal while draining: skip the rest
+                stop.signum = stop.signum or 2
+        with stop.holding():
             try:
                 path = writer.close(complete=complete)
             except LogError as exc:
                 ending, path = exc, writer.partial
-            progress.end()
-        health = dev.health
+        progress.end()
+    return path, stats, dev.health, ending
+
+
+def run(args: argparse.Namespace) -> int:
+    _check_outputs(args)
+    recorded = None
+    with stop_requests() as stop:
+        try:
+            with open_device(args, capture=args.capture) as dev:
+                recorded = _record(dev, args, stop)
+        except KeyboardInterrupt:   # a second stop signal as the port closed: the log is whole
+            if recorded is None:
+                raise
+            stop.signum = stop.signum or 2
+    path, stats, health, ending = recorded
     how = f" (stopped by {stop.name})" if stop.signum else ""
     print(f"{path}: {stats.summary(health)}{how}", file=sys.stderr)
     if ending is not None:
