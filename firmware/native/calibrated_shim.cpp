@@ -15,6 +15,22 @@ using delta6::CalibrationConstants;
 using delta6::CalibrationState;
 using delta6::CurvedCalibrationConstants;
 
+namespace {
+// n samples, continuing from *s; periods[i] (NULL: all 1) sample periods since the sample
+// before (more than 1: the board lost the periods between, as after a failed read).
+template <typename Constants>
+void run(const Constants* c, CalibrationState* s, size_t n, const int16_t* delta,
+         const uint16_t* periods, float* wrench, uint8_t* status) {
+    for (size_t i = 0; i < n; ++i) {
+        if (periods != nullptr && periods[i] > 1) {
+            delta6::calibration_skip(*s, static_cast<uint16_t>(periods[i] - 1));
+        }
+        status[i] = delta6::solve_calibrated(delta6::design::kSolverConstants, *c, *s,
+                                             delta + 6 * i, wrench + 6 * i);
+    }
+}
+}  // namespace
+
 extern "C" {
 
 // The generated header's constants (NULL when the build has none; the base of a calibration
@@ -53,21 +69,16 @@ void d6c_set_period(const CalibrationConstants* c, float period_s, CalibrationSt
     delta6::calibration_set_period(*c, period_s, *s);
 }
 
-// n samples in a row, continuing from *s.
+// n samples, continuing from *s (periods: see run above).
 void d6c_run(const CalibrationConstants* c, CalibrationState* s, size_t n, const int16_t* delta,
-             float* wrench, uint8_t* status) {
-    for (size_t i = 0; i < n; ++i) {
-        status[i] = delta6::solve_calibrated(delta6::design::kSolverConstants, *c, *s,
-                                             delta + 6 * i, wrench + 6 * i);
-    }
+             const uint16_t* periods, float* wrench, uint8_t* status) {
+    run(c, s, n, delta, periods, wrench, status);
 }
 
 // The same with curves.
 void d6c_run_curved(const CurvedCalibrationConstants* c, CalibrationState* s, size_t n,
-                    const int16_t* delta, float* wrench, uint8_t* status) {
-    for (size_t i = 0; i < n; ++i) {
-        status[i] = delta6::solve_calibrated(delta6::design::kSolverConstants, *c, *s,
-                                             delta + 6 * i, wrench + 6 * i);
-    }
+                    const int16_t* delta, const uint16_t* periods, float* wrench,
+                    uint8_t* status) {
+    run(c, s, n, delta, periods, wrench, status);
 }
 }

@@ -3,6 +3,8 @@ reference delta6.core.calibrated: within 0.01 % FS over the joint box and along 
 the history included; property-tested over random calibrations."""
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -53,6 +55,39 @@ def test_random_calibrations_along_random_paths(baseline, libdir, seed, period):
     cal = random_calibration(baseline, seed)
     counts = random_path(seed, 400, 1365)
     assert worst_pct(baseline, cal, counts, period, libdir) < TOLERANCE_PCT
+
+
+@settings(max_examples=15)
+@given(st.integers(0, 2**31 - 1), st.sampled_from([0.004, 0.02]), st.booleans())
+def test_gaps_spread_the_step_over_the_lost_periods_in_both(baseline, libdir, seed, period,
+                                                            curved):
+    """Samples lost before a sample (failed reads, missed periods: up to a few hundred,
+    beyond the board's 255 too): the C++ model told the periods agrees with the Python one."""
+    cal = random_calibration(baseline, seed)
+    cal = with_curves(cal, seed % 7) if curved else cal
+    rng = np.random.default_rng(seed)
+    counts = random_path(seed, 400, 1365)
+    periods = np.where(rng.random(400) < 0.1, rng.integers(2, 300, 400), 1)
+    native = native_calibrated(baseline, cal, period, libdir)
+    c_wrench, status = native.run(counts, periods)
+    py, _ = CalibratedModel(baseline, cal).run(counts, period, periods=np.minimum(periods, 256))
+    assert np.all(status == 0)
+    assert float((np.abs(c_wrench - py) / full_scale(baseline) * 100).max()) < TOLERANCE_PCT
+
+
+def test_a_gap_is_not_read_as_one_periods_step():
+    """After m periods, a step of s counts is a speed of s counts over m periods (the filter
+    run m times), not s counts in one period."""
+    from delta6.core.calibrated import speed_coefficients
+    from delta6.core.model import ENCODER_COUNT_RAD
+    tau, dt = 0.02, 0.004
+    a1, g1 = speed_coefficients(tau, dt, None, 1)
+    v = 0.0
+    for _ in range(5):                  # 5 periods at the steady speed of 2 counts a period
+        v = a1[0, 0] * v + g1[0, 0] * 2
+    am, gm = speed_coefficients(tau, dt, np.array([5]), 1)
+    assert am[0, 0] * 0.0 + gm[0, 0] * 10 == pytest.approx(v, rel=1e-12)
+    assert v < 2 * ENCODER_COUNT_RAD / dt        # well under the 5-fold spike of one period
 
 
 def test_over_the_joint_box_corners_and_faces(baseline, libdir):
@@ -149,6 +184,39 @@ def test_outside_the_box_gives_zeros_and_a_status_never_nan(baseline, libdir, cu
     outside = np.any(np.abs(counts) > 1365, axis=1)
     assert np.all(status[outside] == 1) and np.all(wrench[outside] == 0.0)
     assert np.all(np.isfinite(wrench))
+
+
+UB_SWEEP = """
+import sys
+from pathlib import Path
+import numpy as np
+from delta6.core.design import load
+from delta6.core.paths import DEFAULT_DESIGN
+from delta6.build.nativecalibrated import native_calibrated
+from support.calibrations import random_calibration, with_curves
+design = load(DEFAULT_DESIGN)
+design = design.replace(k_nm_per_rad=[k * 5 for k in design.k_nm_per_rad])
+native = native_calibrated(design, with_curves(random_calibration(design, 3), 3), 0.004,
+                           Path(sys.argv[1]), flags=("-fsanitize=undefined",))
+x = np.repeat(np.arange(-8192, 8192)[:, None], 6, axis=1)
+native.run(np.concatenate([x, x[::-1]]))
+print("swept")
+"""
+
+
+def test_no_undefined_behaviour_over_the_whole_turn(tmp_path):
+    """Built with UBSan, the curved model of a design with five times the springs (which codegen
+    accepts) swept over every count of the turn, in and far out of the box: the int32 torque
+    sum overflowed (signed: undefined) on counts outside the box before the box check."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    tests = Path(__file__).resolve().parents[1]
+    proc = subprocess.run([sys.executable, "-c", UB_SWEEP, str(tmp_path)],
+                          capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "PYTHONPATH": str(tests)})
+    assert proc.returncode == 0 and "swept" in proc.stdout, proc.stderr[-2000:]
+    assert "runtime error" not in proc.stderr, proc.stderr[-2000:]
 
 
 def test_torques_beyond_the_fixed_point_range_are_refused(baseline):

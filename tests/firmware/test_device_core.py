@@ -192,9 +192,57 @@ def test_zero_here_takes_the_current_pose_as_zero(bench):
     after = data(bench.run(0.05))
     assert all(r.wrench == (0,) * 6 for r in after)
     nack = bench.answer(bench.send(C.SET_ZERO, 1, 2, 3, 4, 5, 16384))
-    assert nack.reason == P.NackReason.BAD_ARGUMENT
+    assert nack.reason == P.NackReason.BAD_ARGUMENT and nack.detail == 16384
+    nack = bench.answer(bench.send(C.SET_ZERO, 1, 40000, 3, 4, 5, 16384))
+    assert nack.detail == 40000                          # the first count beyond the turn
     bench.answer(bench.send(C.SET_ZERO, 1, 2, 3, 4, 5, 6))
     assert bench.sim.core.zero_counts.tolist() == [1, 2, 3, 4, 5, 6]
+
+
+def test_zero_here_averages_right_across_the_wrap_half_a_turn_from_the_old_zero():
+    """A rest position half a turn from the current zero, read with a count of noise: the
+    samples straddle +8191 / -8192 from the old zero, which averaged to about 0; against the
+    first sample they average to the rest position."""
+    count = 2 * np.pi / 16384
+    rest = np.array([np.pi, -np.pi + 0.6 * count, 0.1, 0.0, 0.0, 0.0])
+    b = Bench(rate_hz=500, motion=Motion(pose=rest, amplitude=np.array([1.6, 1.6, 0, 0, 0, 0]) * count,
+                                         frequency=np.array([37.0, 23.0, 0, 0, 0, 0]),
+                                         phase=np.zeros(6)))
+    try:
+        old = b.sim.core.zero_counts.copy()
+        ack = b.answer(b.send(C.ZERO_HERE, 200, run=0.5))
+        assert ack.value == 200
+        new = b.sim.core.zero_counts.astype(int)
+        seen = b.sim.counts_at(np.arange(0, 400_000, 2000)).astype(int)
+        assert len(set(((seen[:, 0] - old[0]) % 16384).tolist()) & {8191, 8192, 8193}) >= 2
+        expected = b.sim.counts_at([0])[0].astype(int)
+        for j in range(6):
+            off = (new[j] - expected[j] + 8192) % 16384 - 8192
+            assert abs(off) <= 2, (j, new[j], expected[j])
+    finally:
+        b.sim.close()
+
+
+def test_the_loop_time_window_of_a_stopped_board_keeps_its_mean_and_restarts_at_start():
+    """Stopped, no periodic record closes the window: after more than 65,535 samples its mean
+    is still the loop time (a 16-bit count wrapped and read 65535 us). START opens a window of
+    its own: the first periodic record does not report the idle time's loop times."""
+    b = Bench(rate_hz=500, loop_time_us=900)
+    try:
+        b.run(140.0)                                        # 70,000 samples, stopped
+        t = b.answer(b.send(C.GET_TELEMETRY))
+        assert t.loop_time_max_us == 900 == t.loop_time_mean_us
+        b.sim.loop_time_us = 300
+        b.run(300.0)                           # 150,000 samples at 300 us: the 900s fade
+        t = b.answer(b.send(C.GET_TELEMETRY))  # (their weight halves every ~32,768 samples)
+        assert t.loop_time_max_us == 900 and 300 < t.loop_time_mean_us < 340
+        b.sim.loop_time_us = 600
+        b.send(C.START, 500)
+        periodic = [r for r in b.run(1.05) if isinstance(r, P.Telemetry) and r.request_id == 0]
+        assert len(periodic) == 1
+        assert periodic[0].loop_time_max_us == 600 == periodic[0].loop_time_mean_us
+    finally:
+        b.sim.close()
 
 
 def test_configuration_survives_a_power_cycle_only_when_saved(bench):

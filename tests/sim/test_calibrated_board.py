@@ -18,7 +18,8 @@ from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.core.spec import full_scale
 from delta6.evaluation.boardstream import stream_log
 from delta6.learning import mcu
-from delta6.sim.virtualboard import firmware
+from delta6.learning.bases import CalibrationBase
+from delta6.sim.virtualboard import Fault, firmware
 
 from conftest import DESIGNS
 from support.calibrations import random_calibration, with_curves
@@ -62,6 +63,24 @@ def test_the_board_streams_the_python_calibrated_wrench(baseline, unit):
     # ... and a better estimate than the analytical model (4 s: near the noise floor on some
     # axes, so the whole squared error is compared).
     assert (board ** 2).sum() < 0.3 * (analytical ** 2).sum()
+
+
+def test_after_failed_reads_the_board_streams_the_python_wrench_over_the_gap(baseline, unit):
+    """An encoder that stops answering for a while: its samples are flagged with no wrench (NaN),
+    and the next ones equal the Python model told the periods between (the speed spreads the
+    gap's step over them; read as one period's step it was a spike)."""
+    truth, cal, path = unit
+    image = design_firmware(DESIGN, path)
+    check = twin.simulate(duration_s=3, rate_hz=250, **twin.same_unit(truth, 23))
+    run = stream_log(image, check, rate_hz=250, hold_s=2.0,
+                     faults=[Fault(2, "noanswer", 1.0, 1.06), Fault(5, "noanswer", 2.0, 2.004)])
+    failed = (run.status & 0x3F) != 0
+    assert 15 <= failed.sum() <= 20 and np.all(np.isnan(run.wrench[failed]))
+    ok = ~failed
+    base = CalibrationBase(baseline, cal, 250)
+    python = base.batch(run.t[ok], run.delta[ok] * ENCODER_COUNT_RAD)
+    fs = full_scale(baseline)
+    assert np.max(np.abs(run.wrench[ok] - python) / fs * 100) < 0.01
 
 
 def test_a_unit_with_both_curves_streams_the_python_wrench_at_its_rated_250_hz(baseline, unit,

@@ -103,7 +103,7 @@ class NativeCalibrated:
         if lib.d6c_constants_size() != ctypes.sizeof(CCalibration):
             raise RuntimeError("CalibrationConstants layout differs between C++ and Python")
         lib.d6c_set_period.argtypes = [ctypes.c_void_p, ctypes.c_float, ctypes.c_void_p]
-        lib.d6c_run.argtypes = [ctypes.c_void_p] * 2 + [ctypes.c_size_t] + [ctypes.c_void_p] * 3
+        lib.d6c_run.argtypes = [ctypes.c_void_p] * 2 + [ctypes.c_size_t] + [ctypes.c_void_p] * 4
         lib.d6c_run_curved.argtypes = lib.d6c_run.argtypes
         lib.d6c_generated_curved.restype = ctypes.c_void_p
         lib.d6c_curved_size.restype = ctypes.c_size_t
@@ -124,26 +124,33 @@ class NativeCalibrated:
         # (a curved struct starts with its base)
         lib.d6c_set_period(self._pointer, period_s, self.state)
 
-    def run(self, delta) -> tuple[np.ndarray, np.ndarray]:
+    def run(self, delta, periods=None) -> tuple[np.ndarray, np.ndarray]:
+        """``periods``: per sample, the sample periods since the one before (default 1; more:
+        the periods between were lost, as the board's failed reads and missed periods)."""
         delta = np.ascontiguousarray(delta, dtype=np.int16).reshape(-1, 6)
         n = len(delta)
         wrench = np.full((n, 6), np.nan, dtype=np.float32)
         status = np.full(n, 0xEE, dtype=np.uint8)
         run = self.lib.d6c_run_curved if self.curved else self.lib.d6c_run
-        run(self._pointer, self.state, n, delta.ctypes.data, wrench.ctypes.data,
+        if periods is not None:
+            periods = np.ascontiguousarray(periods, dtype=np.uint16).reshape(n)
+        run(self._pointer, self.state, n, delta.ctypes.data,
+            None if periods is None else periods.ctypes.data, wrench.ctypes.data,
             status.ctypes.data)
         return wrench, status
 
 
 def native_calibrated(design: Design, cal: Calibration, period_s: float, base: Path,
-                      label: str = "test", *, generated: bool = False) -> NativeCalibrated:
+                      label: str = "test", *, generated: bool = False,
+                      flags: tuple[str, ...] = ()) -> NativeCalibrated:
     """The C++ model with ``cal`` passed at run time; ``generated``: also compile ``cal``'s
-    generated header into the library and run from its constants."""
+    generated header into the library and run from its constants; ``flags``: extra compiler
+    flags (a sanitizer build)."""
     include = header_dir(design, base, label)
     header = include / "generated" / "delta6_calibration.h"
     if generated:
         header.write_text(render_calibration(design, cal, label, "test.toml"))
     elif header.exists():
         header.unlink()
-    lib = load_library(f"calibrated-{design.name}", SOURCES, [include, FIRMWARE_CORE])
+    lib = load_library(f"calibrated-{design.name}", SOURCES, [include, FIRMWARE_CORE], flags)
     return NativeCalibrated(lib, design, cal, period_s, use_generated=generated)

@@ -45,7 +45,12 @@ from delta6.calibration.families import (
     without_vanishing_curves,
 )
 from delta6.core import accuracy
-from delta6.core.calibrated import CalibratedModel, counts_from_angles, sample_period
+from delta6.core.calibrated import (
+    CalibratedModel,
+    counts_from_angles,
+    periods_between,
+    sample_period,
+)
 from delta6.core.calibration import CORRECTED, NOT_APPLIED, Calibration, neutral
 from delta6.core.design import Design
 from delta6.core.errors import UserError
@@ -135,8 +140,10 @@ class _Fitter:
         self.data = data
         self.counts = counts_from_angles(data.theta)
         self.dt = sample_period(data.t)
+        self.periods = periods_between(data.t, self.dt)
         self.settings = settings
-        terms, _ = CalibratedModel(data.design, settings, saturate_curves=True).joint_terms(self.counts, self.dt)
+        terms, _ = CalibratedModel(data.design, settings, saturate_curves=True).joint_terms(
+            self.counts, self.dt, periods=self.periods)
         self.families = families(settings, data.design)
         ctx = Context(data, terms, settings)
         all_terms = _terms(ctx, self.families) + [_latency_term(data)]
@@ -211,8 +218,8 @@ class _Fitter:
         """What the reference should read: the calibrated wrench, late by the rig's latency."""
         # An iterate's curve may leave the board's tables: held at their range here, it is
         # left out as implausible after the fit (``_worst_implausible``).
-        w, _ = CalibratedModel(self.data.design, cal, saturate_curves=True).run(self.counts,
-                                                                               self.dt)
+        w, _ = CalibratedModel(self.data.design, cal, saturate_curves=True).run(
+            self.counts, self.dt, periods=self.periods)
         if latency:
             w = w - latency * np.gradient(w, self.data.t, axis=0)
         return w

@@ -10,7 +10,9 @@ through a few numbers of state per joint (:class:`ModelState`), in one pass per 
    has them): the direction of motion ``d`` (a play of +-``direction_half_counts``/2 counts:
    +1 after rising, -1 after falling), hysteresis states ``h_r = (x - play_r(x)) / r`` for the
    play radii r (whole counts: the plays stay whole numbers, exactly, on both sides), and the
-   joint speed ``v``, a first-order filtered difference (time constant ``speed_filter_s``).
+   joint speed ``v``, a first-order filtered difference (time constant ``speed_filter_s``);
+   a sample that follows m - 1 lost ones (a failed read, a lost record: ``periods``) spreads
+   its step over the m periods for the speed, as the board does after a failed read.
 2. **angle side**: theta = x * count - offset - e(x) + backlash_play / 2 * d (the link leads
    its encoder by half the play in the direction of motion; e is the encoder's periodic
    error, tabulated over x: ``delta6.core.curves``).
@@ -87,6 +89,30 @@ def speed_filter(tau: float, dt: float) -> tuple[float, float]:
     return a, (1.0 - a) * ENCODER_COUNT_RAD / dt
 
 
+def speed_coefficients(tau: float, dt: float, periods: np.ndarray | None, n: int
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample, (A, G) of v_n = A v_(n-1) + G (x_n - x_(n-1)): the filter run over the m
+    periods since the sample before, the step spread evenly over them (m = 1: a and g)."""
+    a, g = speed_filter(tau, dt)
+    if periods is None:
+        return np.full((n, 1), a), np.full((n, 1), g)
+    m = np.maximum(np.asarray(periods, dtype=float).reshape(n, 1), 1.0)
+    am = a ** m
+    per_step = (1.0 - am) * g / ((1.0 - a) * m) if a < 1.0 else np.zeros_like(m)
+    return am, per_step
+
+
+def periods_between(t: np.ndarray, dt: float, before: float | None = None) -> np.ndarray:
+    """Sample periods from each row to the one before (``before``: the time of the row before
+    the first; default: the first row counts 1) of a log's times: more than 1 where rows are
+    missing (failed reads left out, records lost on the link)."""
+    t = np.asarray(t, dtype=float)
+    if dt <= 0 or len(t) == 0:
+        return np.ones(len(t))
+    first = t[0] - dt if before is None else before
+    return np.maximum(np.round(np.diff(t, prepend=first) / dt), 1.0)
+
+
 class CalibratedModel:
     """The analytical model of ``design`` with ``calibration`` applied (see the module doc).
 
@@ -114,9 +140,10 @@ class CalibratedModel:
 
     # -- the pieces ---------------------------------------------------------------------------
 
-    def joint_terms(self, counts: np.ndarray, dt: float, state: ModelState | None = None
-                    ) -> tuple[JointTerms, ModelState]:
-        """Steps 1-3 for samples ``counts`` (n, 6) taken every ``dt`` seconds."""
+    def joint_terms(self, counts: np.ndarray, dt: float, state: ModelState | None = None,
+                    periods: np.ndarray | None = None) -> tuple[JointTerms, ModelState]:
+        """Steps 1-3 for samples ``counts`` (n, 6) taken every ``dt`` seconds; ``periods``
+        (n,): sample periods since the sample before (default 1 each)."""
         c = self.cal
         x = np.asarray(counts, dtype=float)
         if x.ndim != 2 or x.shape[1] != 6:
@@ -128,9 +155,9 @@ class CalibratedModel:
         direction = (2.0 * x - y2) / half
         yr = play(x[:, :, None], self.radii, state.plays)
         hysteresis = (x[:, :, None] - yr) / self.radii
-        a, g = speed_filter(c.speed_filter_s, dt)
+        a, g = speed_coefficients(c.speed_filter_s, dt, periods, len(x))
         step = np.diff(x, axis=0, prepend=state.last[None, :])
-        speed = affine_scan(np.full(x.shape, a), g * step, state.speed)
+        speed = affine_scan(np.broadcast_to(a, x.shape), g * step, state.speed)
         theta = x * ENCODER_COUNT_RAD - c.offset_rad + 0.5 * c.backlash_play_rad * direction
         signs = sum(c.friction_sign_nm[:, s] * np.clip(speed / v, -1.0, 1.0)
                     for s, v in enumerate(c.friction_speeds_rad_s))
@@ -165,15 +192,18 @@ class CalibratedModel:
 
     # -- whole runs ---------------------------------------------------------------------------
 
-    def run(self, counts: np.ndarray, dt: float, state: ModelState | None = None
-            ) -> tuple[np.ndarray, ModelState]:
+    def run(self, counts: np.ndarray, dt: float, state: ModelState | None = None,
+            periods: np.ndarray | None = None) -> tuple[np.ndarray, ModelState]:
         """The wrench (n, 6) for samples ``counts`` (n, 6, signed counts from the zero) taken
         every ``dt`` s, continuing from ``state`` (default: settled at the first sample);
-        returns the state after the last sample too, so a stream can be fed in pieces."""
-        terms, after = self.joint_terms(counts, dt, state)
+        returns the state after the last sample too, so a stream can be fed in pieces.
+        ``periods`` (n,): sample periods since the sample before (default 1 each)."""
+        terms, after = self.joint_terms(counts, dt, state, periods)
         return self.wrench_from_terms(terms.theta, terms.torque), after
 
     def predict(self, log) -> np.ndarray:
         """The calibrated wrench for a log's encoder angles (estimator protocol)."""
-        wrench, _ = self.run(counts_from_angles(log.theta), sample_period(log.t))
+        dt = sample_period(log.t)
+        wrench, _ = self.run(counts_from_angles(log.theta), dt,
+                             periods=periods_between(log.t, dt))
         return wrench

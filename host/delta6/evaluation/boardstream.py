@@ -9,6 +9,7 @@ that pose when the first record goes out, as a host model started on the first r
 """
 from __future__ import annotations
 
+import dataclasses
 import tempfile
 import time
 from dataclasses import dataclass
@@ -56,14 +57,17 @@ START_ATTEMPTS = 3
 
 
 def stream_log(image, log, *, rate_hz: int = 250, zero=0, hold_s: float = 3.0,
-               seconds: float | None = None, speed: float = 0.0,
+               seconds: float | None = None, speed: float = 0.0, faults=(),
                progress=None) -> BoardRun:
     """Replay ``log`` (``t``, ``theta``) on the virtual board running ``image`` and record
-    its wrench+raw stream at ``rate_hz`` for the log's duration (or ``seconds``)."""
+    its wrench+raw stream at ``rate_hz`` for the log's duration (or ``seconds``); ``faults``:
+    the virtual board's encoder faults, their times counted from the log's start."""
     for attempt in range(START_ATTEMPTS):
+        shifted = [dataclasses.replace(f, start=f.start + hold_s * 2 ** attempt,
+                                       stop=f.stop + hold_s * 2 ** attempt) for f in faults]
         run = _stream_once(image, log, rate_hz=rate_hz, zero=zero,
                            hold_s=hold_s * 2 ** attempt, seconds=seconds, speed=speed,
-                           progress=progress)
+                           faults=shifted, progress=progress)
         if run is not None:
             return run
         if progress:
@@ -73,7 +77,7 @@ def stream_log(image, log, *, rate_hz: int = 250, zero=0, hold_s: float = 3.0,
                     f"{START_ATTEMPTS} attempts): the machine is too busy")
 
 
-def _stream_once(image, log, *, rate_hz, zero, hold_s, seconds, speed,
+def _stream_once(image, log, *, rate_hz, zero, hold_s, seconds, speed, faults,
                  progress) -> BoardRun | None:
     """One replay; None when the stream started after the initial hold."""
     t_log = np.asarray(log.t, dtype=float) - float(log.t[0])
@@ -83,7 +87,7 @@ def _stream_once(image, log, *, rate_hz, zero, hold_s, seconds, speed,
     served = np.concatenate([served_log[:1], served_log])
     with tempfile.TemporaryDirectory(prefix="delta6-boardstream-") as tmp:
         replay = write_replay(Path(tmp) / "run.d6rp", t_replay, served)
-        board = VirtualBoard(image=image, replay=replay, zero=zero, speed=speed)
+        board = VirtualBoard(image=image, replay=replay, zero=zero, speed=speed, faults=faults)
         with board:
             with Device(board.port) as dev:
                 if np.any(np.asarray(zero) != 0):

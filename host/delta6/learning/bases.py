@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from delta6.core import model
-from delta6.core.calibrated import CalibratedModel, counts_from_angles
+from delta6.core.calibrated import CalibratedModel, counts_from_angles, periods_between
 from delta6.core.calibration import Calibration
 from delta6.core.design import Design
 
@@ -51,7 +51,8 @@ class AnalyticalBase:
 class CalibrationBase:
     """The calibrated model (causal, with a few numbers of state per joint) run sample by
     sample at the model's rate. A sample with a missing angle gives NaN and leaves the state
-    as it was, in the batch and in the stream alike."""
+    as it was, in the batch and in the stream alike; the next sample's speed spans the gap
+    (the periods between the samples' times), as on the board."""
 
     name = "calibration"
 
@@ -60,22 +61,28 @@ class CalibrationBase:
         self.calibration = calibration
         self.dt = 1.0 / rate_hz
         self.state = None
+        self.last_t = None      # the time of the last sample the state ran through
 
     def batch(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        return self._run(theta, None)[0]
+        return self._run(t, theta, None, None)[0]
 
     def update_block(self, t: np.ndarray, theta: np.ndarray) -> np.ndarray:
         """The state runs on from the last block through this block's complete rows."""
-        out, self.state = self._run(theta, self.state)
+        out, self.state, self.last_t = self._run(t, theta, self.state, self.last_t)
         return out
 
-    def _run(self, theta, state):
+    def _run(self, t, theta, state, last_t):
         theta = np.asarray(theta, dtype=float).reshape(-1, 6)
+        t = np.asarray(t, dtype=float).reshape(-1)
         out = np.full(theta.shape, np.nan)
         ok = np.isfinite(theta).all(axis=1)
         if ok.any():
-            out[ok], state = self.calibrated.run(counts_from_angles(theta[ok]), self.dt, state)
-        return out, state
+            periods = periods_between(t[ok], self.dt, last_t if state is not None else None)
+            out[ok], state = self.calibrated.run(counts_from_angles(theta[ok]), self.dt, state,
+                                                 periods)
+            last_t = float(t[ok][-1])
+        return out, state, last_t
 
     def reset(self) -> None:
         self.state = None
+        self.last_t = None

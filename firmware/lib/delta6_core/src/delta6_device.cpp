@@ -63,6 +63,7 @@ Device::Device(Hardware& hardware, const Identity& identity, const Config& defau
   memset(&counters_, 0, sizeof(counters_));
   memset(&last_answer_, 0, sizeof(last_answer_));
   memset(&sums_, 0, sizeof(sums_));
+  memset(averaging_first_, 0, sizeof(averaging_first_));
   loadDefaults(&config_);
   for (uint8_t i = 0; i < 6; ++i) {
     scale_[i] = scaleForFullScale(ident(id_.full_scale[i]));
@@ -339,7 +340,12 @@ void Device::execute(const Command& c) {
         break;
       }
       setRate(rate);
-      if (!streaming_) last_telemetry_us_ = hw_.micros();
+      if (!streaming_) {   // the first periodic record covers the stream, not the idle time
+        last_telemetry_us_ = hw_.micros();
+        counters_.loop_time_max_us = 0;
+        counters_.loop_time_sum_us = 0;
+        counters_.loop_time_samples = 0;
+      }
       streaming_ = true;
       stream_changed_ = true;
       ack(c, rate);
@@ -394,13 +400,13 @@ void Device::execute(const Command& c) {
         break;
       }
       uint16_t counts[6];
-      bool ok = true;
+      uint8_t bad = 6;   // the first count beyond the turn, if any: the NACK's detail
       for (uint8_t i = 0; i < 6; ++i) {
         counts[i] = getU16(c.args + 2 * i);
-        if (counts[i] >= kCountsPerTurn) ok = false;
+        if (counts[i] >= kCountsPerTurn && bad == 6) bad = i;
       }
-      if (!ok) {
-        nack(c, kNackBadArgument);
+      if (bad != 6) {
+        nack(c, kNackBadArgument, counts[bad]);
         break;
       }
       // Offsets measured against other zero counts mean nothing now.
@@ -543,7 +549,8 @@ void Device::accumulate(const float* wrench, const Sample& s, uint16_t status) {
     if (averaging_ == kCmdTare) {
       sums_.wrench[i] += wrench[i];
     } else {
-      sums_.counts[i] += wrap_count_delta(s.counts[i], config_.zero_counts[i]);
+      if (averaging_count_ == 0) averaging_first_[i] = s.counts[i];
+      sums_.counts[i] += wrap_count_delta(s.counts[i], averaging_first_[i]);
     }
   }
   if (++averaging_count_ >= averaging_target_) finishAveraging();
@@ -565,13 +572,13 @@ void Device::finishAveraging() {
     if (command == kCmdTare) {
       config_.tare[i] = sums_.wrench[i] / n;
     } else {
-      // Mean offset from the old zero, rounded half away from zero.
+      // Mean offset from the first sample, rounded half away from zero.
       const int32_t sum = sums_.counts[i];
       const int32_t half = static_cast<int32_t>(averaging_count_ / 2);
       const int32_t mean = sum >= 0 ? (sum + half) / static_cast<int32_t>(averaging_count_)
                                     : -((-sum + half) / static_cast<int32_t>(averaging_count_));
       config_.zero_counts[i] =
-          static_cast<uint16_t>((config_.zero_counts[i] + mean) & (kCountsPerTurn - 1));
+          static_cast<uint16_t>((averaging_first_[i] + mean) & (kCountsPerTurn - 1));
       config_.tare[i] = 0.0f;
     }
   }
@@ -794,6 +801,12 @@ void Device::onSample(const Sample& s) {
   ++k.samples;
   temperature_centi_ = s.temperature_centi;
   if (s.loop_time_us > k.loop_time_max_us) k.loop_time_max_us = s.loop_time_us;
+  if (k.loop_time_samples == 0xFFFFu) {
+    // A window left open this long (stopped: no periodic record closes it) keeps its mean by
+    // halving its weight; 65,535 loop times of at most 65,535 us fit the 32-bit sum.
+    k.loop_time_sum_us >>= 1;
+    k.loop_time_samples >>= 1;
+  }
   k.loop_time_sum_us += s.loop_time_us;
   ++k.loop_time_samples;
 

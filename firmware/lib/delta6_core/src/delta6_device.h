@@ -242,6 +242,9 @@ class Device {
   uint8_t averaging_request_;
   uint16_t averaging_target_;
   uint16_t averaging_count_;
+  // ZERO_HERE: the first sample's counts; the others are wrapped against them, not against the
+  // old zero (a rest half a turn from it straddles the wrap, and +8191 and -8192 average to 0).
+  uint16_t averaging_first_[6];
   union {
     float wrench[6];
     int32_t counts[6];
