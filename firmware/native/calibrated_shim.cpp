@@ -22,9 +22,7 @@ template <typename Constants>
 void run(const Constants* c, CalibrationState* s, size_t n, const int16_t* delta,
          const uint16_t* periods, float* wrench, uint8_t* status) {
     for (size_t i = 0; i < n; ++i) {
-        if (periods != nullptr && periods[i] > 1) {
-            delta6::calibration_skip(*s, static_cast<uint16_t>(periods[i] - 1));
-        }
+        if (periods != nullptr && periods[i] > 1) delta6::calibration_gap(*s);
         status[i] = delta6::solve_calibrated(delta6::design::kSolverConstants, *c, *s,
                                              delta + 6 * i, wrench + 6 * i);
     }

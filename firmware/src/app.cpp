@@ -240,7 +240,7 @@ void process(const Latched& latched) {
 #endif
 #if DELTA6_CALIBRATED
     if (zero_changed) delta6::calibration_reset(calibration_state);
-    if (latched.missed) delta6::calibration_skip(calibration_state, latched.missed);
+    if (latched.missed) delta6::calibration_gap(calibration_state);
     s.solver_ok = delta6::solve_calibrated(kCalibratedSolver,
                                            delta6::calibration::kCalibrationConstants,
                                            calibration_state, delta, s.wrench) == delta6::kSolveOk;
@@ -254,8 +254,7 @@ void process(const Latched& latched) {
     s.solver_ok = false;   // no wrench without all six angles
     for (uint8_t i = 0; i < 6; ++i) s.wrench[i] = 0.0f;
 #if DELTA6_CALIBRATED
-    // This period (and any missed before it) counts in the next sample's speed.
-    delta6::calibration_skip(calibration_state, static_cast<uint16_t>(latched.missed + 1u));
+    delta6::calibration_gap(calibration_state);   // the next sample's step is no speed
 #endif
 #if DELTA6_RESIDUAL
     delta6::residual::reset(residual_state);

@@ -61,8 +61,8 @@ def test_random_calibrations_along_random_paths(baseline, libdir, seed, period):
 @given(st.integers(0, 2**31 - 1), st.sampled_from([0.004, 0.02]), st.booleans())
 def test_gaps_spread_the_step_over_the_lost_periods_in_both(baseline, libdir, seed, period,
                                                             curved):
-    """Samples lost before a sample (failed reads, missed periods: up to a few hundred,
-    beyond the board's 255 too): the C++ model told the periods agrees with the Python one."""
+    """Samples lost before a sample (failed reads, missed periods): the C++ model told of the
+    gaps agrees with the Python one told the periods."""
     cal = random_calibration(baseline, seed)
     cal = with_curves(cal, seed % 7) if curved else cal
     rng = np.random.default_rng(seed)
@@ -70,24 +70,25 @@ def test_gaps_spread_the_step_over_the_lost_periods_in_both(baseline, libdir, se
     periods = np.where(rng.random(400) < 0.1, rng.integers(2, 300, 400), 1)
     native = native_calibrated(baseline, cal, period, libdir)
     c_wrench, status = native.run(counts, periods)
-    py, _ = CalibratedModel(baseline, cal).run(counts, period, periods=np.minimum(periods, 256))
+    py, _ = CalibratedModel(baseline, cal).run(counts, period, periods=periods)
     assert np.all(status == 0)
     assert float((np.abs(c_wrench - py) / full_scale(baseline) * 100).max()) < TOLERANCE_PCT
 
 
-def test_a_gap_is_not_read_as_one_periods_step():
-    """After m periods, a step of s counts is a speed of s counts over m periods (the filter
-    run m times), not s counts in one period."""
-    from delta6.core.calibrated import speed_coefficients
-    from delta6.core.model import ENCODER_COUNT_RAD
-    tau, dt = 0.02, 0.004
-    a1, g1 = speed_coefficients(tau, dt, None, 1)
-    v = 0.0
-    for _ in range(5):                  # 5 periods at the steady speed of 2 counts a period
-        v = a1[0, 0] * v + g1[0, 0] * 2
-    am, gm = speed_coefficients(tau, dt, np.array([5]), 1)
-    assert am[0, 0] * 0.0 + gm[0, 0] * 10 == pytest.approx(v, rel=1e-12)
-    assert v < 2 * ENCODER_COUNT_RAD / dt        # well under the 5-fold spike of one period
+def test_a_gap_is_not_read_as_one_periods_step(baseline):
+    """After lost periods the step is no speed: the speed decays as if the joint stood still
+    (read as one period's step, the 40 counts over 20 lost periods were a spike)."""
+    cal = random_calibration(baseline, 1)
+    model = CalibratedModel(baseline, cal)
+    counts = np.zeros((12, 6))
+    counts[:, 0] = np.r_[np.arange(10) * 2, 58, 60]      # 2 counts a period, then a gap
+    periods = np.r_[np.ones(10), 20, 1]
+    terms, _ = model.joint_terms(counts, 0.004, periods=periods)
+    v = terms.speed[:, 0]
+    a = cal.speed_filter_s / (cal.speed_filter_s + 0.004)
+    assert v[10] == pytest.approx(a * v[9], rel=1e-12) and v[11] > v[10]
+    spike, _ = model.joint_terms(counts, 0.004)
+    assert spike.speed[10, 0] > 3 * v[9]
 
 
 def test_over_the_joint_box_corners_and_faces(baseline, libdir):

@@ -11,8 +11,9 @@ through a few numbers of state per joint (:class:`ModelState`), in one pass per 
    +1 after rising, -1 after falling), hysteresis states ``h_r = (x - play_r(x)) / r`` for the
    play radii r (whole counts: the plays stay whole numbers, exactly, on both sides), and the
    joint speed ``v``, a first-order filtered difference (time constant ``speed_filter_s``);
-   a sample that follows m - 1 lost ones (a failed read, a lost record: ``periods``) spreads
-   its step over the m periods for the speed, as the board does after a failed read.
+   the step of a sample that follows lost ones (a failed read, a lost record: ``periods``
+   over 1) spans more than a period and is no speed: the speed decays for that sample as if
+   the joint stood still, as the board does after a failed read.
 2. **angle side**: theta = x * count - offset - e(x) + backlash_play / 2 * d (the link leads
    its encoder by half the play in the direction of motion; e is the encoder's periodic
    error, tabulated over x: ``delta6.core.curves``).
@@ -89,17 +90,13 @@ def speed_filter(tau: float, dt: float) -> tuple[float, float]:
     return a, (1.0 - a) * ENCODER_COUNT_RAD / dt
 
 
-def speed_coefficients(tau: float, dt: float, periods: np.ndarray | None, n: int
-                       ) -> tuple[np.ndarray, np.ndarray]:
-    """Per sample, (A, G) of v_n = A v_(n-1) + G (x_n - x_(n-1)): the filter run over the m
-    periods since the sample before, the step spread evenly over them (m = 1: a and g)."""
-    a, g = speed_filter(tau, dt)
+def speed_gains(tau: float, dt: float, periods: np.ndarray | None, n: int) -> np.ndarray:
+    """Per sample, the g of v_n = a v_(n-1) + g (x_n - x_(n-1)): 0 after lost periods (the
+    step spans more than one period: no speed)."""
+    _, g = speed_filter(tau, dt)
     if periods is None:
-        return np.full((n, 1), a), np.full((n, 1), g)
-    m = np.maximum(np.asarray(periods, dtype=float).reshape(n, 1), 1.0)
-    am = a ** m
-    per_step = (1.0 - am) * g / ((1.0 - a) * m) if a < 1.0 else np.zeros_like(m)
-    return am, per_step
+        return np.full((n, 1), g)
+    return np.where(np.asarray(periods).reshape(n, 1) > 1, 0.0, g)
 
 
 def periods_between(t: np.ndarray, dt: float, before: float | None = None) -> np.ndarray:
@@ -155,9 +152,10 @@ class CalibratedModel:
         direction = (2.0 * x - y2) / half
         yr = play(x[:, :, None], self.radii, state.plays)
         hysteresis = (x[:, :, None] - yr) / self.radii
-        a, g = speed_coefficients(c.speed_filter_s, dt, periods, len(x))
+        a, _ = speed_filter(c.speed_filter_s, dt)
+        g = speed_gains(c.speed_filter_s, dt, periods, len(x))
         step = np.diff(x, axis=0, prepend=state.last[None, :])
-        speed = affine_scan(np.broadcast_to(a, x.shape), g * step, state.speed)
+        speed = affine_scan(np.full(x.shape, a), g * step, state.speed)
         theta = x * ENCODER_COUNT_RAD - c.offset_rad + 0.5 * c.backlash_play_rad * direction
         signs = sum(c.friction_sign_nm[:, s] * np.clip(speed / v, -1.0, 1.0)
                     for s, v in enumerate(c.friction_speeds_rad_s))

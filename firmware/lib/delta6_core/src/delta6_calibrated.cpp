@@ -158,7 +158,7 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
     const uint8_t speeds = flash::byte(&cc.speeds);
     const int16_t half = flash::i16(&cc.direction_half);
     const float speed_a = st.speed_a, speed_g = st.speed_g;
-    const bool after_gap = st.skipped != 0;   // speeds_after_gap has set this sample's speeds
+    const bool after_gap = st.after_gap != 0;   // this sample's step is no speed
     for (uint8_t j = 0; j < 6; ++j) {
         const int16_t x = delta[j];
         const int16_t x2 = static_cast<int16_t>(2 * x);
@@ -213,15 +213,12 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
         // A joint standing still (often, at the board's rates) costs one multiply, not three;
         // a step of a few counts, one multiply and one addition: g times the step comes from
         // the state's table (the same float product, computed when the period was set).
-        float v = st.speed[j];
-        if (!after_gap) {
-            v = speed_a * v;
-            if (step != 0) {
-                const uint16_t size = static_cast<uint16_t>(step < 0 ? -step : step);
-                const float g = size <= kSpeedSteps ? st.speed_step[size - 1]
-                                                    : speed_g * static_cast<float>(size);
-                v = step < 0 ? v - g : v + g;
-            }
+        float v = speed_a * st.speed[j];
+        if (step != 0 && !after_gap) {
+            const uint16_t size = static_cast<uint16_t>(step < 0 ? -step : step);
+            const float g = size <= kSpeedSteps ? st.speed_step[size - 1]
+                                                : speed_g * static_cast<float>(size);
+            v = step < 0 ? v - g : v + g;
         }
         st.speed[j] = v;
         st.last[j] = x;
@@ -392,12 +389,7 @@ DELTA6_NOINLINE uint8_t to_e(const CalibrationConstants& cc, const float tau[6],
 
 void calibration_reset(CalibrationState& s) {
     s.started = 0;
-    s.skipped = 0;
-}
-
-void calibration_skip(CalibrationState& s, uint16_t periods) {
-    const uint16_t room = static_cast<uint16_t>(0xFFu - s.skipped);
-    s.skipped = static_cast<uint8_t>(s.skipped + (periods < room ? periods : room));
+    s.after_gap = 0;
 }
 
 void calibration_set_period(const CalibrationConstants& c, float period_s,
@@ -431,23 +423,7 @@ DELTA6_NOINLINE DELTA6_FOR_SIZE void start_settled(const CalibrationConstants& c
                                        flash::i32(&cc.k0[j]));
     }
     st.started = 1;
-    st.skipped = 0;
-}
-
-// The speeds of the first sample after m - 1 lost periods: the filter run over the m periods
-// with the count's step spread evenly over them. Rare: compiled for size.
-DELTA6_NOINLINE DELTA6_FOR_SIZE void speeds_after_gap(CalibrationState& st,
-                                                      const int16_t delta[6]) {
-    const float m = static_cast<float>(st.skipped) + 1.0f;
-    float am = st.speed_a;
-    for (uint8_t i = 0; i < st.skipped; ++i) am *= st.speed_a;
-    // g / (1 - a) is the count over the period; a = 1 (no period set) leaves the speeds.
-    const float per_step = st.speed_a < 1.0f ? (1.0f - am) * st.speed_g
-                                               / ((1.0f - st.speed_a) * m) : 0.0f;
-    for (uint8_t j = 0; j < 6; ++j) {
-        const int16_t step = static_cast<int16_t>(delta[j] - st.last[j]);
-        st.speed[j] = am * st.speed[j] + per_step * static_cast<float>(step);
-    }
+    st.after_gap = 0;
 }
 
 // Inlined into each overload, so that the one without curves is the code it was before.
@@ -456,11 +432,10 @@ DELTA6_ALWAYS_INLINE uint8_t solve(const SolverConstants& k, const CalibrationCo
               const CurvedCalibrationConstants* cv, CalibrationState& st,
               const int16_t delta[6], float wrench[6]) {
     if (!st.started) start_settled(cc, st, delta);
-    if (st.skipped) speeds_after_gap(st, delta);
     float tau[6];
     int16_t dir2[6];
     joint_torques<kCurves>(cc, st, delta, tau, dir2, cv, k.table_origin);
-    st.skipped = 0;
+    st.after_gap = 0;
     DELTA6_PROFILE_MARK(21);
     // The joint box, on the counts as the analytical solver has it.
     for (uint8_t i = 0; i < 6; ++i) {

@@ -76,7 +76,7 @@ constexpr uint8_t kSpeedSteps = 8;
 // The history kept between samples (what the Python model calls ModelState).
 struct CalibrationState {
     uint8_t started;                   // 0: the next sample starts settled
-    uint8_t skipped;                   // sample periods lost since the last sample solved
+    uint8_t after_gap;                 // periods were lost since the last sample solved
     int16_t last[6];                   // the previous count
     int16_t direction2[6];             // direction play, half counts
     int16_t play[6][kMaxPlayRadii];    // hysteresis plays, counts
@@ -110,11 +110,11 @@ struct CurvedCalibrationConstants {
 
 // Forget the history: the next sample starts settled (after a zero change).
 void calibration_reset(CalibrationState& s);
-// Periods that passed without a sample solved (a failed read, a missed period): the next
-// sample's count step is spread over them for the speed (v = a^m v + (1 - a^m) step / (m dt)
-// for m periods), where it would otherwise read as one period's step; the plays and the count
-// terms take the whole step, as they depend on the position only.
-void calibration_skip(CalibrationState& s, uint16_t periods);
+// A period passed without a sample solved (a failed read, a missed period): the next sample's
+// count step spans more than one period, so it is no speed (read as one period's step it was a
+// spike): the speed decays for that sample as if the joint stood still; the plays and the
+// count terms take the whole step, as they depend on the position only.
+inline void calibration_gap(CalibrationState& s) { s.after_gap = 1; }
 // The speed filter's coefficients for a sample period (call when the rate changes).
 void calibration_set_period(const CalibrationConstants& c, float period_s,
                             CalibrationState& s);
