@@ -102,6 +102,21 @@ def test_float_edges_match_float32(wrench, correction):
             int8net.apply_output(wrench, correction, net.output_step))
 
 
+def test_input_rounding_just_below_and_at_the_halves_is_lroundf():
+    """Half away from zero, as lroundf: 0.49999997 rounds to 0 (|v| + 0.5 in float32 gives
+    1.0), 0.5 to 1, -2.5 to -3."""
+    import dataclasses
+    net = dataclasses.replace(random_int8net(np.random.default_rng(1)),
+                              input_scale=np.ones(6, dtype=np.float32))
+    below = float(np.nextafter(np.float32(0.5), np.float32(0)))
+    values = [[below, 0.5, -below, -0.5, 2.5, -2.5],
+              [1.5 - 2**-23, 1.5, 32766.5, -32767.5, 1e9, -1e9]]
+    expected = [[0, 1, 0, -1, 3, -3], [1, 2, 32767, -32768, 32767, -32768]]
+    with NativeResidual(net) as c:
+        np.testing.assert_array_equal(c.quantize_input(values), expected)
+    np.testing.assert_array_equal(int8net.quantize_input(values, net.input_scale), expected)
+
+
 def test_generated_header_compiles_to_the_same_model(tmp_path):
     rng = np.random.default_rng(11)
     net = random_int8net(rng)

@@ -415,15 +415,21 @@ def test_an_interrupted_tare_is_aborted_on_the_device():
     """Ctrl-C in a long tare: the device is told to stop averaging, and is not left busy."""
     import os
     import signal
-    with Device("delta6sim://?rate=500") as dev:
-        dev.start(500)
-        timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))   # a real Ctrl-C
-        timer.start()
-        with pytest.raises(KeyboardInterrupt):
-            dev.tare(65535)                       # would take over two minutes
-        assert not dev.info(refresh=True).status & P.Status.TARE_BUSY
-        assert dev.abort() is False               # nothing left to abort
-        assert np.all(np.isfinite(dev.tare(5)))   # and it takes commands again
+    # Python's own Ctrl-C handler, whatever pytest was started with (a background job starts
+    # with SIGINT ignored, and the signal would then never arrive).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with Device("delta6sim://?rate=500") as dev:
+            dev.start(500)
+            timer = threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT))   # a real Ctrl-C
+            timer.start()
+            with pytest.raises(KeyboardInterrupt):
+                dev.tare(65535)                   # would take over two minutes
+            assert not dev.info(refresh=True).status & P.Status.TARE_BUSY
+            assert dev.abort() is False           # nothing left to abort
+            assert np.all(np.isfinite(dev.tare(5)))   # and it takes commands again
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def test_a_new_boot_id_starts_a_new_session_even_with_counters_that_fit():

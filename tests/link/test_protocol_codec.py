@@ -118,6 +118,10 @@ def test_scale_is_the_smallest_step_with_headroom(fs):
 
 @given(st.floats(allow_nan=True, allow_infinity=True, width=32),
        st.sampled_from([(1, -3), (2, -3), (5, -4), (2, -5), (1, 0)]))
+@example(0.5, (1, 0))      # exact halves: away from zero on both sides, as the firmware does
+@example(-0.5, (1, 0))
+@example(2.5, (1, 0))
+@example(-32766.5, (1, 0))
 def test_quantize_matches_cpp_exactly(lib, value, scale):
     lsb = W.float32_lsb(*scale)
     inverse = np.float32(1) / lsb
@@ -126,6 +130,8 @@ def test_quantize_matches_cpp_exactly(lib, value, scale):
     q, c = W.quantize(np.array([value]), lsb)
     assert int(q[0]) == expected
     assert bool(c[0]) == bool(clipped.value)
+    if scale == (1, 0) and abs(value) <= 32767 and value % 1 == 0.5:
+        assert abs(expected) == abs(value) + 0.5
 
 
 @given(st.floats(-30, 30, width=32))
@@ -148,10 +154,34 @@ def test_link_limits():
 
 @given(st.lists(st.integers(0, 16383), min_size=6, max_size=6),
        st.lists(st.integers(0, 16383), min_size=6, max_size=6))
+@example([8192, 0, 8191, 16383, 0, 1], [0, 8192, 16383, 8191, 8193, 8193])   # half turns
 def test_count_delta_is_the_short_way_round(counts, zero):
     d = P.count_delta(counts, zero)
     assert ((np.asarray(zero) + d - np.asarray(counts)) % 16384 == 0).all()
     assert (d >= -8192).all() and (d < 8192).all()
+
+
+def test_count_delta_at_the_half_turn_is_minus_8192_as_the_firmware_has_it():
+    assert P.count_delta([8192, 0, 16383, 0, 8191, 8193],
+                         [0, 8192, 8191, 1, 16383, 1]).tolist() == [-8192, -8192, -8192, -1,
+                                                                     -8192, -8192]
+
+
+def test_theta_values_are_nan_for_failed_reads_and_missing_counts_only():
+    counts = np.array([[0, 100, 200, 300, 400, 500], [P.NO_COUNTS, 1, 2, 3, 4, 5]])
+    status = np.array([0b000100, 0])
+    theta = P.theta_values(counts, status, np.zeros(6, dtype=np.int64))
+    assert np.isnan(theta[0, 2]) and np.isnan(theta[1, 0])
+    assert np.isfinite(np.delete(theta[0], 2)).all() and np.isfinite(theta[1, 1:]).all()
+    assert theta[0, 1] == pytest.approx(100 * P.COUNT_RAD)
+
+
+def test_wrench_values_are_nan_for_invalid_samples_and_axes_only():
+    counts = np.array([[1, 2, 3, 4, 5, P.INVALID_VALUE], [1, 2, 3, 4, 5, 6]])
+    status = np.array([0, P.Status.WRENCH_INVALID])
+    w = P.wrench_values(counts, status, np.full(6, 0.5))
+    assert np.isnan(w[0, 5]) and np.isnan(w[1]).all()
+    assert w[0, :5].tolist() == [0.5, 1.0, 1.5, 2.0, 2.5]
 
 
 def test_info_round_trips_through_its_encoder():

@@ -67,3 +67,20 @@ def test_link_tensions_balance_the_platform_force(theta):
     vhat = v / P.lb[:, None]
     pulled = np.sum(-model.link_tension(P, t3)[..., None] * vhat, axis=-2)
     assert np.allclose(pulled, -model.base_force(P, t3), rtol=1e-9, atol=1e-9)
+
+
+@given(st.floats(-0.3, 0.3), arrays(float, (4, 3), elements=st.floats(-0.5, 0.5)))
+def test_the_force_seen_in_a_turned_gimbal_frame_is_the_base_force_turned_back(angle, q123):
+    """{E0} turned by R (its orientation in {B}) about z: with the gimbal's joints at rest,
+    {E} is {E0}, and the force it reports is R^T times the force in {B} (a frame turned one
+    way sees the force turned the other way: a transposed R turns it the wrong way)."""
+    theta = np.hstack([q123, np.zeros((4, 3))])
+    c, s = np.cos(angle), np.sin(angle)
+    r = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    assert np.allclose(rotation_from_vector(np.array([0.0, 0.0, angle])), r, atol=1e-12)
+    plain = plant_wrench(PlantGeometry(P), theta, P.k * theta)
+    turned = plant_wrench(PlantGeometry(P, r), theta, P.k * theta)
+    fx, fy = plain[:, 0], plain[:, 1]
+    assert np.allclose(turned[:, 0], c * fx + s * fy, atol=1e-9)
+    assert np.allclose(turned[:, 1], -s * fx + c * fy, atol=1e-9)
+    assert np.allclose(turned[:, 2], plain[:, 2], atol=1e-12)

@@ -199,8 +199,10 @@ def quantize_input(wrench, input_scale) -> np.ndarray:
     """Base wrench (N, N*m) -> int16 input steps as the board computes it: float32 product with
     the scale, saturated, rounded half away from zero (lroundf)."""
     v = np.asarray(wrench, dtype=np.float32) * np.asarray(input_scale, dtype=np.float32)
-    v = np.clip(v, np.float32(INT16_MIN), np.float32(INT16_MAX))
-    return (np.sign(v) * np.floor(np.abs(v) + np.float32(0.5))).astype(np.int64)
+    v = np.clip(v, np.float32(INT16_MIN), np.float32(INT16_MAX)).astype(np.float64)
+    # |v| + 0.5 in float64 is exact for a float32 v of int16 range; in float32 it rounds up
+    # just below a half (0.49999997 + 0.5 -> 1.0), where lroundf gives 0.
+    return (np.sign(v) * np.floor(np.abs(v) + 0.5)).astype(np.int64)
 
 
 def apply_output(wrench, correction, output_step) -> np.ndarray:
@@ -299,8 +301,7 @@ def _segment_features(features, history, base, counts, stride, state: State):
 
 def _plays(x: np.ndarray, radii: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Play operators y_n = clamp(y_(n-1), x_n - r, x_n + r) on integer counts: (n, P, 6)
-    outputs and the last (P, 6). Vectorised over the radii and joints; a loop over samples
-    only when there is a play (a clamp chain is not a numpy primitive)."""
+    outputs and the last (P, 6), by the blocked scan of :func:`delta6.core.operators.play`."""
     n = len(x)
     if len(radii) == 0:
         return np.zeros((n, 0, 6), dtype=np.int64), np.zeros((0, 6), dtype=np.int64)

@@ -28,13 +28,3 @@ def to_tool(wrench, translation, rpy) -> np.ndarray:
     m_p = m - np.cross(np.asarray(translation, dtype=float), f)
     return np.concatenate([np.einsum("ij,...j->...i", rt, f),
                            np.einsum("ij,...j->...i", rt, m_p)], axis=-1)
-
-
-def from_tool(wrench, translation, rpy) -> np.ndarray:
-    """The inverse of :func:`to_tool`: (..., 6) wrenches in the tool frame -> at {E}'s origin,
-    in {E}'s axes (F = R F_tool, M = R M_tool + p x F)."""
-    wrench = np.asarray(wrench, dtype=float)
-    r = rotation(rpy)
-    f = np.einsum("ij,...j->...i", r, wrench[..., :3])
-    m = np.einsum("ij,...j->...i", r, wrench[..., 3:])
-    return np.concatenate([f, m + np.cross(np.asarray(translation, dtype=float), f)], axis=-1)

@@ -49,8 +49,9 @@ class AnalyticalBase:
 
 
 class CalibrationBase:
-    """The calibrated model (causal, with a few numbers of state per joint) run sample by
-    sample at the model's rate. A sample with a missing angle gives NaN and leaves the state
+    """The calibrated model (causal, with a few numbers of state per joint) run over the
+    samples in order at the model's rate (a block at a time, vectorised; the state carries
+    over between blocks). A sample with a missing angle gives NaN and leaves the state
     as it was, in the batch and in the stream alike; the next sample's speed spans the gap
     (the periods between the samples' times), as on the board."""
 

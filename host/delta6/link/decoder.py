@@ -39,7 +39,7 @@ class DecoderStats:
     cobs_errors: int = 0         # not valid COBS
     length_errors: int = 0       # valid CRC, too short for its type
     unknown_types: int = 0       # valid CRC, a type this version does not know
-    oversize: int = 0            # longer than any record
+    oversize: int = 0            # longer than MAX_FRAME: discarded undecoded
     resyncs: int = 0             # rejected frames: the decoder skipped to the next 0x00
     bytes_discarded: int = 0     # bytes of rejected frames not recovered as a record
     recovered: int = 0           # intact records found at the end of a damaged frame

@@ -262,9 +262,8 @@ RECORD_SIZES_BY_MINOR = {t: sorted({record_size(t, m) for m in range(VERSION[1] 
 MIN_RECORD_SIZES = {t: min((layout.offsets[n] for n in APPENDED_FIELDS.get(t, ())),
                            default=layout.size) for t, layout in RECORD_LAYOUTS.items()}
 INFO_SIZE_1_0 = MIN_RECORD_SIZES[RecordType.INFO]
-#: INFO as version 1.1 sent it (without the model), and 1.2 (without the pipeline).
+#: INFO as version 1.1 sent it (without the model).
 INFO_SIZE_1_1 = record_size(RecordType.INFO, 1)
-INFO_SIZE_1_2 = record_size(RecordType.INFO, 2)
 _WRENCH = RECORD_LAYOUTS[RecordType.WRENCH].struct
 _WRENCH_RAW = RECORD_LAYOUTS[RecordType.WRENCH_RAW].struct
 
