@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from delta6.core.int8net import FEATURE_KINDS
+from delta6.core.int8net import FEATURE_KINDS, MAX_STRIDE, MAX_WIDTH
 from delta6.core.residualmodel import ResidualModel
 
 from .design_header import c_float, c_string
@@ -102,6 +102,10 @@ def render_model(model: ResidualModel, design_label: str, model_label: str) -> s
         "",
         f"static_assert(delta6::residual::kModelFormatVersion == {MODEL_FORMAT_VERSION},",
         f'              "delta6_model.h is older than the residual engine: rerun {COMMAND}");',
+        # The Python engine's limits, which the model was checked against, are the board's.
+        f"static_assert(delta6::residual::kMaxWidth == {MAX_WIDTH} && "
+        f"delta6::residual::kMaxStride == {MAX_STRIDE},",
+        '              "the residual engine\'s limits differ from delta6.core.int8net\'s");',
         "",
         "#endif  // DELTA6_GENERATED_MODEL_H",
         "",

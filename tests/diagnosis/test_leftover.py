@@ -17,7 +17,8 @@ from delta6.diagnosis.terms import TERMS
 from delta6.link.logfile import LogData
 
 N = 4000
-#: The per-joint level of the angle test (Bonferroni over the six joints).
+#: The per-joint level of the angle test at the first step of Holm's step-down over the six
+#: joints (the level a joint alone must reach).
 LEVEL = leftover.ANGLE_ALPHA / 6
 
 
@@ -141,3 +142,30 @@ def test_an_encoder_error_the_vocabulary_lacks_is_placed_on_its_joint(baseline):
     assert left["shape"] in ("odd polynomial", "even polynomial", "periodic in the angle")
     assert left["per_joint"][4]["angle_structured"]
     assert not any(row["angle_structured"] for row in left["per_joint"][:4])
+
+
+@settings(max_examples=300)
+@given(st.lists(st.floats(0.0, 1.0), min_size=1, max_size=8), st.floats(1e-4, 0.2))
+def test_holm_rejects_what_bonferroni_does_and_a_prefix_of_the_sorted_p_values(p, alpha):
+    reject = leftover.holm(p, alpha)
+    bonferroni = [x <= alpha / len(p) for x in p]
+    assert all(r or not b for r, b in zip(reject, bonferroni))
+    rejected = sorted(x for x, r in zip(p, reject) if r)
+    kept = [x for x, r in zip(p, reject) if not r]
+    assert not kept or not rejected or max(rejected) <= min(kept)
+    for rank, x in enumerate(rejected):                 # each at its step's level
+        assert x <= alpha / (len(p) - rank)
+
+
+def test_holm_finds_a_second_joint_bonferroni_misses_and_keeps_the_false_alarm_rate():
+    alpha = leftover.ANGLE_ALPHA
+    # One joint clearly structured, a second just above the Bonferroni level: Holm judges the
+    # second at alpha / 5.
+    p = [1.7e-4, 0.4, 0.9, 0.3, 0.6, 1e-9]
+    assert leftover.holm(p, alpha) == [True, False, False, False, False, True]
+    assert 1.7e-4 > alpha / 6
+    # Six independent null p-values: at least one rejected in about alpha of the draws.
+    rng = np.random.default_rng(0)
+    draws = rng.random((20_000, 6))
+    alarms = np.mean([any(leftover.holm(list(row), 0.05)) for row in draws])
+    assert alarms <= 0.05 * 1.15

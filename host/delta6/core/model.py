@@ -25,8 +25,9 @@ from delta6.core.design import Design
 
 #: Nominal branch azimuths phi_1..3 in {B}, radians.
 NOMINAL_PHI = np.deg2rad([0.0, 120.0, 240.0])
-#: One count of the 14-bit encoders, radians.
-ENCODER_COUNT_RAD = 2 * np.pi / 2**14
+#: Counts a turn of the 14-bit encoders, and one count in radians.
+ENCODER_COUNTS_PER_TURN = 2**14
+ENCODER_COUNT_RAD = 2 * np.pi / ENCODER_COUNTS_PER_TURN
 AXES = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 
 

@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from delta6.core.model import ENCODER_COUNT_RAD
+from delta6.core.model import ENCODER_COUNT_RAD, ENCODER_COUNTS_PER_TURN
 from delta6.link import cobs
 from delta6.link.crc import crc16
 from delta6.link.layout import Field, Layout
@@ -30,7 +30,7 @@ DEFAULT_BAUD = 500_000
 #: Frame bytes on the wire beyond the payload: CRC (2), COBS code (1), delimiter (1).
 FRAME_OVERHEAD = 4
 CRC_SIZE = 2
-COUNTS_PER_TURN = 16384
+COUNTS_PER_TURN = ENCODER_COUNTS_PER_TURN
 COUNT_RAD = ENCODER_COUNT_RAD
 #: Raw counts of a sample that carried none (wrench-only mode): never a real 14-bit count.
 NO_COUNTS = -1

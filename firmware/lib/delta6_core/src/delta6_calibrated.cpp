@@ -51,8 +51,9 @@ using fastmath::absf;
 using fastmath::flash_float;
 using fastmath::rotate_back;
 
-// One encoder count, rad (2 pi / 2^14).
-constexpr float kCountRad = 3.83495197e-4f;
+// One encoder count, rad: 2 pi (float) over the counts of a turn (a power of two: exact).
+constexpr float kCountRad = 6.28318531f / static_cast<float>(kCountsPerTurn);
+static_assert(kCountRad == 3.83495197e-4f, "one count is 2 pi / 2^14 rad");
 
 inline int16_t clamp_play(int16_t y, int16_t x, int16_t r) {
     const int16_t lo = static_cast<int16_t>(x - r), hi = static_cast<int16_t>(x + r);
