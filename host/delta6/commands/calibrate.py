@@ -47,9 +47,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    out = check_output_file(args.output, "-o")       # before the fit, not after it
+    out = check_output_file(args.output, "-o",       # before the fit, not after it
+                            inputs=[args.log, args.design])
     if args.report:
         check_output_folder(args.report, "--report")
+    twice = sorted({e for e in args.effect or [] if args.effect.count(e) > 1})
+    if twice:
+        raise UserError(f"--effect {', '.join(twice)} given twice")
     design = load_checked(args.design)
     latency = None if args.rig_latency is None else check_rig_latency(args.rig_latency)
     name = args.name or out.name.removesuffix(".toml")[:NAME_LIMIT]

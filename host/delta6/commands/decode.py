@@ -41,7 +41,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    check_output_file(args.output, "-o", force=args.force, partial=True)
+    check_output_file(args.output, "-o", force=args.force, partial=True,
+                      inputs=[args.capture, args.design])
     path = Path(args.capture)
     try:
         data = path.read_bytes()

@@ -102,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
     if args.rig_latency not in (None, "calibration"):
         check_rig_latency(args.rig_latency)
     if args.json:
-        check_output_file(args.json, "--json")
+        check_output_file(args.json, "--json",
+                          inputs=[args.log, args.design, args.calibration, *(args.model or [])])
     if args.plot:
         check_plot_path(args.plot)
     design = load_checked(args.design)

@@ -12,6 +12,7 @@ import numpy as np
 from delta6.core import accuracy
 from delta6.core import design as design_mod
 from delta6.core.errors import UserError
+from delta6.core.outputs import check_not_an_input
 from delta6.core.workspace import load_checked
 from delta6.twin import (
     EFFECT_NAMES,
@@ -91,6 +92,9 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"cannot write {out}: directory {out.parent} does not exist")
     if out.is_dir():
         raise UserError(f"cannot write {out}: it is a directory")
+    # The run of the same unit again must not replace the run (or the truth) it came from.
+    for written in (out, truth_path(out)):
+        check_not_an_input(written, "-o", [args.unit, args.design])
     if args.unit:
         kwargs = _unit(args, seed, magnitude)
         if args.record_temp:

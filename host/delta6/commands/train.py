@@ -96,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
                             "(CAL.toml)")
         calibration = calibration_mod.load(base)
         base = "calibration"
-    check_output_file(args.output, "-o")    # before the minutes of training, not after
+    check_output_file(args.output, "-o",    # before the minutes of training, not after
+                      inputs=[args.log, args.design, args.residual_over])
     design = load_checked(args.design)
     log = read_log(args.log)
     require_reference_wrench(log.meta, args.log, TRAINS_ON_A_REFERENCE)
@@ -203,8 +204,9 @@ def run_mcu(args: argparse.Namespace) -> int:
         raise UserError("--name: 1..23 printable ASCII characters")
     if output.suffix.lower() != ".json":
         raise UserError("-o: the model file is JSON (MODEL.json); the ONNX goes next to it")
-    check_output_file(output, "-o")
-    check_output_file(output.with_suffix(".onnx"), "-o")
+    inputs = [args.log, args.design, args.residual_over]
+    check_output_file(output, "-o", inputs=inputs)
+    check_output_file(output.with_suffix(".onnx"), "-o", inputs=inputs)
     _check_companion(output.with_suffix(".onnx"), output)
     design = load_checked(args.design)
     base = _mcu_base(args, design)

@@ -93,11 +93,14 @@ def parse_zero(text: str | None):
 def run(args: argparse.Namespace) -> int:
     # Checked now: the board saves both only when it ends, maybe hours later.
     if args.eeprom is not None:
-        check_output_file(args.eeprom, "--eeprom")
+        check_output_file(args.eeprom, "--eeprom", inputs=[args.replay, args.design,
+                                                            args.calibration, args.model])
         if args.eeprom.exists() and not os.access(args.eeprom, os.R_OK):
             raise UserError(f"--eeprom {args.eeprom}: cannot be read (permission denied)")
     if args.stats is not None:
-        check_output_file(args.stats, "--stats")
+        check_output_file(args.stats, "--stats", inputs=[args.replay, args.design,
+                                                          args.calibration, args.model,
+                                                          args.eeprom])
     faults = [vb.Fault.parse(spec) for spec in args.fault]
     zero = parse_zero(args.zero)
     if args.loop and args.replay is None:

@@ -6,20 +6,23 @@ import os
 from pathlib import Path
 
 from delta6.core.errors import UserError
+from delta6.core.paths import DESIGNS_DIR
 
 PARTIAL_SUFFIX = ".partial"
 
 
 def check_output_file(path: str | Path, option: str, *, force: bool = True,
-                      partial: bool = False) -> Path:
+                      partial: bool = False, inputs=()) -> Path:
     """``path`` as a file this command may create: not a directory, in a folder that exists
-    and can be written. Without ``force`` an existing file is refused (a log is not
+    and can be written, not one of the files the command reads (``inputs``; None entries are
+    skipped) nor a shipped design. Without ``force`` an existing file is refused (a log is not
     regenerable); with ``partial`` so is the ``.partial`` file an interrupted run left."""
     text = str(path)
     path = Path(path)
     if text.endswith(("/", os.sep)) or path.is_dir():
         raise UserError(f"{option} {text}: is a folder; give a file name")
     _check_folder(path.parent, option, text)
+    check_not_an_input(path, option, inputs)
     if not force:
         candidates = [path] + ([path.with_name(path.name + PARTIAL_SUFFIX)] if partial else [])
         for existing in candidates:
@@ -30,6 +33,25 @@ def check_output_file(path: str | Path, option: str, *, force: bool = True,
     elif path.exists() and not os.access(path, os.W_OK):
         raise UserError(f"{option} {text}: cannot be replaced (permission denied)")
     return path
+
+
+def check_not_an_input(path: Path, option: str, inputs=()) -> None:
+    """Refuse an output that is a file the command reads, or a design shipped with the
+    package (a calibration written over delta6.toml replaced the design)."""
+    if not path.exists():
+        return
+    for source in inputs:
+        if source is not None and Path(source).exists() and _same(path, Path(source)):
+            raise UserError(f"{option} {path}: is the input {source} (it would be overwritten)")
+    if path.resolve().parent == DESIGNS_DIR.resolve():
+        raise UserError(f"{option} {path}: is a design shipped with delta6 (write elsewhere)")
+
+
+def _same(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return a.resolve() == b.resolve()
 
 
 def check_output_folder(path: str | Path, option: str) -> Path:
