@@ -153,6 +153,38 @@ def test_injected_faults_flag_exactly_the_affected_samples(image, motion, tmp_pa
     assert list(telemetry.encoder_errors) == list((reads.faults != 0).sum(axis=0))
 
 
+def test_a_replayed_logs_failed_reads_fail_again_never_held(image, design, tmp_path):
+    """A log with missing angles (its board's failed reads) replays them as encoders that do
+    not answer: the board flags exactly those encoders and sends no angle, where it once
+    held the previous angle and flagged nothing."""
+    from delta6.link.logfile import LogWriter
+    t, theta = demo_trajectory(duration_s=2.0, rate_hz=200.0)
+    theta = theta.copy()
+    gone = np.zeros(theta.shape, dtype=bool)
+    gone[(t >= 0.8) & (t < 0.9), 1] = True          # joint 2 for 20 samples
+    gone[np.argmin(np.abs(t - 1.3)), 4] = True      # joint 5 for one
+    theta[gone] = np.nan
+    log = tmp_path / "with_failed_reads.csv"
+    with LogWriter(log, {"design": design.name}) as w:
+        w.write_block(t, theta, np.zeros(theta.shape))
+    with VirtualBoard(image=image, replay=log, zero=ZERO, speed=2) as board:
+        with Device(board.port) as dev:
+            dev.set_zero(ZERO)
+            dev.set_mode("raw")
+            dev.start(200)
+            samples = drain(dev, 1.6)
+        board.stop()
+    t_us, seq, status, wrench, counts = samples_as_arrays(samples)
+    row = np.clip(np.searchsorted(t, t_us / 1e6 - 1e-4, side="right") - 1, 0, len(t) - 1)
+    flagged = ((status[:, None] >> np.arange(6)) & 1) == 1
+    # Every flag is on a joint the log lost (within a sample of its stretch), and the stretch
+    # of joint 2 is flagged throughout.
+    near = gone[row] | gone[np.clip(row - 1, 0, None)] | gone[np.clip(row + 1, None, len(t) - 1)]
+    assert np.all(near[flagged])
+    assert flagged[:, 1].sum() >= 18 and flagged[:, 4].sum() >= 1
+    assert np.all(counts[flagged] == 0) and not flagged[:, [0, 2, 3, 5]].any()
+
+
 def test_random_bytes_neither_hang_nor_reset_the_board(image, motion):
     _, _, replay = motion
     rng = random.Random(5)

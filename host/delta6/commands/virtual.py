@@ -10,6 +10,7 @@ import signal
 import sys
 import tempfile
 import threading
+import time
 from pathlib import Path
 
 from delta6.build.avrbuild import NANO
@@ -161,8 +162,12 @@ def _drive(board: vb.VirtualBoard, run_of_twin, speed: float, stop: threading.Ev
 
 def _serve(board: vb.VirtualBoard, args: argparse.Namespace, what: str | None,
            run_of_twin=None) -> int:
-    stop = threading.Event()
-    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in STOP_SIGNALS}
+    stop = threading.Event()          # ends the feeding thread; set by this thread only
+    # The handler only notes the signal: setting the event from it could deadlock, as this
+    # thread may hold the event's lock (inside its wait) when the signal arrives.
+    requested: list[int] = []
+    previous = {s: signal.signal(s, lambda signum, _frame: requested.append(signum))
+                for s in STOP_SIGNALS}
     try:
         board.start()
         if run_of_twin is not None:
@@ -177,10 +182,12 @@ def _serve(board: vb.VirtualBoard, args: argparse.Namespace, what: str | None,
             notes.append(f"live channel: {board.live_path}")
         notes.append("it starts when a client opens the port; Ctrl-C ends it")
         print("\n".join(notes), file=sys.stderr, flush=True)
-        while not stop.is_set() and board.running:
-            stop.wait(0.2)
+        while not requested and board.running:
+            time.sleep(0.2)
+        stop.set()
         status = board.stop()
     finally:
+        stop.set()
         for s, handler in previous.items():
             signal.signal(s, handler)
         if board.running:

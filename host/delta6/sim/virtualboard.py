@@ -42,6 +42,8 @@ CONTRACT = avrbuild.FIRMWARE / "src" / "board_contract.h"
 FAULT_KINDS = ("biterror", "weak", "strong", "noanswer")
 EEPROM_SIZE = 1024
 REPLAY_MAGIC = b"D6RP"
+#: A replay count that is no count: the encoder does not answer at that sample (VB_NO_ANSWER).
+NO_ANSWER = 0xFFFF
 
 
 class VirtualBoardError(UserError):
@@ -106,15 +108,16 @@ def firmware(design_include: Path | None = None, *, test_hooks: bool = False,
 # --- replay files -----------------------------------------------------------------------------
 
 def write_replay(path: Path, t, counts) -> Path:
-    """The harness's replay file: t (s, from 0, non-decreasing) and (n, 6) raw counts."""
+    """The harness's replay file: t (s, from 0, non-decreasing) and (n, 6) raw counts
+    (:data:`NO_ANSWER` where that encoder fails its read)."""
     t = np.asarray(t, dtype="<f8")
     counts = np.asarray(counts)
     if t.ndim != 1 or counts.shape != (len(t), 6) or len(t) == 0:
         raise VirtualBoardError("a replay needs n time stamps and (n, 6) counts, n >= 1")
     if not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0) or t[0] < 0:
         raise VirtualBoardError("replay time stamps must be finite, from 0, non-decreasing")
-    if not valid_counts(counts, shape=None):
-        raise VirtualBoardError("replay counts must be 0..16383")
+    if not valid_counts(np.where(counts == NO_ANSWER, 0, counts), shape=None):
+        raise VirtualBoardError("replay counts must be 0..16383 (or NO_ANSWER)")
     records = np.zeros(len(t), dtype=[("t", "<f8"), ("c", "<u2", (6,))])
     records["t"] = t
     records["c"] = counts
@@ -126,8 +129,9 @@ def write_replay(path: Path, t, counts) -> Path:
 
 def replay_from_log(log_path: Path, out: Path, zero=0, design=None) -> tuple[Path, int]:
     """Convert a log (``t``, ``theta_e1..6``; ``docs/log-format.md``) into a replay file whose
-    times start at 0. Rows with a missing angle hold the previous row's counts. Returns the
-    path and the number of samples. With ``design`` (the firmware's), a log whose header names
+    times start at 0. A missing angle (the log's failed read) is replayed as that encoder not
+    answering: the board flags it as it did, never a made-up angle. Returns the path and the
+    number of samples. With ``design`` (the firmware's), a log whose header names
     another design is refused: its angles come from another mechanism."""
     try:   # a log has samples and strictly increasing time, or read_log says why not
         data = read_log(log_path, require_complete_rows=False)
@@ -143,13 +147,10 @@ def replay_from_log(log_path: Path, out: Path, zero=0, design=None) -> tuple[Pat
     if missing.all():
         raise VirtualBoardError(f"replay file {log_path} has no complete row of theta_e1..6 "
                                 "(a wrench-only log cannot drive the encoders)")
-    if missing.any():   # sample and hold over the gaps, as the board would see nothing new
-        index = np.where(~missing, np.arange(len(t)), 0)
-        np.maximum.accumulate(index, out=index)
-        first = int(np.argmax(~missing))
-        index[:first] = first
-        theta = theta[index]
-    return write_replay(out, t - t[0], theta_to_counts(theta, zero)), len(t)
+    failed = ~np.isfinite(theta)
+    counts = theta_to_counts(np.where(failed, 0.0, theta), zero).astype(np.int64)
+    counts[failed] = NO_ANSWER
+    return write_replay(out, t - t[0], counts), len(t)
 
 
 def demo_trajectory(duration_s: float = 20.0, rate_hz: float = 200.0,

@@ -233,8 +233,13 @@ static void on_select(struct avr_irq_t *irq, uint32_t value, void *param)
 		s->bits = 0;
 		s->command = 0;
 		s->answering = 0;
-		s->count = counts[j];
 		s->fault = fault_at(s, now);
+		if (counts[j] == VB_NO_ANSWER) {   /* the replayed log had no angle here */
+			if (s->fault == VB_FAULT_NONE)
+				s->fault = VB_FAULT_NOANSWER;
+		} else {
+			s->count = counts[j];
+		}
 		s->frame = vb_frame(s->count, s->fault, flip_counter++);
 		s->frames++;
 		s->faulted[s->fault]++;

@@ -23,6 +23,9 @@
 #include "frame.h"
 
 #define VB_ENCODERS 6
+/* A replay sample's count that is no count: that encoder does not answer at that sample (a
+ * failed read in the log being replayed). */
+#define VB_NO_ANSWER 0xFFFFu
 
 /* Everything below counts time in CPU cycles (avr->cycle) unless it says otherwise. */
 typedef uint64_t vb_cycles_t;
