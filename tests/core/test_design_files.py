@@ -1,6 +1,7 @@
 """Design files: loading, validation, clear one-line errors and exit status 2."""
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 import tomllib
@@ -151,3 +152,22 @@ def test_a_design_name_cannot_lead_codegen_out_of_the_build_folder(tmp_path, cap
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "field 'name'" in err
     assert not (root / "x").exists() and not (root / "build" / "x").exists()
+
+
+@pytest.mark.parametrize("key, value, words", [
+    ("a_mm", 1e300, "must lie in 0.001..100000 mm"),
+    ("lb_mm", 1e-9, "must lie in 0.001..100000 mm"),
+    ("k_nm_per_rad", 1e12, "must lie in 1e-06..1e+06 N*m/rad"),
+    ("joint_limit_rad", 1e-9, "must lie in [0.01, pi/2) rad"),
+])
+def test_values_the_arithmetic_cannot_carry_are_errors_not_notes(key, value, words):
+    """A 1e300 mm arm gave an infinite workspace and full scale (exit 0) and a traceback in
+    codegen; a joint box under a count, no joint-limit check on the board."""
+    import tomllib
+
+    from delta6.core.design import DesignError, validate
+    from delta6.core.paths import DEFAULT_DESIGN
+    raw = tomllib.loads(DEFAULT_DESIGN.read_text())
+    raw[key] = value
+    with pytest.raises(DesignError, match=re.escape(words)):
+        validate(raw, "big.toml")

@@ -109,6 +109,13 @@ def _number(raw: dict, key: str, source: str | None) -> float:
     return value
 
 
+#: Hard bounds: beyond them the float32 arithmetic of the board (and the reports) overflows or
+#: the joint box is under a few encoder counts. Far narrower plausibility notes follow below.
+MIN_LENGTH_MM, MAX_LENGTH_MM = 1e-3, 1e5
+MIN_K_NM_PER_RAD, MAX_K_NM_PER_RAD = 1e-6, 1e6
+MIN_JOINT_LIMIT_RAD = 0.01
+
+
 def validate(raw: dict, source: str | None = None) -> Design:
     """Check a mapping of design keys and build a :class:`Design` (no geometry check)."""
     for key in raw:
@@ -143,6 +150,10 @@ def validate(raw: dict, source: str | None = None) -> Design:
                 raise DesignError(key, f"must be >= 0 mm, got {value:g}", source)
         elif value <= 0:
             raise DesignError(key, f"must be > 0 mm, got {value:g}", source)
+        if value > MAX_LENGTH_MM or 0 < value < MIN_LENGTH_MM:
+            raise DesignError(key, f"must lie in {MIN_LENGTH_MM:g}..{MAX_LENGTH_MM:g} mm, got "
+                                   f"{value:g} (the model's arithmetic is sized for that)",
+                              source)
         lengths[key] = value
     if lengths["b_mm"] >= lengths["a_mm"]:
         raise DesignError("b_mm", f"must be smaller than a_mm ({lengths['a_mm']:g}), got "
@@ -164,16 +175,22 @@ def validate(raw: dict, source: str | None = None) -> Design:
     else:
         ks = [_number(raw, "k_nm_per_rad", source)] * 6
     for i, value in enumerate(ks):
+        joint = f" for joint {i + 1}" if isinstance(k_raw, (list, tuple)) else ""
         if value <= 0:
-            raise DesignError("k_nm_per_rad", f"must be > 0 N*m/rad, got {value:g}"
-                              + (f" for joint {i + 1}" if isinstance(k_raw, (list, tuple)) else ""), source)
+            raise DesignError("k_nm_per_rad", f"must be > 0 N*m/rad, got {value:g}{joint}",
+                              source)
+        if not MIN_K_NM_PER_RAD <= value <= MAX_K_NM_PER_RAD:
+            raise DesignError("k_nm_per_rad", f"must lie in {MIN_K_NM_PER_RAD:g}.."
+                                              f"{MAX_K_NM_PER_RAD:g} N*m/rad, got {value:g}"
+                                              f"{joint}", source)
 
     limit = DEFAULT_JOINT_LIMIT_RAD
     if "joint_limit_rad" in raw:
         limit = _number(raw, "joint_limit_rad", source)
-        if not 0 < limit < math.pi / 2:
-            raise DesignError("joint_limit_rad", f"must lie in (0, pi/2) rad, got {limit:g}",
-                              source)
+        if not MIN_JOINT_LIMIT_RAD <= limit < math.pi / 2:
+            raise DesignError("joint_limit_rad", f"must lie in [{MIN_JOINT_LIMIT_RAD:g}, pi/2) "
+                                                 f"rad, got {limit:g} (the board checks the "
+                                                 "box in whole encoder counts)", source)
     description = raw.get("description", "")
     if not isinstance(description, str):
         raise DesignError("description", "must be a string", source)
