@@ -134,3 +134,23 @@ def test_joined_negative_lists_leaves_everything_else_alone():
     assert joined_negative_lists(argv) == [
         "config", "--port", "x", "--filter-hz", "-1", "--tool=-1,2", "--", "-3,4",
         "--save=-5,6", "--limits=-,1,2,3,4,5", "--port", "-x,y", "-,"]
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["log", "--port", "delta6sim://", "-o", "{tmp}/z.csv", "--duration", "nan"],
+     "--duration takes a finite number"),
+    (["stream", "--port", "delta6sim://", "--duration", "nan"], "--duration takes a finite"),
+    (["info", "--port", "delta6sim://?rate=-5"], "rate=-5 is outside 1..65535"),
+    (["info", "--port", "delta6sim://?speed=nan"], "speed=nan is outside"),
+])
+def test_nan_and_out_of_range_numbers_are_refused_in_one_line(argv, words, tmp_path, capsys):
+    """nan passed every range check (a log of one sample with exit 0; NaN in a model card) and
+    a negative rate wrapped to 65531 Hz."""
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    try:
+        status = main(argv)
+    except SystemExit as exc:
+        status = exc.code
+    assert status == 2
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 
@@ -30,6 +31,8 @@ def number(option: str, kind: type = float, low: float | None = None,
         except ValueError:
             noun = "a whole number" if kind is int else "a number"
             raise argparse.ArgumentTypeError(f"{option} takes {noun}, got {text!r}") from None
+        if not math.isfinite(value):   # nan passes every comparison below
+            raise argparse.ArgumentTypeError(f"{option} takes a finite number, got {text}")
         if low is not None and (value <= low if low_open else value < low):
             raise argparse.ArgumentTypeError(
                 f"{option} must be {'positive' if low == 0 and low_open else f'at least {low}'}, "

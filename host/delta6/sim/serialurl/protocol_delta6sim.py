@@ -22,6 +22,7 @@ Options (all optional):
 """
 from __future__ import annotations
 
+import math
 import threading
 import time
 import urllib.parse
@@ -55,9 +56,9 @@ def parse_url(url: str) -> dict:
         for key, values in urllib.parse.parse_qs(parts.query, keep_blank_values=True).items():
             value = values[-1]
             if key in integers:
-                opts[integers[key]] = int(value)
+                opts[integers[key]] = _within(key, int(value))
             elif key in ("solver_fail", "overrun", "speed", "vanish_after"):
-                opts[key] = float(value)
+                opts[key] = _within(key, float(value))
             elif key == "design":
                 opts["design"] = Path(value)
             elif key == "eeprom":
@@ -69,7 +70,7 @@ def parse_url(url: str) -> dict:
             elif key == "pose":
                 pose = _floats(value, 6, "pose")
             elif key == "amplitude":
-                amplitude = float(value)
+                amplitude = _within(key, float(value))
             elif key == "encoder_fault":
                 for item in value.split(","):
                     joint, _, p = item.partition(":")
@@ -197,3 +198,17 @@ class Serial(SerialBase):
     def simulation(self) -> SimulatedDevice:
         """The simulated device itself (tests inspect and steer it)."""
         return self._sim
+
+
+#: The ranges of the URL's numbers (a rate of -5 wrapped to 65531 Hz; nan passed as a float).
+_RANGES = {"rate": (1, 65535), "baud": (1, 10_000_000), "max_rate": (1, 65535),
+           "seed": (0, 2**63 - 1), "start_us": (0, 2**32 - 1), "tx_capacity": (1, 1 << 20),
+           "solver_fail": (0.0, 1.0), "overrun": (0.0, 1.0), "speed": (1e-6, 1e6),
+           "vanish_after": (0.0, 1e9), "amplitude": (0.0, 1.0)}
+
+
+def _within(key: str, value):
+    lo, hi = _RANGES[key]
+    if not (math.isfinite(value) and lo <= value <= hi):
+        raise ValueError(f"{key}={value} is outside {lo}..{hi}")
+    return value
