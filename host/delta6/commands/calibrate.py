@@ -15,6 +15,7 @@ from delta6.core.model import AXES
 from delta6.core.outputs import check_output_file, check_output_folder
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
+from delta6.diagnosis.data import DiagnosisInputError
 from delta6.link.logdata import wrench_from_device
 from delta6.link.logfile import read_log
 
@@ -68,8 +69,12 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"  {message}", file=sys.stderr, flush=True)
 
-    fit = calibrate(log, design, effects=args.effect, name=name, source=Path(args.log).name,
-                    seed=args.seed, rig_latency_s=latency, progress=progress)
+    try:
+        fit = calibrate(log, design, effects=args.effect, name=name,
+                        source=Path(args.log).name, seed=args.seed, rig_latency_s=latency,
+                        progress=progress)
+    except DiagnosisInputError as exc:                    # what in the log, and which log
+        raise UserError(f"{args.log}: {exc}") from None
     calibration_mod.save(fit.calibration, out)
     if args.report:
         path = write_report(fit, log, design, args.report, source=str(args.log))

@@ -13,7 +13,7 @@ from delta6.core import calibration as calibration_mod
 from delta6.core import design as design_mod
 from delta6.core import paths, residualmodel
 from delta6.core.errors import UserError
-from delta6.core.outputs import check_not_an_input, check_output_file
+from delta6.core.outputs import check_not_an_input
 from delta6.core.workspace import load_checked
 from delta6.link.protocol import VERSION as PROTOCOL_VERSION
 from delta6_codegen.wire_header import HEADER_RELPATH as WIRE_HEADER_RELPATH
@@ -187,12 +187,8 @@ def run(args: argparse.Namespace) -> int:
         paths.checkout()    # the firmware tree the header belongs to, or one line saying so
     headers = generate_headers(args.design, args.calibration, args.model)
     out = output_path(args, headers.design, headers.cal, headers.model)
-    if args.output is not None:
-        inputs = [args.design, args.calibration, args.model]
-        if args.build:      # its generated/ folder is made for the build
-            check_not_an_input(out, "-o", inputs)
-        else:
-            check_output_file(out, "-o", inputs=inputs)
+    if args.output is not None:      # (its folder is made: generated/ next to the firmware)
+        check_not_an_input(out, "-o", [args.design, args.calibration, args.model])
     if args.check:
         return _check(args, out, headers.text, {out.with_name(CALIBRATION_HEADER): headers.cal_text,
                                                 out.with_name(MODEL_HEADER): headers.model_text})

@@ -14,7 +14,7 @@ from delta6.core.model import AXES
 from delta6.core.outputs import check_output_file, check_output_folder
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
-from delta6.diagnosis.data import GapData
+from delta6.diagnosis.data import DiagnosisInputError, GapData
 from delta6.diagnosis.report import verdict_lines, write_report
 from delta6.diagnosis.run import diagnose_data
 from delta6.link.logdata import wrench_from_device
@@ -52,9 +52,12 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"  {message}", file=sys.stderr, flush=True)
 
-    data = GapData.from_log(log, design)
-    del log                                               # the log's table is freed here
-    result = json_safe(diagnose_data(data, seed=args.seed, progress=progress))
+    try:
+        data = GapData.from_log(log, design)
+        del log                                           # the log's table is freed here
+        result = json_safe(diagnose_data(data, seed=args.seed, progress=progress))
+    except DiagnosisInputError as exc:                    # what in the log, and which log
+        raise UserError(f"{args.log}: {exc}") from None
     if args.json:
         try:
             Path(args.json).write_text(json.dumps(result, indent=1, allow_nan=False))

@@ -229,9 +229,16 @@ def loads(text: str, source: str = "model") -> ResidualModel:
 def load(path: str | Path) -> ResidualModel:
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        data = path.read_bytes()
     except FileNotFoundError:
         raise ModelFileError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ModelFileError(f"{path}: cannot read ({exc})") from None
+    except OSError as exc:
+        raise ModelFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        what = ("an ONNX file (a host model from `delta6 train`, or an on-chip model's float "
+                "twin)" if path.suffix.lower() == ".onnx" else "not a text file")
+        raise ModelFileError(f"{path}: {what}; the on-chip model is the .json that "
+                             "`delta6 train --target mcu` writes") from None
     return loads(text, str(path))

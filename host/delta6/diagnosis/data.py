@@ -268,8 +268,9 @@ def check_log(log: LogData, design: Design, min_samples: int = MIN_SAMPLES) -> N
     if over.any():
         row, axis = (int(v) for v in np.argwhere(over)[0])
         unit = "N" if axis < 3 else "N*m"
+        n = int(over.any(axis=1).sum())
         raise DiagnosisInputError(
-            f"{int(over.any(axis=1).sum())} samples have a reference wrench far outside "
+            f"{n} {'sample has' if n == 1 else 'samples have'} a reference wrench far outside "
             f"the design's range, the first at t = {log.t[row]:g} s: {AXES[axis]} = "
             f"{log.wrench[row, axis]:.4g} {unit} (full scale {fs[axis]:.4g} {unit}; up to "
             f"{MAX_FULL_SCALES:g}x is accepted): a corrupt log, a unit error or the wrong "

@@ -283,7 +283,9 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
     except FileNotFoundError:
         raise LogError(f"{path}: no such file") from None
     except UnicodeDecodeError:
-        raise LogError(f"{path}: not a text CSV log (non-ASCII bytes)") from None
+        what = ("named .mcap but not an MCAP file (no MCAP magic)"
+                if path.suffix.lower() == ".mcap" else "not a text CSV log (non-ASCII bytes)")
+        raise LogError(f"{path}: {what}") from None
     except IsADirectoryError:
         raise LogError(f"{path}: cannot be read (Is a directory)") from None
     except OSError as exc:

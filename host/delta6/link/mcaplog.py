@@ -343,9 +343,10 @@ def _records(path: Path, data: bytes, cut_ok: bool = False):
     # A record, its header, or a length longer than what is left of the file: cut short.
     except (EndOfFile, struct.error, RecordLengthLimitExceeded) as exc:
         if not (cut_ok and (channels or messages)):
+            detail = str(exc)[:60]
             raise LogError(f"{path}: not a readable MCAP file (it ends inside a record"
                            f"{'' if cut_ok else '; a log cut by a crash keeps its .partial name'}"
-                           f": {str(exc)[:60]})") from None
+                           f"{': ' + detail if detail else ''})") from None
         cut = True
     except Exception as exc:   # the mcap reader's many ways to say "damaged": one line
         raise LogError(f"{path}: not a readable MCAP file ({type(exc).__name__}: "
