@@ -13,6 +13,7 @@ from delta6.core.errors import UserError
 from delta6.core.model import AXES
 from delta6.core.outputs import check_output_file
 from delta6.core.paths import DEFAULT_DESIGN
+from delta6.core.residualmodel import MAX_NAME
 from delta6.core.workspace import load_checked
 from delta6.diagnosis.data import check_log
 from delta6.learning.presets import KINDS, PRESETS, preset
@@ -58,7 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="--target mcu: hidden layer widths, e.g. 16 or 16x8, or 0 for a "
                              "linear map (default 16 over analytical; over a calibration a "
                              "linear map of the counts)")
-    parser.add_argument("--name", help="--target mcu: model name, at most 23 characters "
+    parser.add_argument("--name", help=f"--target mcu: model name, at most {MAX_NAME} characters "
                                        "(default: the output file's stem)")
     parser.add_argument("-o", "--output", required=True, metavar="MODEL.onnx",
                         help="where to write the model (--target mcu: MODEL.json, and the "
@@ -200,8 +201,8 @@ def run_mcu(args: argparse.Namespace) -> int:
     hidden = None if args.hidden is None else _hidden(args.hidden)
     output = Path(args.output)
     name = args.name or output.stem
-    if not name or len(name) > 23 or not name.isascii() or not name.isprintable():
-        raise UserError("--name: 1..23 printable ASCII characters")
+    if not name or len(name) > MAX_NAME or not name.isascii() or not name.isprintable():
+        raise UserError(f"--name: 1..{MAX_NAME} printable ASCII characters")
     if output.suffix.lower() != ".json":
         raise UserError("-o: the model file is JSON (MODEL.json); the ONNX goes next to it")
     inputs = [args.log, args.design, args.residual_over]

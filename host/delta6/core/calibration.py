@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from delta6.core.curves import ENCODER_HARMONICS
+from delta6.core.design import MAX_NAME_CHARS
 from delta6.core.errors import UserError
 
 SCHEMA = "delta6-calibration/1"
@@ -47,7 +48,7 @@ DEFAULT_SPEED_FILTER_S = 0.02
 #: Half-width of the direction-of-motion detector (backlash, pre-sliding), in half counts:
 #: 3 = 1.5 counts, so +-1 count of encoder flicker does not flip it.
 DEFAULT_DIRECTION_HALF_COUNTS = 3
-NAME_LIMIT = 23
+NAME_LIMIT = MAX_NAME_CHARS
 
 
 class CalibrationError(UserError):

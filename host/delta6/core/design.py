@@ -18,6 +18,10 @@ import numpy as np
 
 from delta6.core.paths import DEFAULT_DESIGN, DESIGNS_DIR  # noqa: F401  (re-exported: the default design)
 
+#: Longest name of a design, calibration or on-chip model: the device-info record carries each
+#: in a 24-byte field, NUL-terminated.
+MAX_NAME_CHARS = 23
+
 #: The design the tools use when none is given: the paper's Delta6.
 #: Joint range of every encoder, both signs, in radians (the paper samples [-pi/6, pi/6]).
 DEFAULT_JOINT_LIMIT_RAD = math.pi / 6
@@ -134,9 +138,10 @@ def validate(raw: dict, source: str | None = None) -> Design:
     name = raw["name"]
     if not isinstance(name, str) or not name.strip():
         raise DesignError("name", "must be a non-empty string", source)
-    if len(name.encode()) > 23 or not name.isascii():
+    if len(name.encode()) > MAX_NAME_CHARS or not name.isascii():
         # The device-info record carries the name in 24 bytes (NUL-terminated, ASCII).
-        raise DesignError("name", "must be ASCII and at most 23 characters", source)
+        raise DesignError("name", f"must be ASCII and at most {MAX_NAME_CHARS} characters",
+                          source)
     if not _NAME.fullmatch(name):
         # The name becomes folder and file names (build/designs/NAME/) and a C string.
         raise DesignError("name", f"{name!r} may hold only letters, digits, '-', '_' and '.', "

@@ -25,12 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
+from delta6.core.design import MAX_NAME_CHARS
 from delta6.core.errors import UserError
 from delta6.core.int8net import Feature, Int8Net, Layer
 
 SCHEMA = "delta6-residual-model/1"
 BASES = ("analytical", "calibrated")
-MAX_NAME = 23
+MAX_NAME = MAX_NAME_CHARS
 
 
 class ModelFileError(UserError):

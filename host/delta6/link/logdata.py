@@ -22,6 +22,8 @@ OPTIONAL_COLUMNS = ("seq", "status", "host_t", "temp_c")
 UNITS = {"t": "s", "theta_e": "rad", "F": "N", "M": "N*m", "host_t": "s (host monotonic)",
          "temp_c": "degC", "status": "status word (docs/protocol.md)", "seq": "record sequence"}
 PARTIAL_SUFFIX = ".partial"
+#: Rows a log writer hands to the OS (and fsyncs) at a time, whichever its format.
+FLUSH_EVERY = 256
 
 
 class LogError(UserError):
@@ -113,3 +115,11 @@ class PartialOnError:
         except LogError:
             if exc_type is None:
                 raise
+
+
+def int_column(values: np.ndarray | None) -> np.ndarray | None:
+    """An integer column (seq, status) as int64 when complete; left as float (with NaN gaps)
+    otherwise."""
+    if values is None or np.isnan(values).any():
+        return values
+    return values.astype(np.int64)

@@ -23,6 +23,7 @@ import numpy as np
 from delta6.link import mcaplog
 from delta6.link.logdata import (
     CORE_COLUMNS,
+    FLUSH_EVERY,
     OPTIONAL_COLUMNS,
     PARTIAL_SUFFIX,
     SCHEMA_VERSION,
@@ -33,6 +34,7 @@ from delta6.link.logdata import (
     LogError,
     PartialOnError,
     check_rows,
+    int_column,
     six_columns,  # noqa: F401 - re-exported: the log API is this module's
 )
 
@@ -74,7 +76,7 @@ class LogWriter(PartialOnError):
     """
 
     def __init__(self, path: str | Path, meta: dict | None = None,
-                 optional: tuple[str, ...] = (), flush_every: int = 256,
+                 optional: tuple[str, ...] = (), flush_every: int = FLUSH_EVERY,
                  keep_partial_on_error: bool = True, overwrite: bool = True):
         unknown = set(optional) - set(OPTIONAL_COLUMNS)
         if unknown:
@@ -307,8 +309,8 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
     def optional(name):
         return col.get(name)
 
-    return LogData(t=t, theta=theta, wrench=wrench, seq=_as_int(optional("seq")),
-                   status=_as_int(optional("status")), host_t=optional("host_t"),
+    return LogData(t=t, theta=theta, wrench=wrench, seq=int_column(optional("seq")),
+                   status=int_column(optional("status")), host_t=optional("host_t"),
                    temp_c=optional("temp_c"), meta=meta)
 
 
@@ -391,12 +393,6 @@ def _ends_with_newline(path: Path) -> bool:
         f.seek(-1, 2)
         return f.read(1) == b"\n"
 
-
-def _as_int(values: np.ndarray | None) -> np.ndarray | None:
-    """Integer columns as int64 when complete; left as float (with NaN gaps) otherwise."""
-    if values is None or np.isnan(values).any():
-        return values
-    return values.astype(np.int64)
 
 
 def _parse_rows(path: Path, rows: list[str], ncols: int, line_numbers: list[int]) -> np.ndarray:

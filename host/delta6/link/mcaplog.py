@@ -32,6 +32,7 @@ from mcap_ros2.decoder import DecoderFactory
 from delta6.link import ros2msg as R
 from delta6.link.logdata import (
     CORE_COLUMNS,
+    FLUSH_EVERY,
     OPTIONAL_COLUMNS,
     PARTIAL_SUFFIX,
     SCHEMA_VERSION,
@@ -39,6 +40,7 @@ from delta6.link.logdata import (
     LogError,
     PartialOnError,
     check_rows,
+    int_column,
     six_columns,
 )
 
@@ -79,7 +81,7 @@ class McapLogWriter(PartialOnError):
     """
 
     def __init__(self, path: str | Path, meta: dict | None = None,
-                 optional: tuple[str, ...] = (), flush_every: int = 256,
+                 optional: tuple[str, ...] = (), flush_every: int = FLUSH_EVERY,
                  keep_partial_on_error: bool = True):
         from delta6 import __version__
         unknown = set(optional) - set(OPTIONAL_COLUMNS)
@@ -318,8 +320,8 @@ def read_mcap(path: str | Path, *, require_complete_rows: bool = True) -> LogDat
         extra = {name: values[:keep] for name, values in extra.items()}
     check_rows(path, t, theta, wrench, lambda i: f"sample {i + 1}", require_complete_rows)
     meta.pop("columns", None)
-    return LogData(t=t, theta=theta, wrench=wrench, seq=_as_int(extra.get("seq")),
-                   status=_as_int(extra.get("status")), host_t=extra.get("host_t"),
+    return LogData(t=t, theta=theta, wrench=wrench, seq=int_column(extra.get("seq")),
+                   status=int_column(extra.get("status")), host_t=extra.get("host_t"),
                    temp_c=extra.get("temp_c"), meta=meta)
 
 
@@ -418,9 +420,3 @@ def _match(path: Path, keys: np.ndarray, stamps: np.ndarray, topic: str) -> np.n
     if len(np.unique(at)) != len(at):
         raise LogError(f"{path}: two {topic} messages for one sample")
     return at
-
-
-def _as_int(values: np.ndarray | None) -> np.ndarray | None:
-    if values is None or np.isnan(values).any():
-        return values
-    return values.astype(np.int64)

@@ -17,6 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from delta6.core.design import MAX_NAME_CHARS
 from delta6.core.model import ENCODER_COUNT_RAD, ENCODER_COUNTS_PER_TURN
 from delta6.link import cobs
 from delta6.link.crc import crc16
@@ -200,7 +201,7 @@ RECORD_LAYOUTS = {
     RecordType.WRENCH_RAW: Layout("WRENCH_RAW", _DATA + [Field("counts", "H", 6)]),
     RecordType.INFO: Layout("INFO", [
         _TYPE, _REQUEST, Field("protocol", "B", 2), Field("firmware", "B", 3),
-        Field("mode", "B"), Field("design_hash", "I"), Field("design_name", "s", 24),
+        Field("mode", "B"), Field("design_hash", "I"), Field("design_name", "s", MAX_NAME_CHARS + 1),
         Field("full_scale", "f", 6), Field("lsb_mantissa", "B", 6),
         Field("lsb_exponent", "b", 6), Field("rate_hz", "H"), Field("max_rate_hz", "H"),
         Field("status", "H"), Field("streaming", "B"), Field("config_problem", "B"),
@@ -208,10 +209,10 @@ RECORD_LAYOUTS = {
         Field("tare", "f", 6), Field("joint_limit_rad", "f"),
         # 1.1: the calibration the firmware applies (hash 0 and no name: none), and the boot
         # session.
-        Field("calibration_hash", "I"), Field("calibration_name", "s", 24),
+        Field("calibration_hash", "I"), Field("calibration_name", "s", MAX_NAME_CHARS + 1),
         Field("boot_id", "H"),
         # 1.2: the on-chip residual model the firmware runs (hash 0 and no name: none).
-        Field("model_hash", "I"), Field("model_name", "s", 24),
+        Field("model_hash", "I"), Field("model_name", "s", MAX_NAME_CHARS + 1),
         # 1.3: the wrench pipeline's configuration (SET_FILTER, SET_TOOL, SET_LIMITS).
         Field("filter_hz", "f"), Field("tool_translation", "f", 3),
         Field("tool_rpy", "f", 3), Field("limits", "H", 6),
