@@ -365,3 +365,14 @@ def test_the_smooth_group_folds_an_encoder_error_beside_a_spring(baseline):
                - full) / base
         assert together[n] == pytest.approx(both)
         assert both > own
+
+
+def test_a_family_must_remove_one_axis_worth_of_the_white_noise_to_be_named():
+    """The naming criterion: the held-out squared error a family removes against the noise
+    floor over the six axes; one axis's worth (a sixth of the floor) names it, less does not,
+    and with no noise estimate every gain counts."""
+    floor = 6.0 * 1000 * 0.01         # six axes x 1000 samples x noise variance 0.01
+    assert verdicts.above_noise(floor / 6, floor)
+    assert not verdicts.above_noise(floor / 6 * 0.999, floor)
+    assert not verdicts.above_noise(floor / 12, floor)
+    assert verdicts.above_noise(1e-12, 0.0)
