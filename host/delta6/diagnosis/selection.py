@@ -37,7 +37,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from delta6.diagnosis import stream
 from delta6.diagnosis.data import GapData
+from delta6.diagnosis.leftover import noise_sd
 from delta6.diagnosis.terms import Term
 
 N_BLOCKS = 60
@@ -101,7 +103,6 @@ def noise_variance(residual: np.ndarray, fs=1.0) -> float:
     """White-noise variance of one FS-normalised residual value (``residual / fs``), from the
     median absolute first difference (slow, structured parts of the residual hardly change
     from one sample to the next; white noise doubles its variance in a difference)."""
-    from delta6.diagnosis.leftover import noise_sd
     return float(np.mean(noise_sd(residual, fs) ** 2))
 
 
@@ -114,7 +115,6 @@ def build_problem(data: GapData, terms: list[Term], n_blocks: int = N_BLOCKS,
     predictions with :func:`heldout_prediction`); without, memory stays bounded (``cache``, a
     ``stream.ColumnCache``, keeps them on disk for a later pass). ``piece_samples``: see
     ``stream.accumulate`` (default: its bounded piece)."""
-    from delta6.diagnosis import stream
     slices, start = {}, 0
     for term in terms:
         slices[term.name] = slice(start, start + len(term.param_names))

@@ -44,7 +44,7 @@ from typing import Callable
 import numpy as np
 
 from delta6.core import curves
-from delta6.core.model import ENCODER_COUNT_RAD, link_tension
+from delta6.core.model import ENCODER_COUNT_RAD, base_force, forward_kinematics, link_tension, rotation
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.sensitivity import GEOMETRY_NAMES
 
@@ -175,7 +175,6 @@ def force_rotation(data: GapData, vectors: np.ndarray) -> np.ndarray:
     """Wrench change when {E0} turns by a small rotation about each {B} axis e_k, scaled by
     ``vectors`` (n, 3) per sample (or ones): Delta F_E = -R^T (e_k x F0), moments unchanged.
     Returns (n, 6, 3)."""
-    from delta6.core.model import base_force, rotation
     f0 = base_force(data.params, data.theta[:, :3])
     rt = np.swapaxes(rotation(data.theta[:, 3:]), -1, -2)
     cols = np.zeros((len(data), 6, 3))
@@ -234,7 +233,6 @@ def _compliance(data: GapData) -> np.ndarray:
                                                   * data.theta[:, :3])[:, None, :]
     # The platform tilts with the moment about its centre P: the gimbal's moment plus the
     # force at {E}, c below P. The tilt turns the force like a misaligned gimbal would.
-    from delta6.core.model import base_force
     f0 = base_force(data.params, data.theta[:, :3])
     m_p = data.params.k[3:] * data.theta[:, 3:] + np.cross([0.0, 0.0, data.params.c], f0)
     tilt = force_rotation(data, m_p).sum(axis=-1, keepdims=True)  # isotropic, rad/(N*m)
@@ -353,7 +351,6 @@ def _encoder_periodic(data: GapData) -> np.ndarray:
 
 def plate_jacobian(data: GapData) -> np.ndarray:
     """d(plate centre)/d(theta_1..3), m/rad, (n, 3, 3) (forward differences)."""
-    from delta6.core.model import forward_kinematics
     here = forward_kinematics(data.params, data.theta[:, :3])
     out = np.empty((len(data), 3, 3))
     for j in range(3):
@@ -383,7 +380,6 @@ _ONE_SIDED = ("abs", "abs_signed", "square")
 def clamp_displacement(data: GapData, clamp_mm) -> tuple[np.ndarray, np.ndarray]:
     """A clamp ``clamp_mm`` (plate frame {E}, mm) off the plate's centre: its displacement
     from rest (n, 3, mm, {B}) and its motion per joint angle (n, 3, 6, m/rad)."""
-    from delta6.core.model import forward_kinematics, rotation
     c = np.asarray(clamp_mm, float) * 1e-3
     rest = forward_kinematics(data.params, np.zeros((1, 3)))[0]
     q = data.theta[:, 3:]
@@ -404,7 +400,6 @@ def _plate_force(data: GapData, clamp_mm=None) -> tuple[np.ndarray, np.ndarray]:
     the plate's centre (``clamp_mm`` None) the force reaches joints 1..3 as J_p^T f (virtual
     work) and the wrench as G J_p^T f; at a clamp off the centre (plate frame, mm) it also
     turns the gimbal: J_c^T f on all six joints, J_c the clamp's motion per joint angle."""
-    from delta6.core.model import forward_kinematics
     if clamp_mm is None:
         rest = forward_kinematics(data.params, np.zeros((1, 3)))[0]
         disp = data.position_mm - rest * 1e3
@@ -475,7 +470,6 @@ def harness_clamp(affine: np.ndarray) -> np.ndarray:
     cable pulling along one direction only shows c's part across it, which is the only part
     that moves its hinge or turns the gimbal; the part along it stays zero rather than
     following the noise."""
-    from delta6.core.model import rotation
     f = np.asarray(affine, float)[:HARNESS_AFFINE].reshape(7, 3)
     stiff = f[1:4].T                        # (force component, centre's x y z): N/mm
     tilt = f[4:7].T                         # (force component, gimbal angle): N/rad
@@ -611,7 +605,6 @@ def cable_clamp_search(data: GapData, direction, target=None
     stretches with the tilt too; when the first pass's family cannot be fitted (a log that
     pushes one axis at a time), its affine fit does not give the clamp. ``target``: as in
     :func:`cable_search`."""
-    from delta6.core.model import rotation
     u = np.asarray(direction, float) / np.linalg.norm(direction)
     e1 = np.cross(u, [1.0, 0.0, 0.0] if abs(u[0]) < 0.9 else [0.0, 1.0, 0.0])
     e1 /= np.linalg.norm(e1)
