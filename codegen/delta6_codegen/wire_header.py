@@ -139,6 +139,12 @@ def _scaling() -> list[str]:
         ""]
 
 
+def _c_float(x: float) -> str:
+    """A C float literal that round-trips the float32 nearest ``x``."""
+    text = f"{struct.unpack('<f', struct.pack('<f', x))[0]:.9g}"
+    return text + ("f" if any(ch in text for ch in ".e") else ".0f")
+
+
 def _float_bits(x: float) -> int:
     return struct.unpack("<I", struct.pack("<f", x))[0]
 
@@ -174,6 +180,11 @@ def render_wire() -> str:
                "why a stored configuration was rejected (CONFIG_DEFAULTS argument), or "
                "how it was adjusted (INFO only)"),
         *_config_blob(),
+        "// --- the tool frames the device accepts (SET_TOOL): |translation| per axis, m, and",
+        "// |angle|, rad ---",
+        f"const float kMaxToolTranslation = {_c_float(P.TOOL_MAX_TRANSLATION_M)};",
+        f"const float kMaxToolAngle = {_c_float(P.TOOL_MAX_ANGLE_RAD)};",
+        "",
         "// --- telemetry ---",
         f"const int16_t kTemperatureUnknown = 0x{P.TEMPERATURE_UNKNOWN:04X};"
         "  // no temperature sensor",

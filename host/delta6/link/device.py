@@ -411,9 +411,11 @@ class Device:
         values = np.asarray([*translation, *rpy], dtype=float)
         if values.shape != (6,) or not np.isfinite(values).all():
             raise DeviceError("the tool frame is three translations (m) and three angles (rad)")
-        if np.abs(values[:3]).max() > 1.0 or np.abs(values[3:]).max() > 2 * np.pi:
-            raise DeviceError("the tool point must lie within 1 m of the sensor frame's origin "
-                              "per axis, the angles within +-2 pi rad")
+        if (np.abs(values[:3]).max() > P.TOOL_MAX_TRANSLATION_M
+                or np.abs(values[3:]).max() > P.TOOL_MAX_ANGLE_RAD):
+            raise DeviceError(f"the tool point must lie within {P.TOOL_MAX_TRANSLATION_M:g} m "
+                              "of the sensor frame's origin per axis, the angles within +-2 pi "
+                              "rad")
         self._request_since(P.Command.SET_TOOL, *values)
         self.info(refresh=True)
 

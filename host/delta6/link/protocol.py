@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import enum
 import functools
+import math
 import struct
 from fractions import Fraction
 from typing import NamedTuple
@@ -37,6 +38,10 @@ COUNT_RAD = ENCODER_COUNT_RAD
 NO_COUNTS = -1
 INVALID_VALUE = -32768
 MAX_VALUE = 32767
+#: The tool frames a device accepts (SET_TOOL): a tool point within 1 m of {E}'s origin per
+#: axis (a longer lever has no use on this sensor), angles within one turn either way.
+TOOL_MAX_TRANSLATION_M = 1.0
+TOOL_MAX_ANGLE_RAD = 2 * math.pi
 TEMPERATURE_UNKNOWN = 0x7FFF
 BITS_PER_BYTE = 10           # UART: start bit, 8 data bits, stop bit
 #: Data records may fill 90 % of the link (a fraction: the firmware computes in integers).

@@ -74,15 +74,13 @@ struct Config {
   float tare[6];             // subtracted from the tool-frame wrench when tare_active
   uint16_t zero_counts[6];   // encoder count at zero deflection, joints 1..6 (0..16383)
   float filter_hz;           // low-pass cutoff, 0: off (kMinCutoffRatio..kMaxCutoffRatio x rate)
-  float tool_translation[3]; // the tool point in {E}, m (|value| <= kMaxToolTranslation)
-  float tool_rpy[3];         // the tool's axes: roll, pitch, yaw about {E}, rad (<= kMaxToolAngle)
+  float tool_translation[3]; // the tool point in {E}, m (|value| <= proto::kMaxToolTranslation)
+  float tool_rpy[3];         // the tool's axes: roll, pitch, yaw about {E}, rad (<= proto::kMaxToolAngle)
   uint16_t limits[6];        // overload thresholds, counts of each axis's LSB; 0: none
 };
 
-// The tool frames the device accepts: a tool point within 1 m of {E}'s origin per axis (a
-// longer lever has no use on this sensor), angles within one turn either way.
-const float kMaxToolTranslation = 1.0f;
-const float kMaxToolAngle = 6.2831853f;
+// The tool frames the device accepts: proto::kMaxToolTranslation and kMaxToolAngle (the
+// generated wire header, from delta6.link.protocol).
 
 // One sample from the application.
 struct Sample {

@@ -240,6 +240,11 @@ const uint8_t kConfigOffToolTranslation = 52;  // 3 x f32
 const uint8_t kConfigOffToolRpy = 64;  // 3 x f32
 const uint8_t kConfigOffLimits = 76;  // 6 x u16
 
+// --- the tool frames the device accepts (SET_TOOL): |translation| per axis, m, and
+// |angle|, rad ---
+const float kMaxToolTranslation = 1.0f;
+const float kMaxToolAngle = 6.28318548f;
+
 // --- telemetry ---
 const int16_t kTemperatureUnknown = 0x7FFF;  // no temperature sensor
 
