@@ -142,6 +142,9 @@ def test_joined_negative_lists_leaves_everything_else_alone():
     (["stream", "--port", "delta6sim://", "--duration", "nan"], "--duration takes a finite"),
     (["info", "--port", "delta6sim://?rate=-5"], "rate=-5 is outside 1..65535"),
     (["info", "--port", "delta6sim://?speed=nan"], "speed=nan is outside"),
+    (["log", "--port", "delta6sim://", "-o", "{tmp}/z.mcap", "--frame-id", ""],
+     "--frame-id takes a frame name"),
+    (["tare", "--port", "delta6sim://", "--abort", "--save"], "--abort changes nothing"),
 ])
 def test_nan_and_out_of_range_numbers_are_refused_in_one_line(argv, words, tmp_path, capsys):
     """nan passed every range check (a log of one sample with exit 0; NaN in a model card) and

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 import time
 
@@ -41,6 +42,19 @@ def number(option: str, kind: type = float, low: float | None = None,
             raise argparse.ArgumentTypeError(f"{option} must be at most {high}, got {text}")
         return value
     return convert
+
+
+_FRAME_ID = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_./-]{0,63}")
+
+
+def frame_id(text: str) -> str:
+    """An argparse type: a ROS frame id (letters, digits, '_', '.', '/', '-'; not starting with
+    '/', as tf2 wants; at most 64 characters). An empty one made messages no viewer places."""
+    if not _FRAME_ID.fullmatch(text):
+        raise argparse.ArgumentTypeError(
+            f"--frame-id takes a frame name such as delta6_e (letters, digits, _ . / -, not "
+            f"starting with /), got {text!r}")
+    return text
 
 
 def add_port_arguments(parser: argparse.ArgumentParser) -> None:

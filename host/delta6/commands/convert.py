@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from delta6.commands._port import frame_id
 from delta6.core.errors import UserError
 from delta6.core.outputs import check_output_file
 from delta6.link.logfile import OPTIONAL_COLUMNS, open_log_writer, read_log
@@ -20,7 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("source", metavar="IN", help="log to read (CSV or MCAP, either name)")
     parser.add_argument("output", metavar="OUT", help="log to write: MCAP if it ends in .mcap, "
                                                       "CSV otherwise")
-    parser.add_argument("--frame-id", metavar="ID",
+    parser.add_argument("--frame-id", type=frame_id, metavar="ID",
                         help="frame id of the wrench messages (default: the log's, or delta6_e)")
     parser.add_argument("--force", action="store_true",
                         help="replace OUT if it exists (a log is not regenerable: refused "

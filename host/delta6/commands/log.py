@@ -21,6 +21,7 @@ from delta6.commands._port import (
     add_port_arguments,
     add_stream_arguments,
     flagged,
+    frame_id,
     log_meta,
     next_block,
     number,
@@ -43,7 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_port_arguments(parser)
     parser.add_argument("-o", "--output", required=True, metavar="FILE",
                         help="log file: CSV, or MCAP with ROS 2 messages when it ends in .mcap")
-    parser.add_argument("--frame-id", default=DEFAULT_FRAME_ID, metavar="ID",
+    parser.add_argument("--frame-id", type=frame_id, default=DEFAULT_FRAME_ID, metavar="ID",
                         help=f"frame id of the wrench messages (default {DEFAULT_FRAME_ID})")
     parser.add_argument("--duration", type=number("--duration", low=0, low_open=True), metavar="S",
                         help="seconds to record (default: until Ctrl-C)")

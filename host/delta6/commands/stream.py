@@ -17,6 +17,7 @@ from delta6.commands._port import (
     add_stream_arguments,
     flag_names,
     flagged,
+    frame_id,
     next_block,
     number,
     open_device,
@@ -69,7 +70,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         default=8765, metavar="N", help="WebSocket port (default 8765; 0: any)")
     parser.add_argument("--foxglove-host", default="127.0.0.1", metavar="HOST",
                         help="address to listen on (default 127.0.0.1; 0.0.0.0 for the network)")
-    parser.add_argument("--frame-id", default=DEFAULT_FRAME_ID, metavar="ID",
+    parser.add_argument("--frame-id", type=frame_id, default=DEFAULT_FRAME_ID, metavar="ID",
                         help=f"frame id of the wrench messages (default {DEFAULT_FRAME_ID})")
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from delta6.commands._port import AXES, add_port_arguments, number, open_device
+from delta6.core.errors import UserError
 
 NAME = "tare"
 HELP = ("tare the wrench on the device (average N samples); --clear undoes it, --save keeps it, "
@@ -24,6 +25,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.abort and args.save:     # --abort changes nothing: there is nothing to save
+        raise UserError("--abort changes nothing to save: give --save without it")
     with open_device(args) as dev:
         if args.abort:
             print("stopped the averaging; nothing was changed" if dev.abort()
