@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from delta6.calibration.fit import check_rig_latency
@@ -15,7 +16,7 @@ from delta6.core.outputs import check_output_file
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.spec import full_scale
 from delta6.core.workspace import load_checked
-from delta6.diagnosis.data import check_log
+from delta6.diagnosis.data import DiagnosisInputError, check_log
 from delta6.evaluation import tablev
 from delta6.evaluation.error_plot import check_plot_path, plot_errors
 from delta6.learning import LearnedEstimator
@@ -27,6 +28,9 @@ NAME = "evaluate"
 HELP = ("Table V (p95, p99, max |error| per axis, % FS) of the analytical model, the "
         "calibrated model (--calibration) and learned estimators (--model) on a log with "
         "reference wrenches")
+
+#: Under this many samples the percentiles of Table V say little more than its maximum.
+FEW_SAMPLES = 200
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -114,7 +118,10 @@ def run(args: argparse.Namespace) -> int:
                              "reference (docs/calibration.md)")
     # The diagnosis's checks (units, wrap-arounds, corrupt rows): a table of a broken log is
     # no figure.
-    check_log(log, design, min_samples=1)
+    try:
+        check_log(log, design, min_samples=1)
+    except DiagnosisInputError as exc:                    # what in the log, and which log
+        raise UserError(f"{args.log}: {exc}") from None
     cal = calibration_mod.load(args.calibration) if args.calibration else None
     latency = rig_latency(args, cal)
     rows = [Computed(e.name, e.predict(log)) for e in estimators(args, design, log, cal)]
@@ -130,4 +137,7 @@ def run(args: argparse.Namespace) -> int:
                     args.plot,
                     title=f"|error| distributions on {Path(args.log).name}")
     print(tablev.format_table(result))
+    if len(log) < FEW_SAMPLES:
+        print(f"note: {len(log)} samples: p95 and p99 are then close to the largest error; "
+              "Table V wants a run of minutes", file=sys.stderr)
     return 0
