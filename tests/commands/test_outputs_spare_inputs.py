@@ -52,6 +52,35 @@ def test_an_output_that_is_an_input_is_refused(files, case, capsys):
     shipped = DEFAULT_DESIGN.read_bytes()
     assert main(CASES[case](folder, log, design, capture)) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and ("is the input" in err[0] or "shipped with delta6" in err[0]), err
+    assert len(err) == 1 and any(w in err[0] for w in ("is the input", "shipped with delta6",
+                                                        "would replace the --unit")), err
     assert {p: p.read_bytes() for p in folder.iterdir()} == before
     assert DEFAULT_DESIGN.read_bytes() == shipped
+
+
+def test_two_outputs_on_one_new_file_are_refused(tmp_path, capsys):
+    """--stats and --eeprom naming the same file that does not exist yet: the statistics
+    would replace the EEPROM image."""
+    image = tmp_path / "e.bin"
+    assert main(["virtual", "--static", "--duration", "1", "--eeprom", str(image),
+                 "--stats", str(image)]) == 2
+    assert "is the --eeprom image too" in capsys.readouterr().err
+    assert not image.exists()
+
+
+def test_simulate_says_which_file_its_truth_would_replace(files, capsys):
+    folder, log, design, capture = files
+    assert main(["simulate", "--unit", str(folder / "data.truth.json"), "-o",
+                 str(folder / "data.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "its truth file" in err and "would replace the --unit file" in err
+
+
+@pytest.mark.parametrize("url, words", [
+    ("delta6sim://?motion=static&pose=nan,0,0,0,0,0", "pose takes finite numbers"),
+    ("delta6sim://?encoder_fault=1:nan", "encoder_fault=nan is outside"),
+    ("delta6sim://?encoder_fault=1:7", "encoder_fault=7.0 is outside"),
+])
+def test_a_simulated_device_url_with_bad_numbers_is_refused(url, words, capsys):
+    assert main(["info", "--port", url]) == 2
+    assert words in capsys.readouterr().err

@@ -59,7 +59,7 @@ def test_random_calibrations_along_random_paths(baseline, libdir, seed, period):
 
 @settings(max_examples=15)
 @given(st.integers(0, 2**31 - 1), st.sampled_from([0.004, 0.02]), st.booleans())
-def test_gaps_spread_the_step_over_the_lost_periods_in_both(baseline, libdir, seed, period,
+def test_after_gaps_the_step_is_no_speed_in_both(baseline, libdir, seed, period,
                                                             curved):
     """Samples lost before a sample (failed reads, missed periods): the C++ model told of the
     gaps agrees with the Python one told the periods."""

@@ -67,8 +67,8 @@ def test_the_board_streams_the_python_calibrated_wrench(baseline, unit):
 
 def test_after_failed_reads_the_board_streams_the_python_wrench_over_the_gap(baseline, unit):
     """An encoder that stops answering for a while: its samples are flagged with no wrench (NaN),
-    and the next ones equal the Python model told the periods between (the speed spreads the
-    gap's step over them; read as one period's step it was a spike)."""
+    and the next ones equal the Python model told the periods between (the gap's step is no
+    speed; read as one period's step it was a spike)."""
     truth, cal, path = unit
     image = design_firmware(DESIGN, path)
     check = twin.simulate(duration_s=3, rate_hz=250, **twin.same_unit(truth, 23))

@@ -63,15 +63,11 @@ class StopRequest:
         self.signum = self.signum or signum
         self.event.set()
 
-    @contextlib.contextmanager
-    def holding(self):
-        """Within the block, further signals only request the stop: a file being closed is
-        closed whole (a quick second Ctrl-C left a log under its .partial name)."""
+    def hold(self) -> None:
+        """From now on (until the handlers are restored), further signals only request the
+        stop: what is being closed is closed whole (a quick second Ctrl-C left a log under its
+        .partial name, or the device streaming with the capture cut)."""
         self._holding = True
-        try:
-            yield
-        finally:
-            self._holding = False
 
     @property
     def name(self) -> str:

@@ -181,29 +181,24 @@ def _record(dev, args: argparse.Namespace, stop):
                 ending, complete = exc, False
             except KeyboardInterrupt:   # a second stop signal while draining: skip the rest
                 stop.signum = stop.signum or 2
-        with stop.holding():
-            try:
-                path = writer.close(complete=complete)
-            except LogError as exc:
-                ending, path = exc, writer.partial
+        # From here the log, then the port, close whole; further signals are only noted.
+        stop.hold()
+        try:
+            path = writer.close(complete=complete)
+        except LogError as exc:
+            ending, path = exc, writer.partial
         progress.end()
     return path, stats, dev.health, ending
 
 
 def run(args: argparse.Namespace) -> int:
     _check_outputs(args)
-    recorded = None
     with stop_requests() as stop:
-        try:
-            with open_device(args, capture=args.capture) as dev:
-                recorded = _record(dev, args, stop)
-        except KeyboardInterrupt:   # a second stop signal as the port closed: the log is whole
-            if recorded is None:
-                raise
-            stop.signum = stop.signum or 2
-    path, stats, health, ending = recorded
-    how = f" (stopped by {stop.name})" if stop.signum else ""
-    print(f"{path}: {stats.summary(health)}{how}", file=sys.stderr)
+        with open_device(args, capture=args.capture) as dev:
+            path, stats, health, ending = _record(dev, args, stop)
+        # (the port closed under the hold _record set: the stream stopped, the capture whole)
+        how = f" (stopped by {stop.name})" if stop.signum else ""
+        print(f"{path}: {stats.summary(health)}{how}", file=sys.stderr)
     if ending is not None:
         if isinstance(ending, LogError):
             raise ending

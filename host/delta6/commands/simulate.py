@@ -93,8 +93,12 @@ def run(args: argparse.Namespace) -> int:
     if out.is_dir():
         raise UserError(f"cannot write {out}: it is a directory")
     # The run of the same unit again must not replace the run (or the truth) it came from.
-    for written in (out, truth_path(out)):
-        check_not_an_input(written, "-o", [args.unit, args.design])
+    check_not_an_input(out, "-o", [args.unit, args.design])
+    try:
+        check_not_an_input(truth_path(out), "-o", [args.unit, args.design])
+    except UserError:
+        raise UserError(f"-o {out}: its truth file {truth_path(out)} would replace the --unit "
+                        "file it comes from; name the new run differently") from None
     if args.unit:
         kwargs = _unit(args, seed, magnitude)
         if args.record_temp:

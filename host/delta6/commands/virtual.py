@@ -102,6 +102,9 @@ def run(args: argparse.Namespace) -> int:
         check_output_file(args.stats, "--stats", inputs=[args.replay, args.design,
                                                           args.calibration, args.model,
                                                           args.eeprom])
+        if args.eeprom is not None and args.stats.resolve() == args.eeprom.resolve():
+            raise UserError(f"--stats {args.stats}: is the --eeprom image too (the statistics "
+                            "would replace it)")
     faults = [vb.Fault.parse(spec) for spec in args.fault]
     zero = parse_zero(args.zero)
     if args.loop and args.replay is None:

@@ -52,8 +52,10 @@ class CalibrationBase:
     """The calibrated model (causal, with a few numbers of state per joint) run over the
     samples in order at the model's rate (a block at a time, vectorised; the state carries
     over between blocks). A sample with a missing angle gives NaN and leaves the state
-    as it was, in the batch and in the stream alike; the next sample's speed spans the gap
-    (the periods between the samples' times), as on the board."""
+    as it was, in the batch and in the stream alike; a sample after missing ones (a gap in
+    the samples' times) moves the history but is no speed, as the board does after a failed
+    read. (A record the link lost is no gap on the board, which solved it: after one, the two
+    differ for a few samples.)"""
 
     name = "calibration"
 

@@ -38,6 +38,8 @@ def _floats(text: str, n: int, name: str) -> list[float]:
     values = [float(v) for v in text.split(",")]
     if len(values) != n:
         raise ValueError(f"{name} takes {n} comma-separated numbers")
+    if not all(math.isfinite(v) for v in values):
+        raise ValueError(f"{name} takes finite numbers, got {text}")
     return values
 
 
@@ -76,7 +78,7 @@ def parse_url(url: str) -> dict:
                     joint, _, p = item.partition(":")
                     if not 1 <= int(joint) <= 6:
                         raise ValueError("encoder_fault joints are 1..6")
-                    faults[int(joint)] = float(p)
+                    faults[int(joint)] = _within("encoder_fault", float(p))
             else:
                 raise ValueError(f"unknown option {key!r}")
     except ValueError as exc:
@@ -204,7 +206,7 @@ class Serial(SerialBase):
 _RANGES = {"rate": (1, 65535), "baud": (1, 10_000_000), "max_rate": (1, 65535),
            "seed": (0, 2**63 - 1), "start_us": (0, 2**32 - 1), "tx_capacity": (1, 1 << 20),
            "solver_fail": (0.0, 1.0), "overrun": (0.0, 1.0), "speed": (1e-6, 1e6),
-           "vanish_after": (0.0, 1e9), "amplitude": (0.0, 1.0)}
+           "vanish_after": (0.0, 1e9), "amplitude": (0.0, 1.0), "encoder_fault": (0.0, 1.0)}
 
 
 def _within(key: str, value):
