@@ -229,3 +229,33 @@ def test_a_curve_is_calibrated_and_compiled_from_the_command_line(tmp_path, caps
     assert main(["codegen", DESIGN, "-o", str(header), "--calibration", str(out)]) == 0
     text = header.with_name("delta6_calibration.h").read_text()
     assert "kCurveTorque6" in text and "kCurveAngle1" not in text
+
+
+def test_a_joint_that_never_moves_is_refused_and_a_frozen_stretch_noted(runs, tmp_path, capsys):
+    """A stuck encoder gave an identity calibration, 'nothing significant', exit 0; a frozen
+    stretch calibrated several times worse, silently."""
+    from delta6.link.logfile import LogWriter
+    _, cal_log, _ = runs
+    log = read_log(cal_log)
+    stuck, frozen = tmp_path / "stuck.csv", tmp_path / "frozen.csv"
+    for path, cols, rows in ((stuck, [2], slice(None)),
+                             (frozen, [1], (log.t >= 20) & (log.t < 45))):
+        theta = log.theta.copy()
+        theta[rows, cols[0]] = theta[np.argmax(rows) if not isinstance(rows, slice) else 0,
+                                     cols[0]]
+        with LogWriter(path, dict(log.meta)) as w:
+            w.write_block(log.t, theta, log.wrench)
+    out = tmp_path / "s.toml"
+    assert main(["calibrate", str(stuck), "--design", DESIGN, "-o", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "theta_e3 hardly moves" in err[0] and not out.exists()
+    assert main(["calibrate", str(frozen), "--design", DESIGN, "-o", str(out), "--quiet",
+                 "--effect", "stiffness_mismatch"]) == 0
+    assert "theta_e2 stands exactly still for 25 s from t = 20" in capsys.readouterr().err
+
+
+def test_latency_named_as_an_effect_is_refused_with_the_reason(runs, tmp_path, capsys):
+    _, cal_log, _ = runs
+    assert main(["calibrate", str(cal_log), "--design", DESIGN, "-o", str(tmp_path / "x.toml"),
+                 "--effect", "sensor_latency"]) == 2
+    assert "always fitted, never corrected on the board" in capsys.readouterr().err

@@ -243,3 +243,27 @@ def test_reading_in_chunks_gives_the_same_log_and_line_numbers(tmp_path, monkeyp
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(logfile.LogError, match=f"line {bad + 1}:"):
         logfile.read_log(path)
+
+
+def test_a_spreadsheets_padded_header_lines_read_as_written(tmp_path):
+    """Saved from a spreadsheet, every '#' line gains the table's commas: the schema read
+    '1,,,,' and was refused as unsupported."""
+    path = tmp_path / "a.csv"
+    with LogWriter(path, {"design": "delta6", "rate_hz": "50"}) as w:
+        w.write_block(np.arange(3) * 0.02, np.zeros((3, 6)), np.ones((3, 6)))
+    padded = tmp_path / "padded.csv"
+    padded.write_text("".join(line + (",,,,,,,,,,,," if line.startswith("#") else "") + "\n"
+                              for line in path.read_text().splitlines()))
+    a, b = read_log(path), read_log(padded)
+    assert a.meta == b.meta and np.array_equal(a.theta, b.theta)
+
+
+@pytest.mark.parametrize("t, words", [([0.0, 0.02, 0.02, 0.04], "a duplicated row"),
+                                      ([0.0, 0.04, 0.02, 0.06], "rows out of order")])
+def test_time_that_does_not_increase_says_how(tmp_path, t, words):
+    path = tmp_path / "t.csv"
+    with LogWriter(path, {"design": "delta6"}) as w:
+        for k, tk in enumerate(t):
+            w.write(tk, np.zeros(6), np.full(6, float(k)))
+    with pytest.raises(LogError, match=words):
+        read_log(path)

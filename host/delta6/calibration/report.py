@@ -22,7 +22,8 @@ def corrected(fit) -> str:
     the calibration added because they lowered the held-out error further."""
     effects = list(fit.calibration.effects)
     if not effects:
-        return "nothing (no significant unmodelled effect)"
+        return ("nothing (no significant unmodelled effect)" if fit.diagnosis is not None
+                else "nothing (the effects named fitted to nothing here)")
     if fit.diagnosis is None:
         return ", ".join(effects) + f" (chosen by {fit.chosen_by})"
     named = set(effects_to_fit(fit.diagnosis))

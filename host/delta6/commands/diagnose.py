@@ -14,7 +14,12 @@ from delta6.core.model import AXES
 from delta6.core.outputs import check_output_file, check_output_folder
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
-from delta6.diagnosis.data import DiagnosisInputError, GapData
+from delta6.diagnosis.data import (
+    DiagnosisInputError,
+    GapData,
+    check_motion,
+    frozen_stretches,
+)
 from delta6.diagnosis.report import verdict_lines, write_report
 from delta6.diagnosis.run import diagnose_data
 from delta6.link.logdata import wrench_from_device
@@ -47,6 +52,10 @@ def run(args: argparse.Namespace) -> int:
     log = read_log(args.log)
     refuse_device_log(log, args.log)
     design = load_checked(choose_design(log, args.log, args.design, args.force))
+    check_motion(log.theta, str(args.log), why="the diagnosis cannot tell what a joint it "
+                                               "never saw move does")
+    for note in frozen_stretches(log.t, log.theta):
+        print(note, file=sys.stderr)
 
     def progress(message: str) -> None:
         if not args.quiet:

@@ -16,12 +16,12 @@ from delta6.core.outputs import check_output_file
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.spec import full_scale
 from delta6.core.workspace import load_checked
-from delta6.diagnosis.data import DiagnosisInputError, check_log
+from delta6.diagnosis.data import DiagnosisInputError, check_log, frozen_stretches
 from delta6.evaluation import tablev
 from delta6.evaluation.error_plot import check_plot_path, plot_errors
 from delta6.learning import LearnedEstimator
 from delta6.learning.mcu import McuEstimator
-from delta6.link.logdata import require_reference_wrench
+from delta6.link.logdata import require_reference_wrench, unchecked_design_notes
 from delta6.link.logfile import read_log
 
 NAME = "evaluate"
@@ -122,6 +122,9 @@ def run(args: argparse.Namespace) -> int:
         check_log(log, design, min_samples=1)
     except DiagnosisInputError as exc:                    # what in the log, and which log
         raise UserError(f"{args.log}: {exc}") from None
+    for note in unchecked_design_notes(log.meta, args.design) + frozen_stretches(log.t,
+                                                                                 log.theta):
+        print(note, file=sys.stderr)
     cal = calibration_mod.load(args.calibration) if args.calibration else None
     latency = rig_latency(args, cal)
     rows = [Computed(e.name, e.predict(log)) for e in estimators(args, design, log, cal)]

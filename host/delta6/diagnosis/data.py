@@ -282,3 +282,48 @@ def check_log(log: LogData, design: Design, min_samples: int = MIN_SAMPLES) -> N
             f"{outside.any(axis=1).mean():.0%} of the samples have encoder angles far "
             f"outside the joint box (|theta_e| > {1.5 * limit:.2f} rad): wrong units "
             "(degrees?) or wrong design")
+
+
+#: A joint whose angle spreads less than this over a log was not moved (or its encoder is
+#: stuck): nothing about it can be fitted or learned.
+MIN_JOINT_SPREAD_RAD = 2e-3
+#: A joint whose count stands exactly still this long while another joint moves is reported:
+#: an encoder frozen for a stretch of the log (a real hold is rarely this long under motion).
+FROZEN_S = 10.0
+
+
+def check_motion(theta: np.ndarray, source: str = "the log",
+                 why: str = "a model cannot learn how the wrench depends on a joint it never "
+                            "saw move") -> None:
+    """Refuse a log in which some joint hardly moves (one line naming the joint)."""
+    theta = np.asarray(theta, dtype=float)
+    spread = np.array([np.std(col[np.isfinite(col)]) if np.isfinite(col).any() else 0.0
+                       for col in theta.T])
+    still = np.flatnonzero(spread < MIN_JOINT_SPREAD_RAD)
+    if len(still):
+        joints = ", ".join(f"theta_e{j + 1}" for j in still)
+        raise UserError(f"{source}: {joints} hardly move{'s' if len(still) == 1 else ''} "
+                        f"(angle spread {spread[still].max():.2g} rad, at least "
+                        f"{MIN_JOINT_SPREAD_RAD:g} needed; a stuck encoder?): {why}; record a "
+                        "run that moves every joint")
+
+
+def frozen_stretches(t: np.ndarray, theta: np.ndarray, min_s: float = FROZEN_S) -> list[str]:
+    """One note per stretch of at least ``min_s`` in which a joint's angle stands exactly still
+    while another joint moves (an encoder frozen for a while)."""
+    t = np.asarray(t, dtype=float)
+    theta = np.asarray(theta, dtype=float)
+    if len(t) < 2:
+        return []
+    same = np.diff(theta, axis=0) == 0                      # (n-1, 6)
+    notes = []
+    for j in range(theta.shape[1]):
+        others_move = ~np.delete(same, j, axis=1).all(axis=1)
+        still = same[:, j] & others_move
+        edges = np.flatnonzero(np.diff(np.r_[0, still.astype(np.int8), 0]))
+        for start, stop in zip(edges[::2], edges[1::2]):
+            span = t[stop] - t[start]
+            if span >= min_s:
+                notes.append(f"note: theta_e{j + 1} stands exactly still for {span:.0f} s from "
+                             f"t = {t[start]:g} s while other joints move (a frozen encoder?)")
+    return notes

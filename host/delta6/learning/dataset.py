@@ -6,28 +6,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from delta6.core.errors import UserError
+from delta6.diagnosis.data import MIN_JOINT_SPREAD_RAD, check_motion  # noqa: F401 (re-exported)
 from delta6.learning.windows import WINDOW, Normalisation, time_split, windows
 
-#: A joint whose angle spreads less than this over a training log (rad, standard deviation:
-#: about five encoder counts) shows a model nothing of how the wrench depends on it, and its
-#: standardisation would blow up any other log's angles of that joint.
-MIN_JOINT_SPREAD_RAD = 2e-3
-
-
-def check_motion(theta: np.ndarray, source: str = "the log") -> None:
-    """Refuse a training log in which some joint hardly moves (one line naming the joint)."""
-    theta = np.asarray(theta, dtype=float)
-    spread = np.array([np.std(col[np.isfinite(col)]) if np.isfinite(col).any() else 0.0
-                       for col in theta.T])
-    still = np.flatnonzero(spread < MIN_JOINT_SPREAD_RAD)
-    if len(still):
-        joints = ", ".join(f"theta_e{j + 1}" for j in still)
-        raise UserError(f"{source}: {joints} hardly move{'s' if len(still) == 1 else ''} "
-                        f"(angle spread {spread[still].max():.2g} rad, at least "
-                        f"{MIN_JOINT_SPREAD_RAD:g} needed): a model cannot learn how the wrench "
-                        "depends on a joint it never saw move; record a run that moves every "
-                        "joint")
+# check_motion (diagnosis.data): a joint whose angle spreads less than MIN_JOINT_SPREAD_RAD
+# over a training log (standard deviation: about five encoder counts) shows a model nothing of
+# how the wrench depends on it, and its standardisation would blow up any other log's angles.
 
 
 @dataclass

@@ -56,6 +56,15 @@ def wrench_from_device(meta: dict) -> bool:
     return source == "device" or (source is None and "firmware" in meta)
 
 
+def unchecked_design_notes(meta: dict, design_path) -> list[str]:
+    """A note when a log names no design hash: nothing tells whether ``design_path`` is the
+    mechanism it came from (a wrong one gives a plausible, wrong table)."""
+    if meta.get("design_hash"):
+        return []
+    return [f"note: the log names no design (no design_hash in its header): it was not "
+            f"checked against {design_path}"]
+
+
 def require_reference_wrench(meta: dict, name, purpose: str) -> None:
     """Refuse a device log where a reference wrench is needed: ``purpose`` says why (e.g.
     "an evaluation compares estimators with a reference")."""
@@ -93,7 +102,10 @@ def check_rows(path, t: np.ndarray, theta: np.ndarray, wrench: np.ndarray,
                            "convert IN OUT --complete-rows` keeps the complete ones)")
     steps = np.diff(t)
     if (steps <= 0).any():
-        raise LogError(f"{path}: time is not strictly increasing at {place(int(np.argmax(steps <= 0)) + 1)}")
+        at = int(np.argmax(steps <= 0))
+        what = ("a row repeats the time of the one before (a duplicated row?)" if steps[at] == 0
+                else "time goes back (rows out of order?)")
+        raise LogError(f"{path}: time is not strictly increasing at {place(at + 1)}: {what}")
 
 
 class PartialOnError:

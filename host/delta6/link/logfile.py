@@ -328,7 +328,8 @@ def _read_header(path: Path, f) -> tuple[dict, list[str], int]:
         if not line.startswith("#"):
             header = line
             break
-        content = line[1:].strip()
+        # A spreadsheet saving the file pads every line to the table's width with commas.
+        content = line[1:].rstrip(",").strip()
         if content.startswith(MAGIC):
             for part in content.split()[1:]:
                 if part.startswith("schema="):
