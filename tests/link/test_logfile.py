@@ -100,8 +100,9 @@ def good_text(rows=3):
     (lambda s: s.replace("0.02,0.1", "0.02,nan", 1), "NaN theta_e1 value at line 4"),
     (lambda s: s.replace("0.04,", "0.01,"), "not strictly increasing at line 5"),
     (lambda s: s.replace("0.02,0.1", "0.02,abc", 1), "'abc' is not a number"),
-    (lambda s: s.replace("0.02,0.1", "0.02,0.#1", 1), "line 4: '0.#1' is not a number"),
-    (lambda s: s.replace("\n0.02,", "\n#0.02,", 1), "line 4: '#0.02' is not a number"),
+    (lambda s: s.replace("0.02,0.1", "0.02,0.#1", 1),
+     "line 4, column theta_e1: '0.#1' is not a number"),
+    (lambda s: s.replace("\n0.02,", "\n#0.02,", 1), "line 4, column t: '#0.02' is not a number"),
     (lambda s: s.replace("schema=1", "schema=9"), "schema 9"),
     (lambda s: "\n".join(s.splitlines()[:2]), "no samples"),
 ])
@@ -241,7 +242,7 @@ def test_reading_in_chunks_gives_the_same_log_and_line_numbers(tmp_path, monkeyp
     bad = next(i for i, ln in enumerate(lines) if ln and ln[0].isdigit()) + 131
     lines[bad] = lines[bad].replace(",", ",x", 1)
     path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(logfile.LogError, match=f"line {bad + 1}:"):
+    with pytest.raises(logfile.LogError, match=f"line {bad + 1}, column theta_e1:"):
         logfile.read_log(path)
 
 
@@ -267,3 +268,19 @@ def test_time_that_does_not_increase_says_how(tmp_path, t, words):
             w.write(tk, np.zeros(6), np.full(6, float(k)))
     with pytest.raises(LogError, match=words):
         read_log(path)
+
+
+def test_columns_the_format_does_not_know_are_left_out_and_named(tmp_path):
+    """A spreadsheet's note column (text) was refused as 'not a number'; an index column was
+    dropped unnamed."""
+    path = tmp_path / "a.csv"
+    with LogWriter(path, {"design": "delta6"}) as w:
+        w.write_block(np.arange(3) * 0.02, np.zeros((3, 6)), np.ones((3, 6)))
+    lines = path.read_text().splitlines()
+    edited = [ln if ln.startswith("#") else ("idx," + ln + ",note" if ln.startswith("t,")
+                                            else f"{k}," + ln + ",ok")
+              for k, ln in enumerate(lines)]
+    (tmp_path / "b.csv").write_text("\n".join(edited) + "\n")
+    a, b = read_log(path), read_log(tmp_path / "b.csv")
+    assert np.array_equal(a.theta, b.theta) and np.array_equal(a.wrench, b.wrench)
+    assert b.ignored_columns == ("idx", "note") and a.ignored_columns == ()

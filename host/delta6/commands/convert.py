@@ -39,6 +39,9 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"{output}: the output would overwrite the log being read")
     check_output_file(output, "OUT", force=args.force)
     log = read_log(source, require_complete_rows=False)
+    if log.ignored_columns:        # nothing dropped unsaid: the log format has no place for them
+        print(f"note: column(s) {', '.join(log.ignored_columns)} of {source} are not part of "
+              "the log format and are not carried over", file=sys.stderr)
     meta = {k: v for k, v in log.meta.items() if k != "schema"}   # the writer writes its own
     if args.frame_id is not None:
         meta["frame_id"] = args.frame_id

@@ -43,6 +43,7 @@ class LogData:
     host_t: np.ndarray | None = None
     temp_c: np.ndarray | None = None
     meta: dict = field(default_factory=dict)
+    ignored_columns: tuple = ()     # columns of the file the log format does not know
 
     def __len__(self) -> int:
         return len(self.t)

@@ -277,7 +277,14 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
             if raw.read(3) != BOM:
                 raw.seek(0)
             meta, columns, body_start = _read_header(path, f)
-            table, line_of = _read_body(path, f, len(columns), body_start, drop_last=cut)
+            # Readers find columns by name: one the format does not know (a spreadsheet's note,
+            # an index) is left out, whatever it holds, and named (LogData.ignored_columns).
+            known = set(CORE_COLUMNS) | set(OPTIONAL_COLUMNS)
+            keep = [i for i, c in enumerate(columns) if c in known]
+            ignored = tuple(c for c in columns if c not in known)
+            table, line_of = _read_body(path, f, len(columns), body_start, drop_last=cut,
+                                        keep=keep, names=columns)
+            columns = [columns[i] for i in keep]
         if cut:
             # What a killed writer left: its last row may be cut anywhere (a cut number is a
             # made-up number), so it is not read. A complete file always ends its rows.
@@ -311,7 +318,7 @@ def read_log(path: str | Path, *, require_complete_rows: bool = True) -> LogData
 
     return LogData(t=t, theta=theta, wrench=wrench, seq=int_column(optional("seq")),
                    status=int_column(optional("status")), host_t=optional("host_t"),
-                   temp_c=optional("temp_c"), meta=meta)
+                   temp_c=optional("temp_c"), meta=meta, ignored_columns=ignored)
 
 
 #: The UTF-8 byte-order mark spreadsheets write before a CSV file's first line.
@@ -352,10 +359,13 @@ def _read_header(path: Path, f) -> tuple[dict, list[str], int]:
     return meta, columns, body_start
 
 
-def _read_body(path: Path, f, ncols: int, body_start: int,
-               drop_last: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def _read_body(path: Path, f, ncols: int, body_start: int, drop_last: bool = False,
+               keep=None, names=None) -> tuple[np.ndarray, np.ndarray]:
     """The rows after the header, parsed a chunk at a time (blank lines skipped), and the file
-    line (1-based) of each row. ``drop_last`` leaves out the last row (a cut one)."""
+    line (1-based) of each row: the columns ``keep`` (indices; default all) of ``ncols``,
+    ``names`` naming them in errors. ``drop_last`` leaves out the last row (a cut one)."""
+    keep = list(range(ncols)) if keep is None else list(keep)
+    names = names or [str(i) for i in range(ncols)]
     parts, numbers = [], []
     number = body_start + 1           # the header's line number
     pending: tuple[str, int] | None = None
@@ -374,10 +384,10 @@ def _read_body(path: Path, f, ncols: int, body_start: int,
                 break
         if not rows:
             break
-        parts.append(_parse_rows(path, rows, ncols, lines))
+        parts.append(_parse_rows(path, rows, ncols, lines, keep, names))
         numbers.append(np.asarray(lines, dtype=np.int64))
     if pending is not None and not drop_last:
-        parts.append(_parse_rows(path, [pending[0]], ncols, [pending[1]]))
+        parts.append(_parse_rows(path, [pending[0]], ncols, [pending[1]], keep, names))
         numbers.append(np.asarray([pending[1]], dtype=np.int64))
     if not parts:
         raise LogError(f"{path}: no samples")
@@ -396,7 +406,8 @@ def _ends_with_newline(path: Path) -> bool:
 
 
 
-def _parse_rows(path: Path, rows: list[str], ncols: int, line_numbers: list[int]) -> np.ndarray:
+def _parse_rows(path: Path, rows: list[str], ncols: int, line_numbers: list[int],
+                keep: list[int], names: list[str]) -> np.ndarray:
     for i, row in enumerate(rows):
         if row.count(",") != ncols - 1:
             raise LogError(f"{path}: line {line_numbers[i]} has {row.count(',') + 1} fields, "
@@ -405,21 +416,23 @@ def _parse_rows(path: Path, rows: list[str], ncols: int, line_numbers: list[int]
     # comments=None: a '#' in a data row is damage to report, not a comment that hides fields
     try:  # fast path: every field present
         return np.loadtxt(io.StringIO(text), delimiter=",", dtype=float, ndmin=2,
-                          comments=None)
+                          comments=None, usecols=keep)
     except ValueError:
         pass
     # Empty fields (wrench-only streams, flagged samples) read as NaN; text that is not a
-    # number is an error that names its line.
+    # number is an error that names its line and column.
     for i, row in enumerate(rows):
-        for cell in row.split(","):
-            cell = cell.strip()
+        cells = row.split(",")
+        for k in keep:
+            cell = cells[k].strip()
             if cell:
                 try:
                     float(cell)
                 except ValueError:
-                    raise LogError(f"{path}: line {line_numbers[i]}: {cell[:20]!r} is not a "
-                                   "number") from None
+                    raise LogError(f"{path}: line {line_numbers[i]}, column {names[k]}: "
+                                   f"{cell[:20]!r} is not a number") from None
     return np.genfromtxt(io.StringIO(text), delimiter=",", dtype=float, ndmin=2,
-                         missing_values="", filling_values=np.nan, comments=None)
+                         missing_values="", filling_values=np.nan, comments=None,
+                         usecols=keep)
 
 
