@@ -15,7 +15,12 @@ from delta6.core.model import AXES
 from delta6.core.outputs import check_output_file, check_output_folder
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
-from delta6.diagnosis.data import DiagnosisInputError, check_motion, frozen_stretches
+from delta6.diagnosis.data import (
+    DiagnosisInputError,
+    check_log,
+    check_motion,
+    frozen_stretches,
+)
 from delta6.link.logdata import unchecked_design_notes, wrench_from_device
 from delta6.link.logfile import read_log
 
@@ -70,6 +75,10 @@ def run(args: argparse.Namespace) -> int:
                         "(a device log), not a reference sensor's: a calibration is fitted "
                         "against a reference (docs/calibration.md)")
     calibration_mod.check_log_meta(log.meta, design, source=str(args.log))
+    try:
+        check_log(log, design)                            # (its notes below need a sound log)
+    except DiagnosisInputError as exc:
+        raise UserError(f"{args.log}: {exc}") from None
     check_motion(log.theta, str(args.log), why="a calibration cannot fit a joint it never saw "
                                                "move")
     for note in (unchecked_design_notes(log.meta, args.design) + frozen_stretches(log.t, log.theta)

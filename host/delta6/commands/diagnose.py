@@ -54,15 +54,15 @@ def run(args: argparse.Namespace) -> int:
     design = load_checked(choose_design(log, args.log, args.design, args.force))
     check_motion(log.theta, str(args.log), why="the diagnosis cannot tell what a joint it "
                                                "never saw move does")
-    for note in frozen_stretches(log.t, log.theta):
-        print(note, file=sys.stderr)
 
     def progress(message: str) -> None:
         if not args.quiet:
             print(f"  {message}", file=sys.stderr, flush=True)
 
     try:
-        data = GapData.from_log(log, design)
+        data = GapData.from_log(log, design)              # (the log's checks first)
+        for note in frozen_stretches(log.t, log.theta):
+            print(note, file=sys.stderr)
         del log                                           # the log's table is freed here
         result = json_safe(diagnose_data(data, seed=args.seed, progress=progress))
     except DiagnosisInputError as exc:                    # what in the log, and which log

@@ -60,10 +60,10 @@ def wrench_from_device(meta: dict) -> bool:
 def unchecked_design_notes(meta: dict, design_path) -> list[str]:
     """A note when a log names no design hash: nothing tells whether ``design_path`` is the
     mechanism it came from (a wrong one gives a plausible, wrong table)."""
-    if meta.get("design_hash"):
+    if meta.get("design_hash") or meta.get("design"):
         return []
-    return [f"note: the log names no design (no design_hash in its header): it was not "
-            f"checked against {design_path}"]
+    return [f"note: the log names no design in its header: it was not checked against "
+            f"{design_path}"]
 
 
 def require_reference_wrench(meta: dict, name, purpose: str) -> None:
