@@ -15,6 +15,8 @@ from delta6.link import protocol as P
 from delta6.link import wirescale
 from delta6.link.layout import Layout
 
+from .design_header import c_float
+
 COMMAND = "delta6 codegen --wire"
 #: Where the header lives, relative to the repository root.
 HEADER_RELPATH = "firmware/lib/delta6_core/src/generated/delta6_wire.h"
@@ -139,12 +141,6 @@ def _scaling() -> list[str]:
         ""]
 
 
-def _c_float(x: float) -> str:
-    """A C float literal that round-trips the float32 nearest ``x``."""
-    text = f"{struct.unpack('<f', struct.pack('<f', x))[0]:.9g}"
-    return text + ("f" if any(ch in text for ch in ".e") else ".0f")
-
-
 def _float_bits(x: float) -> int:
     return struct.unpack("<I", struct.pack("<f", x))[0]
 
@@ -182,8 +178,8 @@ def render_wire() -> str:
         *_config_blob(),
         "// --- the tool frames the device accepts (SET_TOOL): |translation| per axis, m, and",
         "// |angle|, rad ---",
-        f"const float kMaxToolTranslation = {_c_float(P.TOOL_MAX_TRANSLATION_M)};",
-        f"const float kMaxToolAngle = {_c_float(P.TOOL_MAX_ANGLE_RAD)};",
+        f"const float kMaxToolTranslation = {c_float(P.TOOL_MAX_TRANSLATION_M)};",
+        f"const float kMaxToolAngle = {c_float(P.TOOL_MAX_ANGLE_RAD)};",
         "",
         "// --- telemetry ---",
         f"const int16_t kTemperatureUnknown = 0x{P.TEMPERATURE_UNKNOWN:04X};"

@@ -16,9 +16,9 @@ from delta6.core.outputs import check_output_file, check_output_folder
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
 from delta6.diagnosis.data import (
-    DiagnosisInputError,
     check_log,
     check_motion,
+    errors_naming,
     frozen_stretches,
 )
 from delta6.link.logdata import unchecked_design_notes, wrench_from_device
@@ -75,10 +75,8 @@ def run(args: argparse.Namespace) -> int:
                         "(a device log), not a reference sensor's: a calibration is fitted "
                         "against a reference (docs/calibration.md)")
     calibration_mod.check_log_meta(log.meta, design, source=str(args.log))
-    try:
+    with errors_naming(args.log):
         check_log(log, design)                            # (its notes below need a sound log)
-    except DiagnosisInputError as exc:
-        raise UserError(f"{args.log}: {exc}") from None
     check_motion(log.theta, str(args.log), why="a calibration cannot fit a joint it never saw "
                                                "move")
     for note in (unchecked_design_notes(log.meta, args.design) + frozen_stretches(log.t, log.theta)
@@ -89,12 +87,10 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"  {message}", file=sys.stderr, flush=True)
 
-    try:
+    with errors_naming(args.log):
         fit = calibrate(log, design, effects=args.effect, name=name,
                         source=Path(args.log).name, seed=args.seed, rig_latency_s=latency,
                         progress=progress)
-    except DiagnosisInputError as exc:                    # what in the log, and which log
-        raise UserError(f"{args.log}: {exc}") from None
     calibration_mod.save(fit.calibration, out)
     if args.report:
         path = write_report(fit, log, design, args.report, source=str(args.log))

@@ -15,9 +15,9 @@ from delta6.core.outputs import check_output_file, check_output_folder
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.workspace import load_checked
 from delta6.diagnosis.data import (
-    DiagnosisInputError,
     GapData,
     check_motion,
+    errors_naming,
     frozen_stretches,
 )
 from delta6.diagnosis.report import verdict_lines, write_report
@@ -59,14 +59,12 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(f"  {message}", file=sys.stderr, flush=True)
 
-    try:
+    with errors_naming(args.log):
         data = GapData.from_log(log, design)              # (the log's checks first)
         for note in frozen_stretches(log.t, log.theta):
             print(note, file=sys.stderr)
         del log                                           # the log's table is freed here
         result = json_safe(diagnose_data(data, seed=args.seed, progress=progress))
-    except DiagnosisInputError as exc:                    # what in the log, and which log
-        raise UserError(f"{args.log}: {exc}") from None
     if args.json:
         try:
             Path(args.json).write_text(json.dumps(result, indent=1, allow_nan=False))

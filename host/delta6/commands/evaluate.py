@@ -16,7 +16,7 @@ from delta6.core.outputs import check_output_file
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.spec import full_scale
 from delta6.core.workspace import load_checked
-from delta6.diagnosis.data import DiagnosisInputError, check_log, frozen_stretches
+from delta6.diagnosis.data import check_log, errors_naming, frozen_stretches
 from delta6.evaluation import tablev
 from delta6.evaluation.error_plot import check_plot_path, plot_errors
 from delta6.learning import LearnedEstimator
@@ -118,10 +118,8 @@ def run(args: argparse.Namespace) -> int:
                              "reference (docs/calibration.md)")
     # The diagnosis's checks (units, wrap-arounds, corrupt rows): a table of a broken log is
     # no figure.
-    try:
+    with errors_naming(args.log):
         check_log(log, design, min_samples=1)
-    except DiagnosisInputError as exc:                    # what in the log, and which log
-        raise UserError(f"{args.log}: {exc}") from None
     for note in unchecked_design_notes(log.meta, args.design) + frozen_stretches(log.t,
                                                                                  log.theta):
         print(note, file=sys.stderr)

@@ -2,6 +2,7 @@
 per-sample sensitivity maps, computed once and shared by every candidate effect."""
 from __future__ import annotations
 
+import contextlib
 import functools
 from dataclasses import dataclass, field
 
@@ -35,6 +36,16 @@ PIECE = 50_000
 
 class DiagnosisInputError(UserError):
     """The log cannot be diagnosed; the message names the problem."""
+
+
+@contextlib.contextmanager
+def errors_naming(path):
+    """Within the block, a :class:`DiagnosisInputError` says which log it is about (the
+    diagnosis's checks name what is wrong in the log, not the file)."""
+    try:
+        yield
+    except DiagnosisInputError as exc:
+        raise UserError(f"{path}: {exc}") from None
 
 
 @dataclass
@@ -316,10 +327,10 @@ def frozen_stretches(t: np.ndarray, theta: np.ndarray, min_s: float = FROZEN_S) 
     if len(t) < 2:
         return []
     same = np.diff(theta, axis=0) == 0                      # (n-1, 6)
+    moving = (~same).sum(axis=1)                            # joints that moved, per step
     notes = []
     for j in range(theta.shape[1]):
-        others_move = ~np.delete(same, j, axis=1).all(axis=1)
-        still = same[:, j] & others_move
+        still = same[:, j] & (moving > 0)                   # j still, another one moved
         edges = np.flatnonzero(np.diff(np.r_[0, still.astype(np.int8), 0]))
         for start, stop in zip(edges[::2], edges[1::2]):
             span = t[stop] - t[start]
