@@ -44,9 +44,21 @@ fi
 stamp="$VENV/.delta6-installed"
 want=$( { cat "$ROOT/pyproject.toml"; cd "$ROOT" && ls host/*/__init__.py codegen/*/__init__.py 2>/dev/null; } \
   | sha256sum | cut -d' ' -f1)
+# The venv with the CPU torch build takes about 1.5 GB and pip unpacks into the temporary
+# directory first: a full disk would otherwise end in pip's OSError halfway through.
+NEED_MB=2000
+free_mb() { df -Pm "$1" 2>/dev/null | awk 'NR == 2 { print $4 }'; }
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
+  for dir in "$ROOT" "${TMPDIR:-/tmp}"; do
+    avail=$(free_mb "$dir")
+    if [ -n "$avail" ] && [ "$avail" -lt "$NEED_MB" ]; then
+      say "only $avail MB free on the disk holding $dir; installing the venv needs about $NEED_MB MB"
+      exit 1
+    fi
+  done
   say "installing the delta6 package, its test dependencies and the training extra into $VENV"
-  "$VENV/bin/python" -m pip install -q --upgrade pip >/dev/null
-  "$VENV/bin/python" -m pip install -q -e "$ROOT[test,train]"
+  # --no-cache-dir: pip's wheel cache would keep a second copy of every download.
+  "$VENV/bin/python" -m pip install -q --no-cache-dir --upgrade pip >/dev/null
+  "$VENV/bin/python" -m pip install -q --no-cache-dir -e "$ROOT[test,train]"
   echo "$want" > "$stamp"
 fi
