@@ -13,6 +13,7 @@
 //   'E'  uint16 peak stack bytes, uint16 static RAM                          (last)
 #include <Arduino.h>
 
+#include "bench_support.h"
 #include "delta6_residual.h"
 #include "generated/delta6_model.h"
 
@@ -26,41 +27,14 @@
 #define DELTA6_BENCH_RATE_HZ 250
 #endif
 
-extern char __bss_end;
-
 namespace {
 
 namespace m = delta6::model;
 namespace r = delta6::residual;
 
-constexpr uint8_t kStackPaint = 0xA5;
-
-inline void mark(uint8_t value) {
-    asm volatile("" ::: "memory");
-    GPIOR0 = value;
-    asm volatile("" ::: "memory");
-}
-
-void paint_stack() {
-    char* p = &__bss_end;
-    char* limit = reinterpret_cast<char*>(SP) - 16;
-    while (p < limit) *p++ = static_cast<char>(kStackPaint);
-}
-
-uint16_t peak_stack_bytes() {
-    const char* p = &__bss_end;
-    while (p < reinterpret_cast<const char*>(RAMEND) && *p == static_cast<char>(kStackPaint)) ++p;
-    return static_cast<uint16_t>(RAMEND - reinterpret_cast<uint16_t>(p) + 1);
-}
-
-uint16_t xorshift_state = 0xACE1u;
-
-uint16_t next_random() {
-    xorshift_state ^= static_cast<uint16_t>(xorshift_state << 7);
-    xorshift_state ^= static_cast<uint16_t>(xorshift_state >> 9);
-    xorshift_state ^= static_cast<uint16_t>(xorshift_state << 8);
-    return xorshift_state;
-}
+using bench::mark;
+using bench::next_random;
+using bench::send;
 
 // A step of -limit..limit from the high bits of the next random number.
 int16_t random_step(uint8_t bits) {
@@ -80,25 +54,16 @@ int16_t count_ring[m::kCountHistory ? 6 * m::kHistoryLength : 1];
 int16_t plays[m::kPlayCount ? 6 * m::kPlayCount : 1];
 r::State state = {wrench_ring, count_ring, plays, 0, 1, false};
 
-void send(const void* data, size_t size) {
-    Serial.write(static_cast<const uint8_t*>(data), size);
-}
-
-void header(char type) {
-    const uint8_t head[2] = {0xD6, static_cast<uint8_t>(type)};
-    send(head, sizeof head);
-}
-
 }  // namespace
 
 void setup() {
-    paint_stack();
+    bench::paint_stack();
     Serial.begin(DELTA6_BENCH_BAUD);
     r::configure(m::kModel, state, DELTA6_BENCH_RATE_HZ);
     const uint32_t hash = m::kHash;
     const uint16_t samples = DELTA6_BENCH_SAMPLES;
     const uint16_t rate = DELTA6_BENCH_RATE_HZ;
-    header('I');
+    bench::send_header('I');
     send(&hash, sizeof hash);
     send(&samples, sizeof samples);
     send(&rate, sizeof rate);
@@ -127,14 +92,14 @@ void setup() {
         } else {
             r::reset(state);
         }
-        header('S');
+        bench::send_header('S');
         send(&valid, 1);
         send(correction, sizeof correction);
         Serial.flush();
     }
-    const uint16_t peak = peak_stack_bytes();
+    const uint16_t peak = bench::peak_stack_bytes();
     const uint16_t ram = static_cast<uint16_t>(reinterpret_cast<uint16_t>(&__bss_end) - RAMSTART);
-    header('E');
+    bench::send_header('E');
     send(&peak, sizeof peak);
     send(&ram, sizeof ram);
     Serial.flush();

@@ -16,6 +16,7 @@
 #include <Arduino.h>
 #include <string.h>
 
+#include "bench_support.h"
 #include "delta6_solver.h"
 #include "generated/delta6_design.h"
 #ifdef DELTA6_BENCH_CALIBRATED
@@ -30,8 +31,6 @@
 #define DELTA6_BENCH_BAUD 115200
 #endif
 
-extern char __bss_end;  // end of static RAM (avr-libc linker scripts)
-
 #if defined(RAMSTART)
 #define DELTA6_RAM_START RAMSTART
 #else
@@ -45,43 +44,15 @@ constexpr uint8_t kMarkStop = 2;
 constexpr uint8_t kMarkCalibrateStart = 3;
 constexpr uint8_t kMarkCalibrateStop = 4;
 constexpr uint8_t kMarkEnd = 0xFF;
-constexpr uint8_t kStackPaint = 0xA5;
 
-// The memory clobbers keep the compiler from moving the solver's loads and stores (and so
-// its work, which sits between them) across a marker.
-inline void mark(uint8_t value) {
-    asm volatile("" ::: "memory");
-#ifdef GPIOR0
-    GPIOR0 = value;
-#else
-    (void)value;
-#endif
-    asm volatile("" ::: "memory");
-}
-
-// Fill the free RAM between static data and the current stack with a pattern; the lowest
-// overwritten byte afterwards gives the deepest stack use.
-void paint_stack() {
-    char* p = &__bss_end;
-    char* limit = reinterpret_cast<char*>(SP) - 16;  // stay clear of this function's frame
-    while (p < limit) *p++ = static_cast<char>(kStackPaint);
-}
-
-uint16_t peak_stack_bytes() {
-    const char* p = &__bss_end;
-    while (p < reinterpret_cast<const char*>(RAMEND) && *p == static_cast<char>(kStackPaint)) ++p;
-    return static_cast<uint16_t>(RAMEND - reinterpret_cast<uint16_t>(p) + 1);
-}
-
-uint16_t xorshift_state = 0xACE1u;
+using bench::mark;
+using bench::send_header;
 
 // Uniform-ish in [-limit, limit] from a 16-bit xorshift (the same points on every run).
 int16_t random_delta(int16_t limit) {
-    xorshift_state ^= static_cast<uint16_t>(xorshift_state << 7);
-    xorshift_state ^= static_cast<uint16_t>(xorshift_state >> 9);
-    xorshift_state ^= static_cast<uint16_t>(xorshift_state << 8);
+    const uint16_t r = bench::next_random();
     const uint32_t span = 2u * static_cast<uint32_t>(limit) + 1u;
-    return static_cast<int16_t>(static_cast<int32_t>((xorshift_state * span) >> 16) - limit);
+    return static_cast<int16_t>(static_cast<int32_t>((r * span) >> 16) - limit);
 }
 
 #ifdef DELTA6_BENCH_CALIBRATED
@@ -129,15 +100,6 @@ uint8_t solve(const int16_t delta[6], float wrench[6]) {
 }
 #endif
 
-void send_header(char type) {
-    const uint8_t head[2] = {0xD6, static_cast<uint8_t>(type)};
-    Serial.write(head, sizeof head);
-}
-
-void send_bytes(const void* data, size_t size) {
-    Serial.write(static_cast<const uint8_t*>(data), size);
-}
-
 void send_info() {
     char name[24];
     memset(name, 0, sizeof name);
@@ -145,16 +107,16 @@ void send_info() {
     const uint32_t hash = delta6::design::kHash;
     const uint16_t solves = DELTA6_BENCH_SOLVES;
     send_header('I');
-    send_bytes(&hash, sizeof hash);
-    send_bytes(&solves, sizeof solves);
-    send_bytes(name, sizeof name);
+    bench::send(&hash, sizeof hash);
+    bench::send(&solves, sizeof solves);
+    bench::send(name, sizeof name);
 }
 
 void send_solve(const int16_t delta[6], uint8_t status, const float wrench[6]) {
     send_header('S');
-    send_bytes(delta, 6 * sizeof(int16_t));
-    send_bytes(&status, 1);
-    send_bytes(wrench, 6 * sizeof(float));
+    bench::send(delta, 6 * sizeof(int16_t));
+    bench::send(&status, 1);
+    bench::send(wrench, 6 * sizeof(float));
     Serial.flush();  // nothing may interrupt the next timed solve
 }
 
@@ -162,15 +124,15 @@ void send_end(uint16_t peak_stack) {
     const uint16_t static_ram = static_cast<uint16_t>(reinterpret_cast<uint16_t>(&__bss_end) -
                                                       DELTA6_RAM_START);
     send_header('E');
-    send_bytes(&peak_stack, sizeof peak_stack);
-    send_bytes(&static_ram, sizeof static_ram);
+    bench::send(&peak_stack, sizeof peak_stack);
+    bench::send(&static_ram, sizeof static_ram);
     Serial.flush();
 }
 
 }  // namespace
 
 void setup() {
-    paint_stack();
+    bench::paint_stack();
     Serial.begin(DELTA6_BENCH_BAUD);
     send_info();
     uint8_t sreg = SREG;
@@ -195,7 +157,7 @@ void setup() {
         SREG = sreg;
         send_solve(delta, status, wrench);
     }
-    send_end(peak_stack_bytes());
+    send_end(bench::peak_stack_bytes());
     mark(kMarkEnd);
 }
 
