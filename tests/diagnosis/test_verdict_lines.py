@@ -61,3 +61,13 @@ def test_a_minor_family_reports_what_it_removes_alone():
          "share_alone": 0.012}]}
     (line,) = [x for x in verdict_lines(result) if "encoder_offset" in x]
     assert "3.0 % of the gap" in line and "1.2 % alone" in line
+    assert "neighbours" in line and "signature" not in line
+
+
+def test_a_confirmed_but_small_family_says_its_signature_shows_it():
+    result = {**_result(None), "minor": [
+        {"name": "backlash", "share_of_gap": 0.006, "share_with_traded": 0.006,
+         "share_alone": 0.048, "confirmed": True}]}
+    (line,) = [x for x in verdict_lines(result) if "backlash" in x]
+    assert "0.6 % of the gap" in line and "4.8 % alone" in line
+    assert "signature shows it" in line and "neighbours" not in line

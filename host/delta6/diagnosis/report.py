@@ -152,9 +152,10 @@ def verdict_lines(result: dict) -> list[str]:
         share = m.get("share_with_traded", m["share_of_gap"])
         alone = m.get("share_alone")
         also = "" if alone is None else f" and removes {100 * alone:.1f} % alone"
+        why = ("its own signature shows it, but it is too small to name" if m.get("confirmed")
+               else "in the ladder, but too little to tell it from its neighbours")
         lines.append(f"- Not named: {m['name']} carries only {100 * share:.1f} % "
-                     f"of the gap (with the families it trades with){also}: in the ladder, "
-                     "but too little to tell it from its neighbours.")
+                     f"of the gap (with the families it trades with){also}: {why}.")
     for sp in result.get("straight_part", []):
         lines.append(f"- Not named: {sp['name']} is the straight-line part of "
                      f"{sp['straight_part_of']} (a stiffening with the nominal rate at rest "

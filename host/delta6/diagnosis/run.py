@@ -100,16 +100,25 @@ def group_shares(problem: selection.Problem, chosen: list[str], base_sse: float,
     return out
 
 
-def minor_families(steps: list[dict], traded: dict, alone: dict, eligible) -> list[dict]:
+def minor_families(steps: list[dict], traded: dict, alone: dict, eligible,
+                   confirmed=frozenset()) -> list[dict]:
     """The ladder's families of ``eligible`` (named so far) that carry less than
     ``NAME_SHARE`` of the gap with the families they trade with (``traded``, from
     :func:`group_shares` with refinements), or less than ``SMALL_SHARE`` both so and on
-    their own (``alone``: the share each removes alone), in ladder order."""
+    their own (``alone``: the share each removes alone), in ladder order. A family of
+    ``confirmed`` (its own signature shows it) is told from its neighbours whatever they
+    trade: only the second test applies to it, for it asks whether the effect matters."""
+    def small(name):
+        return max(traded[name], alone[name]) < SMALL_SHARE
+
+    def trading(name):
+        return name not in confirmed and traded[name] < NAME_SHARE
+
     return [{"name": s["added"], "share_of_gap": s["share_of_gap"],
-             "share_with_traded": traded[s["added"]], "share_alone": alone[s["added"]]}
+             "share_with_traded": traded[s["added"]], "share_alone": alone[s["added"]],
+             "confirmed": s["added"] in confirmed}
             for s in steps if s["added"] in eligible
-            and (traded[s["added"]] < NAME_SHARE
-                 or max(traded[s["added"]], alone[s["added"]]) < SMALL_SHARE)]
+            and (trading(s["added"]) or small(s["added"]))]
 
 
 def names_together(minor: list[dict], together: float) -> bool:
@@ -644,10 +653,11 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
             confirmed | first_explanation(alone, base_sse, info["forward"], chosen, traded))
     unnamed = {p["name"] for p in partial}
     # A family that carries too little of the gap, with the families it trades with, to
-    # tell it from its neighbours' trading is not named either (a family its own signature
-    # confirms is spared, as above).
+    # tell it from its neighbours' trading is not named either; nor one that carries too
+    # little to matter, even where its own signature confirms it (a play of a few counts
+    # in a mix whose gap is elsewhere).
     minor = minor_families(steps, traded, alone_share,
-                           [n for n in kept if n not in unnamed and n not in confirmed])
+                           [n for n in kept if n not in unnamed], confirmed)
     named_rest = [n for n in chosen if n in kept and n not in unnamed
                   and n not in {m["name"] for m in minor}]
     if minor and not named_rest and chosen:
