@@ -21,6 +21,9 @@ from delta6.core.paths import DEFAULT_DESIGN, DESIGNS_DIR  # noqa: F401  (re-exp
 #: Longest name of a design, calibration or on-chip model: the device-info record carries each
 #: in a 24-byte field, NUL-terminated.
 MAX_NAME_CHARS = 23
+#: The highest sample rate a Delta6 can be asked for, and an on-chip model trained at: a u16 in
+#: the protocol's START and in the model header (delta6::residual::Model::rate_hz).
+MAX_RATE_HZ = 0xFFFF
 
 #: The design the tools use when none is given: the paper's Delta6.
 #: Joint range of every encoder, both signs, in radians (the paper samples [-pi/6, pi/6]).
