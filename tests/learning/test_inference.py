@@ -188,3 +188,33 @@ def test_the_stream_command_shows_the_learned_wrench(tiny_models, capsys):
     assert main(["stream", "--port", "delta6sim://", "--model", str(tiny_models["mlp"][0]),
                  "--rate", "200"]) == 2
     assert "trained on samples at 50 Hz" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("back", [0.0, 5.0])
+def test_time_that_does_not_go_forward_starts_a_new_window(tiny_models, baseline, unit_logs,
+                                                           back):
+    # A device restart (or a new session) counts time afresh: the window before it is another
+    # run's, in the batch and in the stream alike.
+    log = read_log(unit_logs[1])
+    t, theta = log.t[:200].copy(), log.theta[:200].copy()
+    t[120:] -= t[120] - t[119] + back      # row 120 at or before row 119's time
+    est = LearnedEstimator(tiny_models["mlp"][0], design=baseline)
+    batch = est.predict_arrays(t, theta)
+    fresh = est.predict_arrays(t[120:], theta[120:])
+    assert np.allclose(batch[120:], fresh, rtol=0, atol=1e-9)
+    live = est.streaming()
+    stream = np.array([live.update(ti, row) for ti, row in zip(t, theta)])
+    scale = np.nanmax(np.abs(batch), axis=0)
+    assert np.nanmax(np.abs(stream - batch) / scale) < 1e-6
+
+
+def test_a_new_device_session_starts_a_new_window(tiny_models, baseline, unit_logs):
+    log = read_log(unit_logs[1])
+    t, theta = log.t[:100], log.theta[:100]
+    est = LearnedEstimator(tiny_models["mlp"][0], design=baseline)
+    live = est.streaming()
+    session = np.repeat([3, 4], [60, 40])       # the device restarted; its clock did not
+    got = np.vstack([live.update_block(t[:30], theta[:30], session[:30]),
+                     live.update_block(t[30:], theta[30:], session[30:])])
+    assert np.allclose(got[60:], est.predict_arrays(t[60:], theta[60:]), rtol=0, atol=1e-9)
+    assert np.allclose(got[:60], est.predict_arrays(t[:60], theta[:60]), rtol=0, atol=1e-9)

@@ -27,12 +27,19 @@ def nominal_rate(t: np.ndarray) -> float:
     return float(1.0 / np.median(np.diff(t)))
 
 
+def new_segment(step, rate_hz: float) -> np.ndarray:
+    """Whether a time step (s) between two samples begins a new segment: longer than
+    ``GAP_PERIODS`` periods (lost samples), or not forward at all (a device restart or a new
+    session counts its time afresh)."""
+    step = np.asarray(step, dtype=float)
+    return ~((step > 0) & (step <= GAP_PERIODS / rate_hz))
+
+
 def segment_starts(t: np.ndarray, rate_hz: float) -> np.ndarray:
-    """Index of the first row of each row's contiguous segment, (n,) int: a step longer than
-    ``GAP_PERIODS`` periods (lost samples, a restart) begins a new segment."""
+    """Index of the first row of each row's contiguous segment, (n,) int (:func:`new_segment`)."""
     t = np.asarray(t, dtype=float)
     brk = np.ones(len(t), dtype=bool)
-    brk[1:] = np.diff(t) > GAP_PERIODS / rate_hz
+    brk[1:] = new_segment(np.diff(t), rate_hz)
     return np.maximum.accumulate(np.where(brk, np.arange(len(t)), 0))
 
 
