@@ -119,3 +119,23 @@ def test_two_streams_on_one_estimator_are_each_the_batch(hybrid, baseline, unit_
     streams[0].reset()
     again = np.array([streams[0].update(t, th) for t, th in zip(*a)])
     assert np.nanmax(np.abs(again - want[0]) / np.nanmax(np.abs(want[0]), axis=0)) < 1e-6
+
+
+def test_the_calibration_hash_is_read_as_a_number_and_required(hybrid, baseline, tmp_path):
+    import onnx
+    path, cal, _ = hybrid
+    for value, ok in ((f"0x{cal.hash32():08X}", True), (None, False)):
+        proto = onnx.load(str(path))
+        for entry in list(proto.metadata_props):
+            if entry.key == "delta6.calibration_hash":
+                if value is None:
+                    proto.metadata_props.remove(entry)
+                else:
+                    entry.value = value
+        changed = tmp_path / f"h{ok}.onnx"
+        onnx.save(proto, str(changed))
+        if ok:      # upper-case digits are the same hash
+            LearnedEstimator(changed, design=baseline, calibration=cal)
+        else:
+            with pytest.raises(ModelFileError, match="delta6.calibration_hash is missing"):
+                LearnedEstimator(changed, design=baseline, calibration=cal)

@@ -111,13 +111,19 @@ class Normalisation:
         for k, v in values.items():
             if len(v) != 6 or not all(np.isfinite(v)):
                 raise ValueError(f"{k} must be six finite numbers")
-            if k.endswith("scale") and min(v) <= 0:
-                raise ValueError(f"{k} must be positive")
+            if k.endswith("scale") and not all(NO_SPREAD <= x <= MAX_MAGNITUDE for x in v):
+                # a fit never writes a spread under NO_SPREAD (it keeps 1 there)
+                raise ValueError(f"{k} must lie in {NO_SPREAD:g}..{MAX_MAGNITUDE:g}")
+            if not all(abs(x) <= MAX_MAGNITUDE for x in v):
+                raise ValueError(f"{k} must lie in -{MAX_MAGNITUDE:g}..{MAX_MAGNITUDE:g}")
         return cls(**values)
 
 
 #: A spread below this is rounding, not motion (rad, N, N*m): such a column keeps scale 1.
 NO_SPREAD = 1e-9
+#: Largest mean or spread a file may give (rad, N, N*m): beyond it the numbers are not a
+#: sensor's (they would overflow the tables, or divide the angles to nothing).
+MAX_MAGNITUDE = 1e6
 
 
 def _spread(x: np.ndarray) -> np.ndarray:
