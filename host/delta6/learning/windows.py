@@ -27,6 +27,23 @@ def nominal_rate(t: np.ndarray) -> float:
     return float(1.0 / np.median(np.diff(t)))
 
 
+#: A step this far (either way) from a log's median step is at another rate, not jitter.
+OFF_RATE = 0.25
+#: A log with more of its steps off its median rate than this gets a note from the commands
+#: that score a model on it (the window, or an on-chip model's stride, assumes one rate).
+OFF_RATE_SHARE = 0.1
+
+
+def off_rate_share(t: np.ndarray) -> float:
+    """Share of a log's time steps more than ``OFF_RATE`` away from its median step (where
+    :func:`nominal_rate` comes from): a mixed-rate log, or one that lost many samples."""
+    steps = np.diff(np.asarray(t, dtype=float))
+    if len(steps) == 0:
+        return 0.0
+    ratio = steps / np.median(steps)
+    return float(np.mean((ratio < 1 - OFF_RATE) | (ratio > 1 + OFF_RATE)))
+
+
 def new_segment(step, rate_hz: float) -> np.ndarray:
     """Whether a time step (s) between two samples begins a new segment: longer than
     ``GAP_PERIODS`` periods (lost samples), or not forward at all (a device restart or a new
