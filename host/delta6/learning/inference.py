@@ -152,5 +152,6 @@ class LearnedEstimator:
         return self.predict_arrays(log.t, log.theta)
 
     def streaming(self) -> StreamingEstimator:
-        """A fresh sample-by-sample estimator on this model (its own window)."""
+        """A fresh sample-by-sample estimator on this model (its own window and its own copy of
+        the base, whose state it carries)."""
         return StreamingEstimator(self)
