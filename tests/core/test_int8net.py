@@ -189,3 +189,53 @@ def test_fuzzed_model_bytes_never_escape_as_other_errors(data):
         residualmodel.loads(data.decode("utf-8", "replace"), "fuzz")
     except UserError:
         pass
+
+
+@pytest.mark.parametrize("name", ["../../../../q", "a/b", 'a"b', "a\\b", "a??/b", "", " ",
+                                  "x" * 24, "-lead", "caf\u00e9"])
+def test_a_model_name_follows_the_design_name_rule(name):
+    # The name becomes a build folder's name (build/designs/DESIGN+NAME-HASH/) and a C string.
+    text = residualmodel.dumps(_model(random_int8net(np.random.default_rng(6))))
+    data = json.loads(text)
+    data["name"] = name
+    with pytest.raises(residualmodel.ModelFileError, match="m.json: name .*(may hold only|must)"):
+        residualmodel.loads(json.dumps(data), "m.json")
+
+
+def _tampered(change):
+    data = json.loads(residualmodel.dumps(_model(random_int8net(np.random.default_rng(6)))))
+    change(data)
+    return json.dumps(data)
+
+
+def _set(path, value):
+    def change(data):
+        *parents, last = path
+        for key in parents:
+            data = data[key]
+        data[last] = value
+    return change
+
+
+@pytest.mark.parametrize("change, words", [
+    (_set(["network", "features", 0, "param"], 1.7), "feature 1 param must be an integer"),
+    (_set(["network", "features", 0, "param"], "1"), "feature 1 param must be an integer"),
+    (_set(["network", "rate_hz"], "50"), "rate_hz must be a number"),
+    (_set(["network", "rate_hz"], 1e9), "rate_hz must be a whole number of Hz in 1..65535"),
+    (_set(["network", "rate_hz"], 50.5), "rate_hz must be a whole number"),
+    (_set(["network", "input_scale"], ["1"] * 6), "input_scale must be six numbers"),
+    (_set(["network", "input_scale"], [1e12] * 6), "input_scale must lie in"),
+    (_set(["network", "output_step"], [1e37] * 6), "output_step: 32767 steps"),
+    (_set(["network", "layers", 0, "relu"], "yes"), "layer 1 relu must be true or false"),
+    (_set(["training"], [1]), "training must be a JSON object"),
+    (_set(["design", "hash"], 123), "design hash must be a hex string"),
+    (_set(["extra"], 1), "unknown key 'extra' in the model"),
+    (_set(["network", "layers", 0, "dropout"], 0), "unknown key 'dropout' in layer 1"),
+    (_set(["design", "name"], "../x"), "design name"),
+    (lambda d: d["network"]["layers"][0]["weights"].pop(), "rows of weights but"),
+    (lambda d: d["network"]["layers"][0]["weights"][0].pop(), "rectangular table"),
+])
+def test_model_files_are_read_strictly(change, words):
+    with pytest.raises(residualmodel.ModelFileError) as info:
+        residualmodel.loads(_tampered(change), "m.json")
+    assert words in str(info.value) and "\n" not in str(info.value), info.value

@@ -207,3 +207,29 @@ def test_core_sources_write_no_wire_numbers_themselves():
     # Records and the blob are built field by field (putU16 and friends index their bytes).
     device = (core / "delta6_device.cpp").read_text(encoding="utf-8")
     assert not re.findall(r"\b(?:p|blob)\[\d+\]", device)
+
+
+def test_build_with_a_header_elsewhere_is_refused_before_writing(tmp_path, capsys):
+    header = tmp_path / "x.h"
+    assert main(["codegen", str(DESIGNS / "delta6.toml"), "-o", str(header), "--build"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "--build needs the header at" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("name", ["../../../../q", 'a"b', "a\\b", "a??/b"])
+def test_a_model_named_like_a_path_or_a_c_escape_is_refused(tmp_path, capsys, name):
+    # The model's name becomes the build folder's name and a C string (codegen --build).
+    import json
+
+    from support.onchip import calibration_and_model
+    _, cal_path, _, model_path = calibration_and_model(load(DESIGNS / "delta6.toml"), tmp_path)
+    data = json.loads(model_path.read_text())
+    data["name"] = name
+    model_path.write_text(json.dumps(data))
+    header = tmp_path / "out" / "generated" / "delta6_design.h"
+    assert main(["codegen", str(DESIGNS / "delta6.toml"), "--calibration", str(cal_path),
+                 "--model", str(model_path), "-o", str(header)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "name" in err and "may hold only" in err, err
+    assert not (tmp_path / "out").exists()

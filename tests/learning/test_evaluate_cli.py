@@ -75,3 +75,23 @@ def test_a_device_log_is_refused_where_a_reference_is_needed(tmp_path, capsys):
         assert main(argv) == 2, argv
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and "device's own model output" in err, (argv, err)
+
+
+def test_a_log_partly_at_another_rate_gets_a_note(tmp_path, tiny_models, unit_logs, capsys):
+    # Its median step is the model's; a third of it at half the rate is not (the window then
+    # spans twice the time there).
+    from delta6.link.logfile import open_log_writer
+    log = read_log(unit_logs[1])
+    t = log.t.copy()
+    n = len(t) // 3
+    t[-n:] = t[-n - 1] + 2 * (t[-n:] - t[-n - 1])
+    mixed = tmp_path / "mixed.csv"
+    with open_log_writer(mixed, {k: v for k, v in log.meta.items() if k != "schema"}) as w:
+        w.write_block(t, log.theta, log.wrench)
+    model = str(tiny_models["mlp"][0])
+    for path, noted in ((unit_logs[1], False), (mixed, True)):
+        capsys.readouterr()
+        assert main(["evaluate", str(path), "--model", model]) == 0
+        err = capsys.readouterr().err
+        assert ("of the log's time steps are more than 25% away from its median step" in err) \
+            == noted, err

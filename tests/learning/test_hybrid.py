@@ -96,3 +96,46 @@ def test_commands_train_and_evaluate_it_over_the_calibration(tmp_path, hybrid, u
     assert main(["train", str(unit_logs[0]), "--model", "mlp", "--residual-over", "nothing.txt",
                  "-o", str(model)]) == 2
     assert "'analytical' or a calibration file" in capsys.readouterr().err
+
+
+def test_two_streams_on_one_estimator_are_each_the_batch(hybrid, baseline, unit_logs):
+    # Each stream carries its own calibration state: fed in turns, neither sees the other's
+    # samples.
+    path, cal, _ = hybrid
+    est = LearnedEstimator(path, design=baseline, calibration=cal)
+    log = read_log(unit_logs[1])
+    a = (log.t[:200], log.theta[:200])
+    b = (log.t[200:400] - log.t[200], log.theta[200:400])
+    want = [est.predict_arrays(*a), est.predict_arrays(*b)]
+    streams = [est.streaming(), est.streaming()]
+    got = [[], []]
+    for i in range(200):
+        for k, (t, theta) in enumerate((a, b)):
+            got[k].append(streams[k].update(t[i], theta[i]))
+    for k in (0, 1):
+        scale = np.nanmax(np.abs(want[k]), axis=0)
+        assert np.nanmax(np.abs(np.array(got[k]) - want[k]) / scale) < 1e-6, k
+    # a reset starts that stream afresh, and only that one
+    streams[0].reset()
+    again = np.array([streams[0].update(t, th) for t, th in zip(*a)])
+    assert np.nanmax(np.abs(again - want[0]) / np.nanmax(np.abs(want[0]), axis=0)) < 1e-6
+
+
+def test_the_calibration_hash_is_read_as_a_number_and_required(hybrid, baseline, tmp_path):
+    import onnx
+    path, cal, _ = hybrid
+    for value, ok in ((f"0x{cal.hash32():08X}", True), (None, False)):
+        proto = onnx.load(str(path))
+        for entry in list(proto.metadata_props):
+            if entry.key == "delta6.calibration_hash":
+                if value is None:
+                    proto.metadata_props.remove(entry)
+                else:
+                    entry.value = value
+        changed = tmp_path / f"h{ok}.onnx"
+        onnx.save(proto, str(changed))
+        if ok:      # upper-case digits are the same hash
+            LearnedEstimator(changed, design=baseline, calibration=cal)
+        else:
+            with pytest.raises(ModelFileError, match="delta6.calibration_hash is missing"):
+                LearnedEstimator(changed, design=baseline, calibration=cal)

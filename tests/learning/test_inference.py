@@ -2,6 +2,7 @@
 and nothing on the inference path needs torch."""
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -84,6 +85,32 @@ def foreign_model(path, shape=(1, 25, 6), props=None):
     return path
 
 
+def graph_model(path, props, *, dtype=TensorProto.FLOAT, batch="N", out_dtype=None,
+                reshape=None):
+    """A graph of the right rank that averages the window: (batch, 25, 6) -> (batch, 6), with
+    the input of ``dtype``, the batch fixed if ``batch`` is a number, the output cast to
+    ``out_dtype``, or ``reshape`` (the window to that fixed shape first)."""
+    x = helper.make_tensor_value_info("x", dtype, [batch, 25, 6])
+    nodes, inits, last = [], [], "x"
+    if reshape is not None:
+        inits.append(helper.make_tensor("shape", TensorProto.INT64, [len(reshape)], reshape))
+        nodes.append(helper.make_node("Reshape", ["x", "shape"], ["r"]))
+        last = "r"
+    nodes.append(helper.make_node("ReduceMean", [last], ["m"], axes=[-2], keepdims=0))
+    last = "m"
+    if out_dtype is not None:
+        nodes.append(helper.make_node("Cast", ["m"], ["c"], to=out_dtype))
+        last = "c"
+    y = helper.make_tensor_value_info(last, out_dtype or dtype, [batch, 6])
+    graph = helper.make_graph(nodes, "g", [x], [y], initializer=inits)
+    proto = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    for key, value in props.items():
+        entry = proto.metadata_props.add()
+        entry.key, entry.value = key, value
+    onnx.save(proto, str(path))
+    return path
+
+
 def bad_files(tmp_path, good):
     """(file, words its one-line refusal contains)."""
     data = good.read_bytes()
@@ -103,15 +130,37 @@ def bad_files(tmp_path, good):
     out.append((foreign_model(tmp_path / "foreign.onnx"), "not a Delta6 learned estimator"))
     out.append((foreign_model(tmp_path / "shape.onnx", props=card),
                 "does not take (batch, 25, 6) windows"))
+    for name, options, words in (
+            ("double", {"dtype": TensorProto.DOUBLE}, "input is tensor(double)"),
+            ("half", {"dtype": TensorProto.FLOAT16}, "input is tensor(float16)"),
+            ("int64-out", {"out_dtype": TensorProto.INT64}, "output is tensor(int64)"),
+            ("double-out", {"out_dtype": TensorProto.DOUBLE}, "output is tensor(double)"),
+            ("batch-1", {"batch": 1}, "does not take (batch, 25, 6) windows")):
+        out.append((graph_model(tmp_path / f"{name}.onnx", card, **options), words))
+    norm = json.loads(card["delta6.normalisation"])
     for key, value, words in (("delta6.normalisation", "{", "normalisation is unusable"),
                               ("delta6.window", "-3", "window must be"),
                               ("delta6.schema", "delta6-learned/99", "not supported"),
-                              ("delta6.kind", "cnn", "names no known model")):
+                              ("delta6.kind", "cnn", "names no known model"),
+                              ("delta6.training", "[1]", "training must be a JSON object"),
+                              ("delta6.design_hash", "0x1234567890", "does not fit 32 bits"),
+                              ("delta6.calibration_hash", "0x12345678",
+                               "calibration_hash belongs to a model over a calibration"),
+                              ("delta6.colour", "blue", "delta6.colour is not a key"),
+                              ("delta6.normalisation",
+                               json.dumps({**norm, "theta_scale": [1e-300] * 6}),
+                               "theta_scale must lie in 1e-09..1e+06"),
+                              ("delta6.normalisation",
+                               json.dumps({**norm, "target_scale": [1e300] * 6}),
+                               "target_scale must lie in 1e-09..1e+06")):
         proto = onnx.load(str(good))
         for entry in proto.metadata_props:
             if entry.key == key:
                 entry.value = value
-        path = tmp_path / f"tampered-{key.split('.')[1]}.onnx"
+        if key not in card:
+            entry = proto.metadata_props.add()
+            entry.key, entry.value = key, value
+        path = tmp_path / f"tampered-{key.split('.')[1]}-{len(out)}.onnx"
         onnx.save(proto, str(path))
         out.append((path, words))
     return out
@@ -188,3 +237,44 @@ def test_the_stream_command_shows_the_learned_wrench(tiny_models, capsys):
     assert main(["stream", "--port", "delta6sim://", "--model", str(tiny_models["mlp"][0]),
                  "--rate", "200"]) == 2
     assert "trained on samples at 50 Hz" in capsys.readouterr().err
+
+
+def test_a_graph_that_fails_to_run_is_one_line(tmp_path, tiny_models, baseline, unit_logs):
+    # Right types and shapes on paper, but it runs only batches of a multiple of 7 windows.
+    card = {p.key: p.value for p in onnx.load(str(tiny_models["mlp"][0])).metadata_props}
+    path = graph_model(tmp_path / "one.onnx", card, reshape=[-1, 7, 6])
+    est = LearnedEstimator(path, design=baseline)
+    log = read_log(unit_logs[1])
+    with pytest.raises(ModelFileError) as err:
+        est.predict_arrays(log.t[:5], log.theta[:5])
+    assert "one.onnx: the model fails to run" in str(err.value) and "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("back", [0.0, 5.0])
+def test_time_that_does_not_go_forward_starts_a_new_window(tiny_models, baseline, unit_logs,
+                                                           back):
+    # A device restart (or a new session) counts time afresh: the window before it is another
+    # run's, in the batch and in the stream alike.
+    log = read_log(unit_logs[1])
+    t, theta = log.t[:200].copy(), log.theta[:200].copy()
+    t[120:] -= t[120] - t[119] + back      # row 120 at or before row 119's time
+    est = LearnedEstimator(tiny_models["mlp"][0], design=baseline)
+    batch = est.predict_arrays(t, theta)
+    fresh = est.predict_arrays(t[120:], theta[120:])
+    assert np.allclose(batch[120:], fresh, rtol=0, atol=1e-9)
+    live = est.streaming()
+    stream = np.array([live.update(ti, row) for ti, row in zip(t, theta)])
+    scale = np.nanmax(np.abs(batch), axis=0)
+    assert np.nanmax(np.abs(stream - batch) / scale) < 1e-6
+
+
+def test_a_new_device_session_starts_a_new_window(tiny_models, baseline, unit_logs):
+    log = read_log(unit_logs[1])
+    t, theta = log.t[:100], log.theta[:100]
+    est = LearnedEstimator(tiny_models["mlp"][0], design=baseline)
+    live = est.streaming()
+    session = np.repeat([3, 4], [60, 40])       # the device restarted; its clock did not
+    got = np.vstack([live.update_block(t[:30], theta[:30], session[:30]),
+                     live.update_block(t[30:], theta[30:], session[30:])])
+    assert np.allclose(got[60:], est.predict_arrays(t[60:], theta[60:]), rtol=0, atol=1e-9)
+    assert np.allclose(got[:60], est.predict_arrays(t[:60], theta[:60]), rtol=0, atol=1e-9)

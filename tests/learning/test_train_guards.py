@@ -134,3 +134,28 @@ def test_an_end_to_end_summary_shows_the_analytical_model(tmp_path, unit_logs, c
     assert "analytical" in text
     # One epoch of an end-to-end network is far from the physics: the summary says so.
     assert "worse than the analytical model" in text
+
+
+@pytest.mark.parametrize("name", ["../../../../q", 'a"b', "a\\b", "a??/b", "two words"])
+def test_a_name_that_is_no_folder_or_c_string_is_refused_before_the_work(tmp_path, capsys,
+                                                                          name):
+    # One rule for design, calibration and model names (design.name_problem): each becomes
+    # folder names and a C string.
+    log = str(tmp_path / "none.csv")        # the name is refused before the log is read
+    for argv in (["train", log, "--target", "mcu", "--name", name, "-o",
+                  str(tmp_path / "m.json")],
+                 ["calibrate", log, "--name", name, "-o", str(tmp_path / "c.toml")]):
+        capsys.readouterr()
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "--name" in err and "may hold only" in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_host_model_is_written_only_as_onnx(tmp_path, unit_logs, capsys):
+    out = tmp_path / "model.json"
+    assert main(["train", str(unit_logs[0]), "--model", "mlp", "--epochs", "1", "--quiet",
+                 "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "MODEL.onnx" in err and "epoch" not in err, err
+    assert not out.exists()

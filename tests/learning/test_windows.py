@@ -102,7 +102,17 @@ def test_standardised_training_rows_have_zero_mean_and_unit_spread(seed, n, spre
     ('{"theta_mean": [0,0,0,0,0], "theta_scale": [1,1,1,1,1,1], "delta_scale": [1,1,1,1,1,1],'
      ' "target_mean": [0,0,0,0,0,0], "target_scale": [1,1,1,1,1,1]}', "six"),
     ('{"theta_mean": [0,0,0,0,0,0], "theta_scale": [1,1,1,1,1,0], "delta_scale": [1,1,1,1,1,1],'
-     ' "target_mean": [0,0,0,0,0,0], "target_scale": [1,1,1,1,1,1]}', "positive"),
+     ' "target_mean": [0,0,0,0,0,0], "target_scale": [1,1,1,1,1,1]}', "theta_scale must lie"),
+    # implausible scales: a numpy warning then a misleading message, or a 300-digit table cell
+    ('{"theta_mean": [0,0,0,0,0,0], "theta_scale": [1,1,1,1,1,1e-300], "delta_scale": '
+     '[1,1,1,1,1,1], "target_mean": [0,0,0,0,0,0], "target_scale": [1,1,1,1,1,1]}',
+     r"theta_scale must lie in 1e-09\.\.1e\+06"),
+    ('{"theta_mean": [0,0,0,0,0,0], "theta_scale": [1,1,1,1,1,1], "delta_scale": '
+     '[1,1,1,1,1,1], "target_mean": [0,0,0,0,0,0], "target_scale": [1,1,1,1,1,1e300]}',
+     "target_scale must lie in"),
+    ('{"theta_mean": [0,0,0,0,0,0], "theta_scale": [1,1,1,1,1,1], "delta_scale": '
+     '[1,1,1,1,1,1], "target_mean": [0,0,0,0,0,1e300], "target_scale": [1,1,1,1,1,1]}',
+     "target_mean must lie in"),
 ])
 def test_normalisation_from_bad_json_is_refused(text, message):
     with pytest.raises((KeyError, ValueError), match=message):

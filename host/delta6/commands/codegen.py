@@ -189,6 +189,8 @@ def run(args: argparse.Namespace) -> int:
     out = output_path(args, headers.design, headers.cal, headers.model)
     if args.output is not None:      # (its folder is made: generated/ next to the firmware)
         check_not_an_input(out, "-o", [args.design, args.calibration, args.model])
+    if args.build:
+        include_dir_of(out)     # a usage error: said before any header is written
     if args.check:
         return _check(args, out, headers.text, {out.with_name(CALIBRATION_HEADER): headers.cal_text,
                                                 out.with_name(MODEL_HEADER): headers.model_text})

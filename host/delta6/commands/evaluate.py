@@ -21,6 +21,7 @@ from delta6.evaluation import tablev
 from delta6.evaluation.error_plot import check_plot_path, plot_errors
 from delta6.learning import LearnedEstimator
 from delta6.learning.mcu import McuEstimator
+from delta6.learning.windows import OFF_RATE, OFF_RATE_SHARE, nominal_rate, off_rate_share
 from delta6.link.logdata import require_reference_wrench, unchecked_design_notes
 from delta6.link.logfile import read_log
 
@@ -84,6 +85,17 @@ class Computed:
         return self.estimate
 
 
+def mixed_rate_note(t) -> str | None:
+    """A line when much of the log is at another rate than its median step's, the rate a
+    model's window (or an on-chip model's stride) is matched to."""
+    share = off_rate_share(t)
+    if share <= OFF_RATE_SHARE:
+        return None
+    return (f"note: {share:.0%} of the log's time steps are more than {OFF_RATE:.0%} away from "
+            f"its median step ({nominal_rate(t):.4g} Hz): the models see those windows at "
+            "another rate than they were made for (a mixed-rate log, or many lost samples)")
+
+
 def rig_latency(args, cal) -> float:
     """The latency the reference is advanced by (0: the recorded reference)."""
     if args.rig_latency is None:
@@ -126,6 +138,10 @@ def run(args: argparse.Namespace) -> int:
     cal = calibration_mod.load(args.calibration) if args.calibration else None
     latency = rig_latency(args, cal)
     rows = [Computed(e.name, e.predict(log)) for e in estimators(args, design, log, cal)]
+    if args.model:
+        note = mixed_rate_note(log.t)
+        if note:
+            print(note, file=sys.stderr)
     result = tablev.table(rows, log, design, rig_latency_s=latency)
     if args.json:
         try:

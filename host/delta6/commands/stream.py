@@ -199,7 +199,7 @@ def run(args: argparse.Namespace) -> int:
                 flags += flagged(block.status)
                 if learned is not None:
                     block = dataclasses.replace(
-                        block, wrench=learned.update_block(block.t, block.theta))
+                        block, wrench=learned.update_block(block.t, block.theta, block.session))
                 if live is not None:
                     live.publish(block)
                 if args.format == "csv":

@@ -9,6 +9,7 @@ from pathlib import Path
 from delta6.commands._port import Progress, number
 from delta6.core import calibration as calibration_mod
 from delta6.core.accuracy import format_table
+from delta6.core.design import name_problem
 from delta6.core.errors import UserError
 from delta6.core.model import AXES
 from delta6.core.outputs import check_output_file
@@ -60,7 +61,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "linear map (default 16 over analytical; over a calibration a "
                              "linear map of the counts)")
     parser.add_argument("--name", help=f"--target mcu: model name, at most {MAX_NAME} characters "
-                                       "(default: the output file's stem)")
+                                       "of letters, digits, '-', '_' and '.' (the board "
+                                       "reports it; default: the output file's stem)")
     parser.add_argument("-o", "--output", required=True, metavar="MODEL.onnx",
                         help="where to write the model (--target mcu: MODEL.json, and the "
                              "float network to MODEL.onnx)")
@@ -99,6 +101,10 @@ def run(args: argparse.Namespace) -> int:
         base = "calibration"
     check_output_file(args.output, "-o",    # before the minutes of training, not after
                       inputs=[args.log, args.design, args.residual_over])
+    if Path(args.output).suffix.lower() != ".onnx":
+        # ONNX bytes under another name: a MODEL.json would pass for an on-chip model file
+        raise UserError("-o: a host model is an ONNX file (MODEL.onnx); the on-chip model "
+                        "(JSON) is --target mcu")
     design = load_checked(args.design)
     log = read_log(args.log)
     require_reference_wrench(log.meta, args.log, TRAINS_ON_A_REFERENCE)
@@ -201,8 +207,10 @@ def run_mcu(args: argparse.Namespace) -> int:
     hidden = None if args.hidden is None else _hidden(args.hidden)
     output = Path(args.output)
     name = args.name or output.stem
-    if not name or len(name) > MAX_NAME or not name.isascii() or not name.isprintable():
-        raise UserError(f"--name: 1..{MAX_NAME} printable ASCII characters")
+    problem = name_problem(name)
+    if problem:     # the name becomes a build folder's name and a C string (codegen --model)
+        raise UserError(f"--name: {problem}" + ("" if args.name else
+                                                " (the default is -o's file name stem)"))
     if output.suffix.lower() != ".json":
         raise UserError("-o: the model file is JSON (MODEL.json); the ONNX goes next to it")
     inputs = [args.log, args.design, args.residual_over]

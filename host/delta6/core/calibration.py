@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from delta6.core.curves import ENCODER_HARMONICS
-from delta6.core.design import MAX_NAME_CHARS
+from delta6.core.design import MAX_NAME_CHARS, name_problem
 from delta6.core.errors import UserError
 
 SCHEMA = "delta6-calibration/1"
@@ -223,10 +223,9 @@ def _array(value, shape, key, source) -> np.ndarray:
 
 def validate(cal: Calibration, source: str | None = None) -> Calibration:
     """Check every field of ``cal``; returns it with arrays normalised."""
-    name = cal.name
-    if not isinstance(name, str) or not name.strip() or not name.isascii() \
-            or len(name) > NAME_LIMIT or any(ord(ch) < 32 for ch in name):
-        _fail(source, "name", f"must be printable ASCII, 1..{NAME_LIMIT} characters")
+    problem = name_problem(cal.name)
+    if problem:     # a C string in the calibration header, like a design's name
+        _fail(source, "name", problem)
     if not isinstance(cal.design_hash, int) or not 0 <= cal.design_hash < 2**32:
         _fail(source, "design.hash", "must be a 32-bit hash like 0x535534af")
     for effect in cal.effects:

@@ -21,6 +21,9 @@ from delta6.core.paths import DEFAULT_DESIGN, DESIGNS_DIR  # noqa: F401  (re-exp
 #: Longest name of a design, calibration or on-chip model: the device-info record carries each
 #: in a 24-byte field, NUL-terminated.
 MAX_NAME_CHARS = 23
+#: The highest sample rate a Delta6 can be asked for, and an on-chip model trained at: a u16 in
+#: the protocol's START and in the model header (delta6::residual::Model::rate_hz).
+MAX_RATE_HZ = 0xFFFF
 
 #: The design the tools use when none is given: the paper's Delta6.
 #: Joint range of every encoder, both signs, in radians (the paper samples [-pi/6, pi/6]).
@@ -103,6 +106,21 @@ class Design:
         return validate(values, source=None)
 
 
+def name_problem(name) -> str | None:
+    """Why ``name`` cannot name a design, a calibration or an on-chip model (None: it can).
+    One rule for all three: each name becomes folder and file names (build/designs/NAME/) and
+    a C string in a generated header, and the device-info record carries it in 24 bytes
+    (NUL-terminated, ASCII)."""
+    if not isinstance(name, str) or not name.strip():
+        return "must be a non-empty string"
+    if len(name.encode()) > MAX_NAME_CHARS or not name.isascii():
+        return f"must be ASCII and at most {MAX_NAME_CHARS} characters"
+    if not _NAME.fullmatch(name):
+        return (f"{name!r} may hold only letters, digits, '-', '_' and '.', and starts with a "
+                "letter or digit")
+    return None
+
+
 def _number(raw: dict, key: str, source: str | None) -> float:
     value = raw[key]
     if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -136,16 +154,9 @@ def validate(raw: dict, source: str | None = None) -> Design:
             raise DesignError(key, "missing", source)
 
     name = raw["name"]
-    if not isinstance(name, str) or not name.strip():
-        raise DesignError("name", "must be a non-empty string", source)
-    if len(name.encode()) > MAX_NAME_CHARS or not name.isascii():
-        # The device-info record carries the name in 24 bytes (NUL-terminated, ASCII).
-        raise DesignError("name", f"must be ASCII and at most {MAX_NAME_CHARS} characters",
-                          source)
-    if not _NAME.fullmatch(name):
-        # The name becomes folder and file names (build/designs/NAME/) and a C string.
-        raise DesignError("name", f"{name!r} may hold only letters, digits, '-', '_' and '.', "
-                                  "and starts with a letter or digit", source)
+    problem = name_problem(name)
+    if problem:
+        raise DesignError("name", problem, source)
 
     lengths = {}
     for key in LENGTH_KEYS:

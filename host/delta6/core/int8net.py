@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from delta6.core.design import MAX_RATE_HZ
 from delta6.core.operators import play
 
 INT8_MAX = 127
@@ -45,6 +46,9 @@ LAYER_SHIFTS = (16, 46)      # int32 accumulators
 MAX_STRIDE = 8
 MAX_WIDTH = 48               # widest layer input or output (stack buffers on the board)
 MAX_PLAY_RADIUS = 2000       # counts
+#: Input steps per N (N*m) of base wrench a model may scale by (trained models: 16384 / full
+#: scale, a few hundred to some ten thousands for the shipped designs).
+INPUT_SCALE_RANGE = (1e-9, 1e9)
 #: Feature kinds and their codes in the generated header (delta6::residual::FeatureKind).
 FEATURE_KINDS = {"wrench": 1, "counts": 2, "wrench_step": 3, "count_step": 4, "play": 5}
 STEP_KINDS = ("wrench_step", "count_step")
@@ -135,12 +139,25 @@ class Int8Net:
         """Raise ValueError unless the C engine can run this network exactly."""
         if not self.features or not self.layers:
             raise ValueError("a network needs at least one feature group and one layer")
-        if not (np.isfinite(self.rate_hz) and self.rate_hz > 0):
-            raise ValueError(f"rate_hz must be positive, got {self.rate_hz}")
+        rate = float(self.rate_hz)
+        if not (rate.is_integer() and 1 <= rate <= MAX_RATE_HZ):
+            # the header carries it as a uint16_t: whole Hz, as the board's rates
+            raise ValueError(f"rate_hz must be a whole number of Hz in 1..{MAX_RATE_HZ}, got "
+                             f"{self.rate_hz:g}")
         for name in ("input_scale", "output_step"):
             step = np.asarray(getattr(self, name))
             if step.shape != (6,) or not np.all(np.isfinite(step)) or np.any(step <= 0):
                 raise ValueError(f"{name} must be six positive numbers")
+        scale = np.asarray(self.input_scale, dtype=float)
+        if np.any(scale < INPUT_SCALE_RANGE[0]) or np.any(scale > INPUT_SCALE_RANGE[1]):
+            raise ValueError(f"input_scale must lie in {INPUT_SCALE_RANGE[0]:g}.."
+                             f"{INPUT_SCALE_RANGE[1]:g} input steps per N (N*m)")
+        # The correction's range (INT16_MAX output steps) within the base wrench's input range
+        # (INT16_MAX / input_scale, twice the full scale as trained): beyond it a file streams
+        # nonsense or, in float32, inf.
+        if np.any(np.asarray(self.output_step, dtype=float) * scale > 1.0):
+            raise ValueError("output_step: 32767 steps of correction must stay within the "
+                             "input's range of the base wrench (32767 / input_scale)")
         for f in self.features:
             if f.kind not in FEATURE_KINDS:
                 raise ValueError(f"unknown feature kind {f.kind!r}")
@@ -155,6 +172,10 @@ class Int8Net:
         for i, layer in enumerate(self.layers):
             out, inp = layer.shape
             last = i == len(self.layers) - 1
+            if np.ndim(layer.bias) == 1 and len(layer.bias) != out:
+                # the weights first: a missing row is not the bias's fault
+                raise ValueError(f"layer {i + 1}: {out} rows of weights but {len(layer.bias)} "
+                                 "biases (one row per output)")
             if inp != width:
                 raise ValueError(f"layer {i + 1} takes {inp} inputs, the one before gives {width}")
             if out > MAX_WIDTH or (last and out != 6) or layer.relu == last:

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from delta6.core.design import MAX_NAME_CHARS
+from delta6.core.design import MAX_NAME_CHARS, name_problem
 from delta6.core.errors import UserError
 from delta6.core.int8net import Feature, Int8Net, Layer
 
@@ -154,8 +154,10 @@ def save(model: ResidualModel, path: str | Path) -> Path:
 
 
 def _hex32(value, what: str, source: str) -> int:
+    if not isinstance(value, str):
+        raise ModelFileError(f"{source}: {what} must be a hex string like \"0x1234abcd\"")
     try:
-        number = int(str(value), 16)
+        number = int(value, 16)
     except ValueError:
         raise ModelFileError(f"{source}: {what} must be a hex number like 0x1234abcd") from None
     if not 0 <= number < 2**32:
@@ -164,13 +166,91 @@ def _hex32(value, what: str, source: str) -> int:
 
 
 def _ints(values, dtype, what: str, source: str) -> np.ndarray:
-    array = np.asarray(values)
+    try:
+        array = np.asarray(values)
+    except ValueError:      # ragged rows
+        raise ModelFileError(f"{source}: {what} must be a rectangular table of integers") from None
     if array.dtype.kind not in "iu" or array.size == 0:
         raise ModelFileError(f"{source}: {what} must hold integers")
     info = np.iinfo(dtype)
     if array.min() < info.min or array.max() > info.max:
         raise ModelFileError(f"{source}: {what} out of range for {np.dtype(dtype).name}")
     return array.astype(dtype)
+
+
+def _int(value, what: str, source: str) -> int:
+    """A JSON integer: 4.7, "4" and true are refused, not turned into 4 or 1."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ModelFileError(f"{source}: {what} must be an integer, got {value!r}")
+    return value
+
+
+def _numbers(values, what: str, source: str) -> np.ndarray:
+    """Six JSON numbers as float32 (strings and booleans refused)."""
+    if not isinstance(values, list) or len(values) != 6 or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        raise ModelFileError(f"{source}: {what} must be six numbers")
+    with np.errstate(over="ignore"):     # a value beyond float32 becomes inf: check() says so
+        return np.asarray(values, dtype=np.float32)
+
+
+def _object(value, keys: tuple[str, ...], what: str, source: str,
+            optional: tuple[str, ...] = ()) -> dict:
+    """A JSON object holding ``keys`` (and perhaps ``optional``), nothing else: like a design
+    or calibration file, an unknown key is refused by name (a typo is not silently ignored)."""
+    if not isinstance(value, dict):
+        raise ModelFileError(f"{source}: {what} must be a JSON object")
+    for key in value:
+        if key not in keys + optional:
+            raise ModelFileError(f"{source}: unknown key '{key}' in {what} (expected "
+                                 f"{', '.join(keys + optional)})")
+    for key in keys:
+        if key not in value:
+            raise ModelFileError(f"{source}: {what} has no '{key}'")
+    return value
+
+
+def _name(value, what: str, source: str) -> str:
+    problem = name_problem(value)
+    if problem:     # a model's name becomes a build folder's name and a C string
+        raise ModelFileError(f"{source}: {what} {problem}")
+    return value
+
+
+_TOP_KEYS = ("schema", "name", "design", "base", "calibration", "network")
+_NETWORK_KEYS = ("rate_hz", "input_scale", "output_step", "features", "layers")
+_FEATURE_KEYS = ("kind", "param", "multiplier", "shift")
+_LAYER_KEYS = ("weights", "bias", "multiplier", "shift", "relu")
+
+
+def _layer(raw, i: int, source: str) -> Layer:
+    what = f"layer {i + 1}"
+    raw = _object(raw, _LAYER_KEYS, what, source)
+    weights = _ints(raw["weights"], np.int8, f"{what} weights", source)
+    if weights.ndim != 2:
+        raise ModelFileError(f"{source}: {what} weights must be a matrix")
+    if not isinstance(raw["relu"], bool):
+        raise ModelFileError(f"{source}: {what} relu must be true or false")
+    return Layer(weights, _ints(raw["bias"], np.int32, f"{what} bias", source),
+                 _ints(raw["multiplier"], np.int16, f"{what} multiplier", source),
+                 _ints(raw["shift"], np.uint8, f"{what} shift", source), raw["relu"])
+
+
+def _feature(raw, i: int, source: str) -> Feature:
+    what = f"feature {i + 1}"
+    raw = _object(raw, _FEATURE_KEYS, what, source)
+    if not isinstance(raw["kind"], str):
+        raise ModelFileError(f"{source}: {what} kind must be a string")
+    return Feature(raw["kind"], _int(raw["param"], f"{what} param", source),
+                   tuple(_ints(raw["multiplier"], np.int16, f"{what} multiplier",
+                               source).tolist()),
+                   tuple(_ints(raw["shift"], np.uint8, f"{what} shift", source).tolist()))
+
+
+def _list(value, what: str, source: str) -> list:
+    if not isinstance(value, list):
+        raise ModelFileError(f"{source}: {what} must be a list")
+    return value
 
 
 def loads(text: str, source: str = "model") -> ResidualModel:
@@ -181,50 +261,43 @@ def loads(text: str, source: str = "model") -> ResidualModel:
         raise ModelFileError(f"{source}: not a residual model file (not JSON: {exc})") from None
     if not isinstance(data, dict) or data.get("schema") != SCHEMA:
         raise ModelFileError(f"{source}: not a {SCHEMA} file")
+    data = _object(data, _TOP_KEYS, "the model", source, optional=("training",))
+    name = _name(data["name"], "name", source)
+    base = data["base"]
+    if base not in BASES:
+        raise ModelFileError(f"{source}: base must be one of {', '.join(BASES)}")
+    design = _object(data["design"], ("name", "hash"), "design", source)
+    cal = data["calibration"]
+    if (cal is None) != (base == "analytical"):
+        raise ModelFileError(f"{source}: a model over the calibrated model names its "
+                             "calibration, one over the analytical model none")
+    if cal is not None:
+        cal = _object(cal, ("name", "hash"), "calibration", source)
+    training = data.get("training", {})
+    if not isinstance(training, dict):
+        raise ModelFileError(f"{source}: training must be a JSON object")
+    net_data = _object(data["network"], _NETWORK_KEYS, "network", source)
+    rate = net_data["rate_hz"]
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)):
+        raise ModelFileError(f"{source}: network rate_hz must be a number, got {rate!r}")
+    features = tuple(_feature(f, i, source)
+                     for i, f in enumerate(_list(net_data["features"], "features", source)))
+    layers = tuple(_layer(layer, i, source)
+                   for i, layer in enumerate(_list(net_data["layers"], "layers", source)))
+    net = Int8Net(float(rate), _numbers(net_data["input_scale"], "input_scale", source),
+                  _numbers(net_data["output_step"], "output_step", source), features, layers)
     try:
-        name = str(data["name"])
-        if not name or len(name) > MAX_NAME or not name.isascii() or not name.isprintable():
-            raise ModelFileError(f"{source}: name must be 1..{MAX_NAME} printable ASCII "
-                                 "characters")
-        base = data["base"]
-        if base not in BASES:
-            raise ModelFileError(f"{source}: base must be one of {', '.join(BASES)}")
-        cal = data.get("calibration")
-        if (cal is None) != (base == "analytical"):
-            raise ModelFileError(f"{source}: a model over the calibrated model names its "
-                                 "calibration, one over the analytical model none")
-        net_data = data["network"]
-        features = tuple(
-            Feature(str(f["kind"]), int(f["param"]),
-                    tuple(int(x) for x in _ints(f["multiplier"], np.int16, "multiplier", source)),
-                    tuple(int(x) for x in _ints(f["shift"], np.uint8, "shift", source)))
-            for f in net_data["features"])
-        layers = tuple(
-            Layer(_ints(layer["weights"], np.int8, "weights", source),
-                  _ints(layer["bias"], np.int32, "bias", source),
-                  _ints(layer["multiplier"], np.int16, "multiplier", source),
-                  _ints(layer["shift"], np.uint8, "shift", source), bool(layer["relu"]))
-            for layer in net_data["layers"])
-        net = Int8Net(float(net_data["rate_hz"]),
-                      np.asarray(net_data["input_scale"], dtype=np.float32),
-                      np.asarray(net_data["output_step"], dtype=np.float32), features, layers)
-        for layer in layers:
-            if layer.weights.ndim != 2:
-                raise ModelFileError(f"{source}: layer weights must be a matrix")
         net.check()
-        return ResidualModel(
-            name=name, design_name=str(data["design"]["name"]),
-            design_hash=_hex32(data["design"]["hash"], "design hash", source), base=base, net=net,
-            calibration_name=None if cal is None else str(cal["name"]),
-            calibration_hash=None if cal is None else _hex32(cal["hash"], "calibration hash",
-                                                              source),
-            training=dict(data.get("training") or {}))
-    except ModelFileError:
-        raise
     except ValueError as exc:
         raise ModelFileError(f"{source}: invalid network: {exc}") from None
-    except (KeyError, TypeError, AttributeError) as exc:
-        raise ModelFileError(f"{source}: missing or malformed entry ({exc})") from None
+    return ResidualModel(
+        name=name, design_name=_name(design["name"], "design name", source),
+        design_hash=_hex32(design["hash"], "design hash", source), base=base, net=net,
+        calibration_name=None if cal is None else _name(cal["name"], "calibration name",
+                                                        source),
+        calibration_hash=None if cal is None else _hex32(cal["hash"], "calibration hash",
+                                                          source),
+        training=training)
 
 
 def load(path: str | Path) -> ResidualModel:

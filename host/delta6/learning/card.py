@@ -27,6 +27,24 @@ def onnx_metadata(path) -> dict[str, str] | None:
     return {p.key: p.value for p in proto.metadata_props}
 
 
+#: Every key a model card has (after the prefix); calibration and calibration_hash only over a
+#: calibration.
+KEYS = ("schema", "kind", "design", "design_hash", "base", "window", "rate_hz", "normalisation",
+        "hyperparameters", "training", "calibration", "calibration_hash")
+
+
+def _hash32(text: str, bad) -> int:
+    """A 32-bit hash written as hexadecimal (0x535534af); compared as a number, so the case
+    of its digits does not matter."""
+    try:
+        value = int(text, 16)
+    except ValueError:
+        raise bad("is not a hexadecimal hash") from None
+    if not 0 <= value < 2**32:
+        raise bad("does not fit 32 bits")
+    return value
+
+
 class ModelFileError(UserError):
     """A model file is unreadable, not a Delta6 model, or not for this design or calibration."""
 
@@ -41,7 +59,7 @@ class ModelCard:
     rate_hz: float
     norm: Normalisation
     calibration_name: str = ""
-    calibration_hash: str = ""
+    calibration_hash: int | None = None     # with base "calibration"
     hyperparameters: dict = field(default_factory=dict)
     training: dict = field(default_factory=dict)
 
@@ -56,7 +74,7 @@ class ModelCard:
         }
         if self.base == "calibration":
             props["calibration"] = self.calibration_name
-            props["calibration_hash"] = self.calibration_hash
+            props["calibration_hash"] = f"0x{self.calibration_hash:08x}"
         return {PREFIX + k: v for k, v in props.items()}
 
     @classmethod
@@ -83,16 +101,26 @@ class ModelCard:
         def bad(key, why):
             return ModelFileError(f"{source}: metadata {PREFIX}{key} {why}")
 
+        for key in own:
+            if key not in KEYS:
+                # like a design or calibration file: a key this version does not know is refused
+                raise bad(key, f"is not a key of {SCHEMA} (known: {', '.join(KEYS)})")
         kind = need("kind")
         if kind not in ("mlp", "lstm", "gru", "transformer"):
             raise bad("kind", f"names no known model ({kind!r})")
         base = need("base")
         if base not in BASES:
             raise bad("base", f"must be one of {', '.join(BASES)}, got {base!r}")
-        try:
-            design_hash = int(need("design_hash"), 16)
-        except ValueError:
-            raise bad("design_hash", "is not a hexadecimal hash") from None
+        design_hash = _hash32(need("design_hash"), lambda why: bad("design_hash", why))
+        calibration_name, calibration_hash = "", None
+        if base == "calibration":
+            calibration_name = need("calibration")
+            calibration_hash = _hash32(need("calibration_hash"),
+                                       lambda why: bad("calibration_hash", why))
+        else:
+            for key in ("calibration", "calibration_hash"):
+                if key in own:
+                    raise bad(key, f"belongs to a model over a calibration, not base {base!r}")
         try:
             window = int(need("window"))
             if not 1 <= window <= 10_000:
@@ -115,15 +143,16 @@ class ModelCard:
                 extra[key] = json.loads(own.get(key, "{}"))
             except ValueError:
                 raise bad(key, "is not JSON") from None
+            if not isinstance(extra[key], dict):
+                raise bad(key, "must be a JSON object")
         return cls(kind=kind, design_name=need("design"), design_hash=design_hash, base=base,
-                   window=window, rate_hz=rate, norm=norm,
-                   calibration_name=own.get("calibration", ""),
-                   calibration_hash=own.get("calibration_hash", ""), **extra)
+                   window=window, rate_hz=rate, norm=norm, calibration_name=calibration_name,
+                   calibration_hash=calibration_hash, **extra)
 
     def describe(self) -> str:
         over = {"none": "end-to-end", "analytical": "residual over the analytical model",
                 "calibration": f"residual over calibration {self.calibration_name} "
-                               f"({self.calibration_hash})"}[self.base]
+                               f"(0x{self.calibration_hash or 0:08x})"}[self.base]
         return (f"{self.kind}, {over}, design {self.design_name} (0x{self.design_hash:08x}), "
                 f"window {self.window} at {self.rate_hz:g} Hz")
 

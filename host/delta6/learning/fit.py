@@ -90,8 +90,7 @@ def fit(log: LogData, design: Design, preset: Preset, *, base: str = "none",
     card = ModelCard(kind=preset.net.kind, design_name=design.name, design_hash=design.hash32(),
                      base=base, window=data.window, rate_hz=rate, norm=data.norm,
                      calibration_name=calibration.name if base == "calibration" else "",
-                     calibration_hash=f"0x{calibration.hash32():08x}" if base == "calibration"
-                     else "",
+                     calibration_hash=calibration.hash32() if base == "calibration" else None,
                      hyperparameters=preset.as_dict(), training=summary)
     return Fitted(trained, data, card)
 

@@ -41,8 +41,12 @@ def open_session(path: str | Path, threads: int = 1):
     try:
         return ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
     except Exception as exc:     # onnxruntime raises its own types for every kind of bad file
-        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-        raise ModelFileError(f"{path}: not a readable ONNX model ({reason[:160]})") from None
+        raise ModelFileError(f"{path}: not a readable ONNX model ({_reason(exc)})") from None
+
+
+def _reason(exc: Exception) -> str:
+    """The first line of an onnxruntime error, short enough for a one-line message."""
+    return (str(exc).strip().splitlines() or [type(exc).__name__])[0][:160]
 
 
 class LearnedEstimator:
@@ -76,14 +80,13 @@ class LearnedEstimator:
             return NoBase()
         if card.base == "analytical":
             return AnalyticalBase(design)
-        trained_over = f"{card.calibration_name} ({card.calibration_hash})"
+        trained_over = f"{card.calibration_name} (0x{card.calibration_hash:08x})"
         if calibration is None:
             raise ModelFileError(f"{self.path} is a residual over calibration {trained_over}: "
                                  "give that calibration (--calibration CAL.toml)")
-        given = f"0x{calibration.hash32():08x}"
-        if given != card.calibration_hash:
+        if calibration.hash32() != card.calibration_hash:
             raise ModelFileError(f"{self.path} was trained over calibration {trained_over}, not "
-                                 f"{calibration.name} ({given})")
+                                 f"{calibration.name} (0x{calibration.hash32():08x})")
         return CalibrationBase(design, calibration, card.rate_hz)
 
     def _check_graph(self) -> None:
@@ -91,9 +94,17 @@ class LearnedEstimator:
         shape_in = inputs[0].shape if len(inputs) == 1 else None
         shape_out = outputs[0].shape if outputs else None
         if (shape_in is None or len(shape_in) != 3 or shape_in[1:] != [self.card.window, 6]
-                or shape_out is None or len(shape_out) != 2 or shape_out[1] != 6):
+                or shape_out is None or len(shape_out) != 2 or shape_out[1] != 6
+                # a batch fixed in the graph fails on any other number of windows
+                or isinstance(shape_in[0], int) or isinstance(shape_out[0], int)):
             raise ModelFileError(f"{self.path}: the graph does not take (batch, "
                                  f"{self.card.window}, 6) windows to (batch, 6) wrenches")
+        # float32 both ways: the windows are fed as float32, and an integer output would
+        # truncate the wrench silently
+        for what, arg in (("input", inputs[0]), ("output", outputs[0])):
+            if arg.type != "tensor(float)":
+                raise ModelFileError(f"{self.path}: the graph's {what} is {arg.type}, not "
+                                     "tensor(float) (float32)")
 
     # -- evaluation --------------------------------------------------------------------------
 
@@ -107,7 +118,10 @@ class LearnedEstimator:
 
     def network(self, inputs: np.ndarray) -> np.ndarray:
         """Standardised windows (b, window, 6) float32 -> standardised outputs (b, 6)."""
-        return self.session.run(None, {self.input_name: inputs})[0]
+        try:
+            return self.session.run(None, {self.input_name: inputs})[0]
+        except Exception as exc:    # onnxruntime's own types, for a graph that cannot run
+            raise ModelFileError(f"{self.path}: the model fails to run ({_reason(exc)})") from None
 
     def check_rate(self, t: np.ndarray, source: str = "the log") -> None:
         if len(t) < 2:
@@ -138,5 +152,6 @@ class LearnedEstimator:
         return self.predict_arrays(log.t, log.theta)
 
     def streaming(self) -> StreamingEstimator:
-        """A fresh sample-by-sample estimator on this model (its own window)."""
+        """A fresh sample-by-sample estimator on this model (its own window and its own copy of
+        the base, whose state it carries)."""
         return StreamingEstimator(self)

@@ -27,12 +27,36 @@ def nominal_rate(t: np.ndarray) -> float:
     return float(1.0 / np.median(np.diff(t)))
 
 
+#: A step this far (either way) from a log's median step is at another rate, not jitter.
+OFF_RATE = 0.25
+#: A log with more of its steps off its median rate than this gets a note from the commands
+#: that score a model on it (the window, or an on-chip model's stride, assumes one rate).
+OFF_RATE_SHARE = 0.1
+
+
+def off_rate_share(t: np.ndarray) -> float:
+    """Share of a log's time steps more than ``OFF_RATE`` away from its median step (where
+    :func:`nominal_rate` comes from): a mixed-rate log, or one that lost many samples."""
+    steps = np.diff(np.asarray(t, dtype=float))
+    if len(steps) == 0:
+        return 0.0
+    ratio = steps / np.median(steps)
+    return float(np.mean((ratio < 1 - OFF_RATE) | (ratio > 1 + OFF_RATE)))
+
+
+def new_segment(step, rate_hz: float) -> np.ndarray:
+    """Whether a time step (s) between two samples begins a new segment: longer than
+    ``GAP_PERIODS`` periods (lost samples), or not forward at all (a device restart or a new
+    session counts its time afresh)."""
+    step = np.asarray(step, dtype=float)
+    return ~((step > 0) & (step <= GAP_PERIODS / rate_hz))
+
+
 def segment_starts(t: np.ndarray, rate_hz: float) -> np.ndarray:
-    """Index of the first row of each row's contiguous segment, (n,) int: a step longer than
-    ``GAP_PERIODS`` periods (lost samples, a restart) begins a new segment."""
+    """Index of the first row of each row's contiguous segment, (n,) int (:func:`new_segment`)."""
     t = np.asarray(t, dtype=float)
     brk = np.ones(len(t), dtype=bool)
-    brk[1:] = np.diff(t) > GAP_PERIODS / rate_hz
+    brk[1:] = new_segment(np.diff(t), rate_hz)
     return np.maximum.accumulate(np.where(brk, np.arange(len(t)), 0))
 
 
@@ -104,13 +128,19 @@ class Normalisation:
         for k, v in values.items():
             if len(v) != 6 or not all(np.isfinite(v)):
                 raise ValueError(f"{k} must be six finite numbers")
-            if k.endswith("scale") and min(v) <= 0:
-                raise ValueError(f"{k} must be positive")
+            if k.endswith("scale") and not all(NO_SPREAD <= x <= MAX_MAGNITUDE for x in v):
+                # a fit never writes a spread under NO_SPREAD (it keeps 1 there)
+                raise ValueError(f"{k} must lie in {NO_SPREAD:g}..{MAX_MAGNITUDE:g}")
+            if not all(abs(x) <= MAX_MAGNITUDE for x in v):
+                raise ValueError(f"{k} must lie in -{MAX_MAGNITUDE:g}..{MAX_MAGNITUDE:g}")
         return cls(**values)
 
 
 #: A spread below this is rounding, not motion (rad, N, N*m): such a column keeps scale 1.
 NO_SPREAD = 1e-9
+#: Largest mean or spread a file may give (rad, N, N*m): beyond it the numbers are not a
+#: sensor's (they would overflow the tables, or divide the angles to nothing).
+MAX_MAGNITUDE = 1e6
 
 
 def _spread(x: np.ndarray) -> np.ndarray:

@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from delta6.core.design import MAX_RATE_HZ
 from delta6.link import cobs
 from delta6.link.protocol import (
     ENCODED_LENGTHS,
@@ -153,7 +154,7 @@ class StreamDecoder:
 
 
 #: The highest sample rate a Delta6 can be asked for (the rate is a u16 in START).
-MAX_PROTOCOL_RATE_HZ = 0xFFFF
+MAX_PROTOCOL_RATE_HZ = MAX_RATE_HZ
 
 
 def continues(seq_step, time_step_us, max_rate_hz: float = MAX_PROTOCOL_RATE_HZ):
