@@ -56,6 +56,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--check", action="store_true",
                         help="write nothing; exit 1 if the header differs from what the design "
                              "(or with --wire, the protocol) generates")
+    add_allow_implausible(parser)
+
+
+ALLOW_IMPLAUSIBLE = "--allow-implausible"
+
+
+def add_allow_implausible(parser: argparse.ArgumentParser) -> None:
+    """The override of :func:`firmware_notes`, for every command that builds a firmware."""
+    parser.add_argument(ALLOW_IMPLAUSIBLE, action="store_true",
+                        help="build the firmware even for a design with a length outside 1..2000 "
+                             "mm or a spring rate outside 0.001..100 N*m/rad (refused "
+                             "otherwise: such a value is usually written in another unit)")
+
+
+def firmware_notes(design: design_mod.Design, allow_implausible: bool = False) -> list[str]:
+    """The checks run before any file is written for a design's firmware (codegen, flash,
+    virtual): a value that reads as another unit is refused, as its firmware would run and
+    report nonsense; returns the notes to print (the wire's lost steps; the unit slips when
+    allowed)."""
+    slips = design_mod.unit_slips(design)
+    if slips and not allow_implausible:
+        more = f" (and {len(slips) - 1} more)" if len(slips) > 1 else ""
+        raise UserError(f"design {design.name}: {slips[0]}{more}: no firmware is built for it; "
+                        f"fix the unit, or pass {ALLOW_IMPLAUSIBLE} if the value is meant")
+    notes = design_mod.unit_slip_notes(design) + [resolution_note(design)]
+    return [note for note in notes if note]
 
 
 def source_label(path: Path) -> str:
@@ -116,10 +142,13 @@ class Headers(NamedTuple):
 
 
 def generate_headers(design_path: Path, cal_path: Path | None = None,
-                     model_path: Path | None = None) -> Headers:
-    """Everything ``delta6 codegen`` (and ``delta6 flash``) writes for a firmware: refuses a
-    calibration of another design and a model over another base."""
+                     model_path: Path | None = None, allow_implausible: bool = False) -> Headers:
+    """Everything ``delta6 codegen`` (and ``delta6 flash``, ``delta6 virtual``) writes for a
+    firmware: refuses a design in another unit (:func:`firmware_notes`, whose notes it prints),
+    a calibration of another design and a model over another base."""
     design, text = header_text(design_path)
+    for note in firmware_notes(design, allow_implausible):
+        print(note, file=sys.stderr)
     cal, cal_text = calibration_text(design, design_path, cal_path)
     model, model_text_ = model_text(design, design_path, model_path, cal)
     return Headers(design, text, cal, cal_text, model, model_text_)
@@ -185,7 +214,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("give a design file (delta6 codegen designs/delta6.toml) or --wire")
     if args.build or args.output is None:
         paths.checkout()    # the firmware tree the header belongs to, or one line saying so
-    headers = generate_headers(args.design, args.calibration, args.model)
+    headers = generate_headers(args.design, args.calibration, args.model, args.allow_implausible)
     out = output_path(args, headers.design, headers.cal, headers.model)
     if args.output is not None:      # (its folder is made: generated/ next to the firmware)
         check_not_an_input(out, "-o", [args.design, args.calibration, args.model])
@@ -195,9 +224,6 @@ def run(args: argparse.Namespace) -> int:
     for line in write_headers(out, headers):
         print(line)
     design, cal, model = headers.design, headers.cal, headers.model
-    for note in design_mod.unit_slip_notes(design) + [resolution_note(design)]:
-        if note:
-            print(note, file=sys.stderr)
     if args.build:
         image = build_image(design, include_dir_of(out), cal, model)
         sizes = image.sizes
@@ -306,11 +332,12 @@ def build_image(design: design_mod.Design, include_dir: Path, cal=None,
 
 
 def design_firmware(path: Path, calibration: Path | None = None,
-                    model_path: Path | None = None, defines=()) -> avrbuild.Image:
+                    model_path: Path | None = None, defines=(),
+                    allow_implausible: bool = False) -> avrbuild.Image:
     """Generate ``path``'s header (and ``calibration``'s and ``model_path``'s) into
     build/designs/NAME/include/ (the committed headers are left alone) and build the
     application for it: what ``delta6 virtual --design [--calibration] [--model]`` runs."""
-    headers = generate_headers(path, calibration, model_path)
+    headers = generate_headers(path, calibration, model_path, allow_implausible)
     design, cal, model = headers.design, headers.cal, headers.model
     header = avrbuild.design_include_dir(build_name(design, cal, model)) / HEADER_RELPATH
     write_headers(header, headers)

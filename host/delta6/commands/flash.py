@@ -13,6 +13,7 @@ from delta6.commands.codegen import (
     CALIBRATION_HEADER,
     HEADER_RELPATH,
     MODEL_HEADER,
+    add_allow_implausible,
     generate_headers,
     source_label,
     write_headers,
@@ -54,13 +55,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"(default {flash.ANSWER_TIMEOUT:g})")
     parser.add_argument("--dry-run", action="store_true",
                         help="print the header and the PlatformIO command, change and run nothing")
+    add_allow_implausible(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     firmware_dir = args.firmware_dir or paths.checkout() / "firmware"
     if not (firmware_dir / "platformio.ini").is_file():
         raise UserError(f"{firmware_dir}: no platformio.ini (not the firmware project)")
-    headers = generate_headers(args.design, args.calibration, args.model)
+    headers = generate_headers(args.design, args.calibration, args.model,
+                               args.allow_implausible)
     cal, model = headers.cal, headers.model
     expected = flash.Expected(
         headers.design.name, headers.design.hash32(),

@@ -77,6 +77,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "the emulator runs")
     parser.add_argument("--duration", type=number("--duration", low=0, low_open=True),
                         metavar="S", help="stop after S seconds of board time")
+    from delta6.commands.codegen import add_allow_implausible
+    add_allow_implausible(parser)
 
 
 def parse_zero(text: str | None):
@@ -109,13 +111,14 @@ def run(args: argparse.Namespace) -> int:
     zero = parse_zero(args.zero)
     if args.loop and args.replay is None:
         raise UserError("--loop goes with --replay")
-    run_of_twin = _simulate_twin(args) if args.twin else None
+    # The firmware first: its design checks refuse a unit slip before the twin simulates it.
     if args.design is not None or args.calibration is not None or args.model is not None:
         from delta6.commands.codegen import design_firmware
         image = design_firmware(args.design or Path(DEFAULT_DESIGN), args.calibration,
-                                args.model)
+                                args.model, allow_implausible=args.allow_implausible)
     else:
         image = vb.firmware()
+    run_of_twin = _simulate_twin(args) if args.twin else None
     replay_design = None
     if args.replay is not None:     # its log must come from the design the firmware is for
         from delta6.core.workspace import load_checked
