@@ -171,3 +171,10 @@ def test_values_the_arithmetic_cannot_carry_are_errors_not_notes(key, value, wor
     raw[key] = value
     with pytest.raises(DesignError, match=re.escape(words)):
         validate(raw, "big.toml")
+
+
+def test_a_byte_order_mark_is_not_an_error(tmp_path, baseline):
+    """Some editors start a UTF-8 file with a BOM: the design is read as without it."""
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + (DESIGNS / "delta6.toml").read_bytes())
+    assert load(path) == baseline

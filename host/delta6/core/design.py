@@ -244,7 +244,7 @@ def load(path: str | Path) -> Design:
     path = Path(path)
     source = str(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")   # (an editor's BOM is not TOML)
     except FileNotFoundError:
         raise DesignError("file", "no such file", source) from None
     except (OSError, UnicodeDecodeError) as exc:
