@@ -178,3 +178,19 @@ def test_a_byte_order_mark_is_not_an_error(tmp_path, baseline):
     path = tmp_path / "bom.toml"
     path.write_bytes(b"\xef\xbb\xbf" + (DESIGNS / "delta6.toml").read_bytes())
     assert load(path) == baseline
+
+
+def test_side_by_side_shows_per_joint_springs_and_the_joint_box(tmp_path, capsys):
+    """The comparison table names a per-joint spring list by its range (it printed nan) and
+    has a joint-box column (designs differing only in their box looked alike)."""
+    springs = write(tmp_path, edited(set_={"name": '"springs"', "k_nm_per_rad":
+                                           "[0.6, 0.61, 0.62, 0.63, 0.64, 0.65]"}))
+    narrow = tmp_path / "narrow.toml"
+    narrow.write_text(BASE.replace('name = "delta6"', 'name = "narrow"')
+                      + "\njoint_limit_rad = 0.2\n")
+    assert main(["design", str(springs), str(narrow), "--grid", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "nan" not in out and "lim rad" in out.splitlines()[0]
+    rows = {line.split()[0]: line.split() for line in out.splitlines()[2:4]}
+    assert "0.6..0.65" in rows["springs"] and "0.5236" in rows["springs"]
+    assert "0.2000" in rows["narrow"] and "0.639236" in rows["narrow"]
