@@ -194,3 +194,16 @@ def test_side_by_side_shows_per_joint_springs_and_the_joint_box(tmp_path, capsys
     rows = {line.split()[0]: line.split() for line in out.splitlines()[2:4]}
     assert "0.6..0.65" in rows["springs"] and "0.5236" in rows["springs"]
     assert "0.2000" in rows["narrow"] and "0.639236" in rows["narrow"]
+
+
+@pytest.mark.parametrize("changes, box_is_a_fix", [
+    (dict(theta_offset_rad=0.2, joint_limit_rad=1.2), True),    # a wide box reaches it
+    (dict(theta_offset_rad=-0.9, joint_limit_rad=0.01), False),  # singular at rest
+])
+def test_a_singular_box_names_the_box_as_a_fix_when_the_rest_pose_is_fine(baseline, changes,
+                                                                          box_is_a_fix):
+    from delta6.core.workspace import check_solvable
+    with pytest.raises(DesignError) as info:
+        check_solvable(baseline.replace(**changes))
+    assert info.value.field == "la_mm" and "singular" in str(info.value)
+    assert ("reduce joint_limit_rad / change theta_offset_rad" in str(info.value)) == box_is_a_fix
