@@ -32,12 +32,56 @@ def test_committed_header_is_up_to_date():
 
 
 def test_same_bytes_from_any_working_directory(tmp_path, monkeypatch):
-    out_a, out_b = tmp_path / "a.h", tmp_path / "b.h"
+    out = tmp_path / "generated" / "delta6_design.h"
     monkeypatch.chdir(ROOT)
-    assert main(["codegen", "designs/delta6.toml", "-o", str(out_a)]) == 0
+    assert main(["codegen", "designs/delta6.toml"]) == 0       # the committed header, in place
+    assert main(["codegen", "designs/delta6.toml", "-o", str(out)]) == 0
+    first = out.read_bytes()
     monkeypatch.chdir(tmp_path)
-    assert main(["codegen", str(DESIGNS / "delta6.toml"), "-o", str(out_b)]) == 0
-    assert out_a.read_bytes() == out_b.read_bytes() == COMMITTED.read_bytes()
+    assert main(["codegen", str(DESIGNS / "delta6.toml"), "-o", str(out)]) == 0
+    assert out.read_bytes() == first
+    assert main(["codegen", str(DESIGNS / "delta6.toml"), "--check", "-o", str(COMMITTED)]) == 0
+    # The banner names -o; the rest is the committed header's.
+    assert first.splitlines()[4:] == COMMITTED.read_bytes().splitlines()[4:]
+
+
+def test_banners_name_the_command_as_it_can_be_run_again(tmp_path, capsys, monkeypatch):
+    """A user's design outside the checkout: the banner names its full path and every flag
+    (it said `delta6 codegen tiny.toml`, dropping --build and -o) and claims no test checks
+    it; --check names the same command and calls a missing header missing."""
+    design = tmp_path / "my designs" / "tiny.toml"
+    design.parent.mkdir()
+    design.write_text(re.sub(r"(?m)^name = .*$", 'name = "tiny"',
+                             (DESIGNS / "delta6.toml").read_text()))
+    out = tmp_path / "out" / "generated" / "delta6_design.h"
+    monkeypatch.chdir(tmp_path)
+    command = f"delta6 codegen '{design}' -o {out}"
+    capsys.readouterr()
+    assert main(["codegen", str(design), "-o", str(out), "--check"]) == 1
+    assert capsys.readouterr().err.strip().endswith(f"is missing; run: {command}")
+    assert main(["codegen", str(design), "-o", str(out)]) == 0
+    banner = out.read_text().splitlines()[:4]
+    assert banner[1] == f"// Written by `{command}` from the design file {design}."
+    assert "test_codegen" not in " ".join(banner)
+    assert main(["codegen", str(design), "-o", str(out), "--check"]) == 0
+    assert main(["codegen", str(design), "--build", "--check"]) == 1
+    assert f"run: delta6 codegen '{design}' --build" in capsys.readouterr().err
+    # The committed header alone carries the test's promise.
+    committed = COMMITTED.read_text().splitlines()[:4]
+    assert "tests/firmware/test_codegen.py fails" in " ".join(committed)
+
+
+def test_calibration_and_model_banners_make_no_promise_about_committed_headers(baseline):
+    from delta6_codegen import render_calibration
+
+    from support.calibrations import random_calibration
+    text = render_calibration(baseline, random_calibration(baseline, 1), "designs/delta6.toml",
+                              "/tmp/unit.toml", command="delta6 flash --port P --design "
+                              "designs/delta6.toml --calibration /tmp/unit.toml")
+    banner = " ".join(text.splitlines()[:5])
+    assert "`delta6 flash --port P --design designs/delta6.toml --calibration /tmp/unit.toml`" \
+        in banner
+    assert "committed" not in banner and "tests/" not in banner
 
 
 def test_check_reports_stale_headers(tmp_path, capsys):
