@@ -101,8 +101,8 @@ def onchip(tmp_path_factory):
 def test_calibration_and_model_headers_are_codegens_and_the_board_must_report_them(
         project, tmp_path, capsys, onchip):
     """The three headers land where the nano_every build includes them, byte for byte what
-    delta6 codegen writes but for the command their banners name; the simulated device carries neither calibration nor model, so the
-    hash check refuses it in one line."""
+    delta6 codegen writes but for the command their banners name; the simulated device
+    carries neither calibration nor model, so the hash check refuses it in one line."""
     cal, cal_path, model, model_path = onchip
     pio, record = fake_pio(tmp_path)
     status = main(["flash", "--port", "delta6sim://", "--firmware-dir", str(project),
