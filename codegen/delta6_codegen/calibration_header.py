@@ -239,16 +239,19 @@ def _value(v) -> str:
     return c_float(v)
 
 
-def render(design: Design, cal: Calibration, design_label: str, calibration_label: str) -> str:
-    """The header text; the labels name the design and calibration files in the banner."""
+def render(design: Design, cal: Calibration, design_label: str, calibration_label: str,
+           command: str | None = None) -> str:
+    """The header text; the labels name the design and calibration files in the banner and
+    ``command`` the command line that wrote it (default: ``delta6 codegen DESIGN
+    --calibration CAL``)."""
     k = calibration_constants(design, cal)
-    command = f"{COMMAND} {design_label} --calibration {calibration_label}"
+    command = command or f"{COMMAND} {design_label} --calibration {calibration_label}"
     lines = [
         "// GENERATED FILE - DO NOT EDIT.",
-        f"// Written by `{command}`.",
-        "// The firmware applies this unit's calibration when this header sits next to",
-        "// delta6_design.h; `delta6 codegen` without --calibration removes it. tests/firmware/",
-        "// test_calibrated_native.py fails when the committed header is stale.",
+        f"// Written by `{command}`",
+        f"// from the calibration file {calibration_label}. The firmware applies this unit's",
+        "// calibration when this header sits next to delta6_design.h; `delta6 codegen` without",
+        "// --calibration removes it.",
         "#ifndef DELTA6_GENERATED_CALIBRATION_H",
         "#define DELTA6_GENERATED_CALIBRATION_H",
         "",

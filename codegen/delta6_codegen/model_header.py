@@ -30,13 +30,17 @@ def _int_table(ctype: str, name: str, values, comment: str) -> list[str]:
     return lines
 
 
-def render_model(model: ResidualModel, design_label: str, model_label: str) -> str:
+def render_model(model: ResidualModel, design_label: str, model_label: str,
+                 command: str | None = None) -> str:
+    """The header text; ``command`` is the command line that wrote it (default: ``delta6
+    codegen DESIGN --model MODEL``)."""
     net = model.net
     ns = "delta6::residual::"
     cal = (f"0x{model.calibration_hash:08X}UL" if model.calibration_hash is not None else "0UL")
+    command = command or f"{COMMAND} {design_label} --model {model_label}"
     lines = [
         "// GENERATED FILE - DO NOT EDIT.",
-        f"// Written by `{COMMAND} {design_label} --model {model_label}` from the model file",
+        f"// Written by `{command}` from the model file",
         f"// {model_label}. Without --model the file is removed and the firmware has no residual.",
         "#ifndef DELTA6_GENERATED_MODEL_H",
         "#define DELTA6_GENERATED_MODEL_H",

@@ -101,8 +101,8 @@ def onchip(tmp_path_factory):
 def test_calibration_and_model_headers_are_codegens_and_the_board_must_report_them(
         project, tmp_path, capsys, onchip):
     """The three headers land where the nano_every build includes them, byte for byte what
-    delta6 codegen writes; the simulated device carries neither calibration nor model, so the
-    hash check refuses it in one line."""
+    delta6 codegen writes but for the command their banners name; the simulated device
+    carries neither calibration nor model, so the hash check refuses it in one line."""
     cal, cal_path, model, model_path = onchip
     pio, record = fake_pio(tmp_path)
     status = main(["flash", "--port", "delta6sim://", "--firmware-dir", str(project),
@@ -111,7 +111,12 @@ def test_calibration_and_model_headers_are_codegens_and_the_board_must_report_th
     assert status == 2
     assert record.read_text().split()[:5] == ["run", "-d", str(project), "-e", "nano_every"]
     generated = project / "include" / "generated"
-    want = generate_headers(DESIGNS / "delta6.toml", cal_path, model_path)
+    # The banners name the flash command that wrote them, as it can be run again.
+    command = shlex.join(["delta6", "flash", "--port", "delta6sim://", "--design",
+                          "designs/delta6.toml", "--calibration", str(cal_path.resolve()),
+                          "--model", str(model_path.resolve()), "--firmware-dir",
+                          str(project.resolve())])
+    want = generate_headers(DESIGNS / "delta6.toml", cal_path, model_path, command=command)
     assert (generated / "delta6_design.h").read_text() == want.text
     assert (generated / "delta6_calibration.h").read_text() == want.cal_text
     assert (generated / "delta6_model.h").read_text() == want.model_text

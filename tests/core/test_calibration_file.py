@@ -131,3 +131,10 @@ def test_mutated_files_load_or_fail_with_one_line(good_text, pos, byte):
 def test_missing_file(tmp_path):
     with pytest.raises(C.CalibrationError, match="no such file"):
         C.load(tmp_path / "none.toml")
+
+
+def test_a_byte_order_mark_is_not_an_error(baseline, tmp_path):
+    cal = C.neutral(baseline, "unit-bom")
+    path = tmp_path / "cal.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + C.dumps(cal).encode())
+    assert C.load(path).hash32() == cal.hash32()

@@ -171,3 +171,39 @@ def test_values_the_arithmetic_cannot_carry_are_errors_not_notes(key, value, wor
     raw[key] = value
     with pytest.raises(DesignError, match=re.escape(words)):
         validate(raw, "big.toml")
+
+
+def test_a_byte_order_mark_is_not_an_error(tmp_path, baseline):
+    """Some editors start a UTF-8 file with a BOM: the design is read as without it."""
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + (DESIGNS / "delta6.toml").read_bytes())
+    assert load(path) == baseline
+
+
+def test_side_by_side_shows_per_joint_springs_and_the_joint_box(tmp_path, capsys):
+    """The comparison table names a per-joint spring list by its range (it printed nan) and
+    has a joint-box column (designs differing only in their box looked alike)."""
+    springs = write(tmp_path, edited(set_={"name": '"springs"', "k_nm_per_rad":
+                                           "[0.6, 0.61, 0.62, 0.63, 0.64, 0.65]"}))
+    narrow = tmp_path / "narrow.toml"
+    narrow.write_text(BASE.replace('name = "delta6"', 'name = "narrow"')
+                      + "\njoint_limit_rad = 0.2\n")
+    assert main(["design", str(springs), str(narrow), "--grid", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "nan" not in out and "lim rad" in out.splitlines()[0]
+    rows = {line.split()[0]: line.split() for line in out.splitlines()[2:4]}
+    assert "0.6..0.65" in rows["springs"] and "0.5236" in rows["springs"]
+    assert "0.2000" in rows["narrow"] and "0.639236" in rows["narrow"]
+
+
+@pytest.mark.parametrize("changes, box_is_a_fix", [
+    (dict(theta_offset_rad=0.2, joint_limit_rad=1.2), True),    # a wide box reaches it
+    (dict(theta_offset_rad=-0.9, joint_limit_rad=0.01), False),  # singular at rest
+])
+def test_a_singular_box_names_the_box_as_a_fix_when_the_rest_pose_is_fine(baseline, changes,
+                                                                          box_is_a_fix):
+    from delta6.core.workspace import check_solvable
+    with pytest.raises(DesignError) as info:
+        check_solvable(baseline.replace(**changes))
+    assert info.value.field == "la_mm" and "singular" in str(info.value)
+    assert ("reduce joint_limit_rad / change theta_offset_rad" in str(info.value)) == box_is_a_fix

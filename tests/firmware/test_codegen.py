@@ -32,12 +32,56 @@ def test_committed_header_is_up_to_date():
 
 
 def test_same_bytes_from_any_working_directory(tmp_path, monkeypatch):
-    out_a, out_b = tmp_path / "a.h", tmp_path / "b.h"
+    out = tmp_path / "generated" / "delta6_design.h"
     monkeypatch.chdir(ROOT)
-    assert main(["codegen", "designs/delta6.toml", "-o", str(out_a)]) == 0
+    assert main(["codegen", "designs/delta6.toml"]) == 0       # the committed header, in place
+    assert main(["codegen", "designs/delta6.toml", "-o", str(out)]) == 0
+    first = out.read_bytes()
     monkeypatch.chdir(tmp_path)
-    assert main(["codegen", str(DESIGNS / "delta6.toml"), "-o", str(out_b)]) == 0
-    assert out_a.read_bytes() == out_b.read_bytes() == COMMITTED.read_bytes()
+    assert main(["codegen", str(DESIGNS / "delta6.toml"), "-o", str(out)]) == 0
+    assert out.read_bytes() == first
+    assert main(["codegen", str(DESIGNS / "delta6.toml"), "--check", "-o", str(COMMITTED)]) == 0
+    # The banner names -o; the rest is the committed header's.
+    assert first.splitlines()[4:] == COMMITTED.read_bytes().splitlines()[4:]
+
+
+def test_banners_name_the_command_as_it_can_be_run_again(tmp_path, capsys, monkeypatch):
+    """A user's design outside the checkout: the banner names its full path and every flag
+    (it said `delta6 codegen tiny.toml`, dropping --build and -o) and claims no test checks
+    it; --check names the same command and calls a missing header missing."""
+    design = tmp_path / "my designs" / "tiny.toml"
+    design.parent.mkdir()
+    design.write_text(re.sub(r"(?m)^name = .*$", 'name = "tiny"',
+                             (DESIGNS / "delta6.toml").read_text()))
+    out = tmp_path / "out" / "generated" / "delta6_design.h"
+    monkeypatch.chdir(tmp_path)
+    command = f"delta6 codegen '{design}' -o {out}"
+    capsys.readouterr()
+    assert main(["codegen", str(design), "-o", str(out), "--check"]) == 1
+    assert capsys.readouterr().err.strip().endswith(f"is missing; run: {command}")
+    assert main(["codegen", str(design), "-o", str(out)]) == 0
+    banner = out.read_text().splitlines()[:4]
+    assert banner[1] == f"// Written by `{command}` from the design file {design}."
+    assert "test_codegen" not in " ".join(banner)
+    assert main(["codegen", str(design), "-o", str(out), "--check"]) == 0
+    assert main(["codegen", str(design), "--build", "--check"]) == 1
+    assert f"run: delta6 codegen '{design}' --build" in capsys.readouterr().err
+    # The committed header alone carries the test's promise.
+    committed = COMMITTED.read_text().splitlines()[:4]
+    assert "tests/firmware/test_codegen.py fails" in " ".join(committed)
+
+
+def test_calibration_and_model_banners_make_no_promise_about_committed_headers(baseline):
+    from delta6_codegen import render_calibration
+
+    from support.calibrations import random_calibration
+    text = render_calibration(baseline, random_calibration(baseline, 1), "designs/delta6.toml",
+                              "/tmp/unit.toml", command="delta6 flash --port P --design "
+                              "designs/delta6.toml --calibration /tmp/unit.toml")
+    banner = " ".join(text.splitlines()[:5])
+    assert "`delta6 flash --port P --design designs/delta6.toml --calibration /tmp/unit.toml`" \
+        in banner
+    assert "committed" not in banner and "tests/" not in banner
 
 
 def test_check_reports_stale_headers(tmp_path, capsys):
@@ -108,11 +152,8 @@ def test_a_design_whose_counts_the_wire_can_lose_gets_a_note(tmp_path, capsys):
     assert capsys.readouterr().err == ""
 
 
-def test_values_in_another_unit_get_a_note(tmp_path, capsys):
-    """Lengths in metres and a rate in N*mm/rad make a valid but absurd design: taken, with a
-    line naming each suspect value; the shipped designs get none."""
-    from delta6.core.design import unit_slip_notes
-    assert not [n for path in DESIGN_FILES for n in unit_slip_notes(load(path))]
+def slip_design(tmp_path):
+    """The paper's design with its lengths in metres and its spring rate in N*mm/rad."""
     text = (DESIGNS / "delta6.toml").read_text()
     for key in ("a_mm", "b_mm", "c_mm", "la_mm", "lb_mm"):
         text = re.sub(rf"(?m)^{key} = ([0-9.]+)",
@@ -120,13 +161,70 @@ def test_values_in_another_unit_get_a_note(tmp_path, capsys):
     text = re.sub(r"(?m)^k_nm_per_rad = .*$", "k_nm_per_rad = 639.236", text)
     slip = tmp_path / "slip.toml"
     slip.write_text(re.sub(r"(?m)^name = .*$", 'name = "slip"', text))
+    return slip
+
+
+def test_values_in_another_unit_get_a_note_and_no_firmware(tmp_path, capsys):
+    """Lengths in metres and a rate in N*mm/rad make a valid but absurd design: the design
+    tools take it with a line naming each suspect value; codegen refuses it in one line
+    before writing anything, unless told it is meant. The shipped designs get none."""
+    from delta6.core.design import unit_slip_notes
+    assert not [n for path in DESIGN_FILES for n in unit_slip_notes(load(path))]
+    slip = slip_design(tmp_path)
     capsys.readouterr()
     assert main(["design", str(slip)]) == 0
     err = capsys.readouterr().err
     assert "a_mm = 0.072 is outside 1..2000 mm (metres or inches?)" in err
     assert "k_nm_per_rad of joint 1 = 639.236 is outside 0.001..100 N*m/rad (N*mm/rad?)" in err
-    assert main(["codegen", str(slip), "-o", str(tmp_path / "g" / "delta6_design.h")]) == 0
-    assert "a_mm = 0.072" in capsys.readouterr().err
+    out = tmp_path / "g" / "delta6_design.h"
+    for extra in ([], ["--build"]):
+        assert main(["codegen", str(slip), "-o", str(out), *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and "a_mm = 0.072" in err and "--allow-implausible" in err, err
+        assert not out.parent.exists()
+    assert main(["codegen", str(slip), "-o", str(out), "--allow-implausible"]) == 0
+    assert "note: design slip: a_mm = 0.072" in capsys.readouterr().err
+    assert out.exists()
+
+
+@pytest.mark.parametrize("name,value,field", [("la-in-m", "la_mm = 0.040", "la_mm"),
+                                               ("k-nmm", "k_nm_per_rad = 639.236",
+                                                "k_nm_per_rad")])
+def test_flash_and_virtual_refuse_a_unit_slip_before_writing(tmp_path, capsys, name, value,
+                                                             field):
+    """flash and virtual build firmware too: the same refusal, before any header is written or
+    the emulator started."""
+    key = value.split(" = ")[0]
+    text = re.sub(rf"(?m)^{key} = .*$", value, (DESIGNS / "delta6.toml").read_text())
+    design = tmp_path / "slip.toml"
+    design.write_text(re.sub(r"(?m)^name = .*$", f'name = "{name}"', text))
+    project = tmp_path / "firmware"
+    project.mkdir()
+    (project / "platformio.ini").write_text("[platformio]\n")
+    capsys.readouterr()
+    for argv in (["flash", "--port", "delta6sim://", "--firmware-dir", str(project),
+                  "--design", str(design), "--pio", "/bin/false"],
+                 ["virtual", "--design", str(design), "--duration", "1"]):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and field in err and "no firmware is built" in err, err
+    assert not (project / "include").exists()
+
+
+def test_flash_prints_the_design_notes_too(tmp_path, capsys):
+    """A soft note (the wire loses steps of a flat design) is printed by flash as by codegen."""
+    text = (DESIGNS / "delta6.toml").read_text()
+    flat = tmp_path / "flat.toml"
+    flat.write_text(re.sub(r"(?m)^name = .*$", 'name = "flat"',
+                           re.sub(r"(?m)^theta_offset_rad = .*$", "theta_offset_rad = 0.0",
+                                  text)))
+    project = tmp_path / "firmware"
+    project.mkdir()
+    (project / "platformio.ini").write_text("[platformio]\n")
+    capsys.readouterr()
+    assert main(["flash", "--port", "p", "--firmware-dir", str(project), "--design", str(flat),
+                 "--dry-run"]) == 0
+    assert "note: design flat: one encoder count" in capsys.readouterr().err
 
 
 def test_unwritable_output_is_a_user_error(tmp_path, capsys):

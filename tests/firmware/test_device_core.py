@@ -11,6 +11,8 @@ from delta6.link import protocol as P
 from delta6.link.decoder import SequenceTracker, StreamDecoder
 from delta6.sim.simdevice import Motion, NativeCore, SimulatedDevice
 
+from conftest import ROOT
+
 C = P.Command
 
 
@@ -391,6 +393,13 @@ def test_overrange_and_joint_limit(bench):
     bench.sim.motion = Motion.static([design.joint_limit_rad + 0.002, 0, 0, 0, 0, 0])
     records = data(bench.run(0.05))
     assert all(r.status & P.Status.JOINT_LIMIT for r in records)
+    # Beyond the box the solver refuses the pose: no wrench, not an extrapolated one; the
+    # protocol's status table says so.
+    invalid = P.Status.SOLVER_ERROR | P.Status.WRENCH_INVALID
+    assert all(r.status & invalid == invalid for r in records)
+    row = next(line for line in (ROOT / "docs" / "protocol.md").read_text().splitlines()
+               if line.startswith("| 7 | JOINT_LIMIT |"))
+    assert "SOLVER_ERROR" in row and "WRENCH_INVALID" in row and "extrapolated" not in row
 
 
 def test_answers_go_first_on_a_full_link_and_every_drop_is_a_counted_gap():

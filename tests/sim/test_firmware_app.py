@@ -4,6 +4,7 @@ gets its own image that reports itself and computes its own model."""
 from __future__ import annotations
 
 import configparser
+import re
 import subprocess
 
 import numpy as np
@@ -43,7 +44,9 @@ def test_the_application_uses_the_parallel_bus_not_digitalwrite():
     assert {"__vector_11", "__vector_18", "__vector_19"} <= defined
 
 
-def test_platformio_builds_the_application_for_both_boards():
+def test_platformio_ini_declares_both_boards_and_the_application_sources():
+    """What can be checked here: the configuration (PlatformIO's own build needs a platform
+    download)."""
     ini = configparser.ConfigParser(interpolation=None)
     ini.read(ROOT / "firmware" / "platformio.ini")
     assert ini["platformio"]["default_envs"] == "nano_every"
@@ -55,6 +58,19 @@ def test_platformio_builds_the_application_for_both_boards():
     assert "AVR_NANO_4809_328MODE" in every["build_unflags"]
     sources = {p.name for p in (ROOT / "firmware" / "src").glob("*.cpp")}
     assert {"main.cpp", "app.cpp", "board_atmega4809.cpp", "board_atmega328p.cpp"} <= sources
+
+
+def test_the_firmware_docs_name_real_sections_and_the_pinned_platformio():
+    """platformio.ini points to a section of docs/firmware.md that exists, and the PlatformIO
+    version the docs checked the file with is the one the firmware extra pins."""
+    ini = (ROOT / "firmware" / "platformio.ini").read_text()
+    doc = (ROOT / "docs" / "firmware.md").read_text()
+    headings = {line.lstrip("#").strip() for line in doc.splitlines() if line.startswith("#")}
+    cited = re.findall(r'docs/firmware\.md, "([^"]+)"', ini)
+    assert cited and set(cited) <= headings
+    pinned = re.search(r'"platformio==([0-9.]+)"', (ROOT / "pyproject.toml").read_text())[1]
+    said = re.findall(r"\(PlatformIO ([0-9.]+)", doc)
+    assert said and set(said) == {pinned}
 
 
 def test_a_design_variant_runs_its_own_model(tmp_path):

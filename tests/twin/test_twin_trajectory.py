@@ -67,6 +67,17 @@ def test_starts_at_rest_and_scale_scales_the_path():
 
 def test_bad_settings_are_refused():
     for bad in (dict(coverage=0), dict(move_min_s=2, move_max_s=1),
-                dict(scale=2), dict(dither_rad=0.6)):
+                dict(scale=2), dict(dither_rad=-0.1)):
         with pytest.raises(ValueError):
             make(1, 10, **bad)
+
+
+@pytest.mark.parametrize("limit", [0.01, 0.015, 0.022, 0.05])
+def test_a_narrow_box_scales_the_dither_and_stays_inside(limit):
+    """Every box a design may have (down to 0.01 rad) can be simulated: the dither shrinks to
+    a share of the covered range instead of refusing it; the paper's box keeps 0.02 rad."""
+    path = twin.RandomTrajectory(limit, 120.0, stream(4, "trajectory"), twin.TrajectorySettings())
+    _, q, _ = sample(path, 120.0)
+    assert np.all(np.abs(q) <= 0.9 * limit + 1e-12)
+    assert np.all(np.ptp(q, axis=0) > 0.5 * 0.9 * limit)
+    assert make(1, 10).dither_rad == twin.TrajectorySettings().dither_rad

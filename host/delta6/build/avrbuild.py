@@ -107,6 +107,31 @@ def _tool(name: str) -> str:
 _run = compilecache.run
 
 
+#: The linker's words for an image too big for the MCU: "will not fit in region `text'", and
+#: usually "region `text' overflowed by N bytes".
+_NO_FIT = re.compile(r"will not fit in region `(\w+)'")
+_OVERFLOW = re.compile(r"region `(\w+)' overflowed by (\d+) bytes")
+_MEMORY = {"text": "flash", "data": "static RAM"}
+
+
+def _link(cmd: list[str], name: str, mcu: str) -> None:
+    """Link; an image that does not fit is one line (which image, which memory, how many
+    bytes over, and why) instead of the linker's dump."""
+    try:
+        _run(cmd, f"linking {name}")
+    except BuildError as exc:
+        over = {region: None for region in _NO_FIT.findall(str(exc))}
+        over.update((region, int(n)) for region, n in _OVERFLOW.findall(str(exc)))
+        if not over:
+            raise
+        amounts = ", ".join((f"{n:,} bytes " if n else "") + f"over its {_MEMORY.get(r, r)}"
+                            for r, n in over.items())
+        raise BuildError(f"{name} does not fit the {mcu}: {amounts}. The design's joint "
+                         "box sets the size of the trig tables (a wider box, more flash) and a "
+                         "calibration or a model adds its constants: narrow joint_limit_rad, "
+                         "or build without them (docs/firmware.md, \"Memory\")") from None
+
+
 def _object_name(src: Path) -> str:
     # Distinct objects for same-named sources in different directories.
     tag = hashlib.sha256(str(src).encode()).hexdigest()[:6]
@@ -217,8 +242,8 @@ def build_image(name: str, sources, include_dirs=(), defines=(), *, board: Board
     link = [cc, "-Os", "-g", "-flto", "-fuse-linker-plugin", "-Wl,--gc-sections",
             f"-mmcu={board.mcu}", *link_flags, *map(str, objects), *([str(core)] if core else []),
             f"-L{out}", "-lm"]
-    compilecache.write_atomically(elf, lambda tmp: _run([*link, "-o", str(tmp)],
-                                                        f"linking {name}"))
+    compilecache.write_atomically(elf, lambda tmp: _link([*link, "-o", str(tmp)], name,
+                                                         board.mcu))
     compilecache.write_atomically(hex_path, lambda tmp: _run(
         [_tool("avr-objcopy"), "-O", "ihex", "-R", ".eeprom", str(elf), str(tmp)],
         f"making the HEX file of {name}"))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import shlex
 import sys
 from pathlib import Path
 from typing import NamedTuple
@@ -56,11 +57,38 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--check", action="store_true",
                         help="write nothing; exit 1 if the header differs from what the design "
                              "(or with --wire, the protocol) generates")
+    add_allow_implausible(parser)
+
+
+ALLOW_IMPLAUSIBLE = "--allow-implausible"
+
+
+def add_allow_implausible(parser: argparse.ArgumentParser) -> None:
+    """The override of :func:`firmware_notes`, for every command that builds a firmware."""
+    parser.add_argument(ALLOW_IMPLAUSIBLE, action="store_true",
+                        help="build the firmware even for a design with a length outside 1..2000 "
+                             "mm or a spring rate outside 0.001..100 N*m/rad (refused "
+                             "otherwise: such a value is usually written in another unit)")
+
+
+def firmware_notes(design: design_mod.Design, allow_implausible: bool = False) -> list[str]:
+    """The checks run before any file is written for a design's firmware (codegen, flash,
+    virtual): a value that reads as another unit is refused, as its firmware would run and
+    report nonsense; returns the notes to print (the wire's lost steps; the unit slips when
+    allowed)."""
+    slips = design_mod.unit_slips(design)
+    if slips and not allow_implausible:
+        more = f" (and {len(slips) - 1} more)" if len(slips) > 1 else ""
+        raise UserError(f"design {design.name}: {slips[0]}{more}: no firmware is built for it; "
+                        f"fix the unit, or pass {ALLOW_IMPLAUSIBLE} if the value is meant")
+    notes = design_mod.unit_slip_notes(design) + [resolution_note(design)]
+    return [note for note in notes if note]
 
 
 def source_label(path: Path) -> str:
-    """How the banner names the design file: relative to the repository when inside it, so
-    the bytes do not depend on the working directory."""
+    """How the banners and commands name a file: relative to the repository when inside it
+    (the bytes do not depend on the working directory), else its absolute path (a command in
+    a banner runs from anywhere)."""
     resolved = path.resolve()
     shipped = paths.DESIGNS_DIR.resolve()
     if resolved.parent == shipped:      # a shipped design, however it was reached
@@ -68,30 +96,44 @@ def source_label(path: Path) -> str:
     try:
         return resolved.relative_to(paths.REPO_ROOT.resolve()).as_posix()
     except ValueError:
-        return resolved.name
+        return resolved.as_posix()
 
 
-def header_text(path: Path) -> tuple[design_mod.Design, str]:
+def codegen_command(design_path: Path, cal_path: Path | None = None,
+                    model_path: Path | None = None, *extra: str) -> str:
+    """The ``delta6 codegen`` command line that writes these headers (``extra``: its other
+    arguments), for the banners and for --check's hint."""
+    words = ["delta6", NAME, source_label(design_path)]
+    for flag, path in (("--calibration", cal_path), ("--model", model_path)):
+        if path is not None:
+            words += [flag, source_label(path)]
+    return shlex.join(words + list(extra))
+
+
+def header_text(path: Path, command: str | None = None) -> tuple[design_mod.Design, str]:
     from delta6_codegen import render
     design = load_checked(path)
-    return design, render(design, source_label(path))
+    return design, render(design, source_label(path), command=command)
 
 
-def calibration_text(design: design_mod.Design, design_path: Path, cal_path: Path | None):
+def calibration_text(design: design_mod.Design, design_path: Path, cal_path: Path | None,
+                     command: str | None = None):
     """The calibration header for ``cal_path`` (None: no calibration, no header)."""
     if cal_path is None:
         return None, None
     from delta6_codegen import render_calibration
     cal = calibration_mod.load(cal_path)
     cal.check_design(design)
-    return cal, render_calibration(design, cal, source_label(design_path), source_label(cal_path))
+    return cal, render_calibration(design, cal, source_label(design_path), source_label(cal_path),
+                                   command=command)
 
 
 #: Re-exported: the cost limits live with the model file (evaluate and train check them too).
 MAX_MODEL_MACS = residualmodel.MAX_MODEL_MACS
 
 
-def model_text(design: design_mod.Design, design_path: Path, model_path: Path | None, cal=None):
+def model_text(design: design_mod.Design, design_path: Path, model_path: Path | None, cal=None,
+               command: str | None = None):
     """The model header for ``model_path`` (None: no model, no header); refuses a model
     trained for another design or over another base than the one this firmware computes, and
     one too costly for the board's rated rate."""
@@ -101,7 +143,8 @@ def model_text(design: design_mod.Design, design_path: Path, model_path: Path | 
     model = residualmodel.load(model_path)
     residualmodel.check_base(model, design, cal)
     residualmodel.check_cost(model.net.macs, design, cal, str(model_path))
-    return model, render_model(model, source_label(design_path), source_label(model_path))
+    return model, render_model(model, source_label(design_path), source_label(model_path),
+                               command=command)
 
 
 class Headers(NamedTuple):
@@ -116,12 +159,18 @@ class Headers(NamedTuple):
 
 
 def generate_headers(design_path: Path, cal_path: Path | None = None,
-                     model_path: Path | None = None) -> Headers:
-    """Everything ``delta6 codegen`` (and ``delta6 flash``) writes for a firmware: refuses a
-    calibration of another design and a model over another base."""
-    design, text = header_text(design_path)
-    cal, cal_text = calibration_text(design, design_path, cal_path)
-    model, model_text_ = model_text(design, design_path, model_path, cal)
+                     model_path: Path | None = None, allow_implausible: bool = False,
+                     command: str | None = None) -> Headers:
+    """Everything ``delta6 codegen`` (and ``delta6 flash``, ``delta6 virtual``) writes for a
+    firmware: refuses a design in another unit (:func:`firmware_notes`, whose notes it prints),
+    a calibration of another design and a model over another base. ``command``: the command
+    line the banners name (default: :func:`codegen_command`)."""
+    command = command or codegen_command(design_path, cal_path, model_path)
+    design, text = header_text(design_path, command)
+    for note in firmware_notes(design, allow_implausible):
+        print(note, file=sys.stderr)
+    cal, cal_text = calibration_text(design, design_path, cal_path, command)
+    model, model_text_ = model_text(design, design_path, model_path, cal, command)
     return Headers(design, text, cal, cal_text, model, model_text_)
 
 
@@ -185,7 +234,9 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("give a design file (delta6 codegen designs/delta6.toml) or --wire")
     if args.build or args.output is None:
         paths.checkout()    # the firmware tree the header belongs to, or one line saying so
-    headers = generate_headers(args.design, args.calibration, args.model)
+    command = rerun_command(args)
+    headers = generate_headers(args.design, args.calibration, args.model, args.allow_implausible,
+                               command)
     out = output_path(args, headers.design, headers.cal, headers.model)
     if args.output is not None:      # (its folder is made: generated/ next to the firmware)
         check_not_an_input(out, "-o", [args.design, args.calibration, args.model])
@@ -193,13 +244,11 @@ def run(args: argparse.Namespace) -> int:
         include_dir_of(out)     # a usage error: said before any header is written
     if args.check:
         return _check(args, out, headers.text, {out.with_name(CALIBRATION_HEADER): headers.cal_text,
-                                                out.with_name(MODEL_HEADER): headers.model_text})
+                                                out.with_name(MODEL_HEADER): headers.model_text},
+                      command)
     for line in write_headers(out, headers):
         print(line)
     design, cal, model = headers.design, headers.cal, headers.model
-    for note in design_mod.unit_slip_notes(design) + [resolution_note(design)]:
-        if note:
-            print(note, file=sys.stderr)
     if args.build:
         image = build_image(design, include_dir_of(out), cal, model)
         sizes = image.sizes
@@ -247,32 +296,45 @@ def run_wire(args: argparse.Namespace) -> int:
     return 0
 
 
+def rerun_command(args: argparse.Namespace) -> str:
+    """The ``delta6 codegen`` command line of ``args`` as a user re-runs it (without --check):
+    what the banners name and what --check says to run."""
+    extra = []
+    if args.output is not None and args.output.resolve() != COMMITTED_HEADER.resolve():
+        extra += ["-o", source_label(args.output)]
+    extra += [flag for flag, given in (("--build", args.build),
+                                       (ALLOW_IMPLAUSIBLE, args.allow_implausible)) if given]
+    return codegen_command(args.design, args.calibration, args.model, *extra)
+
+
 def check(out: Path, text: str, source: str, command: str) -> int:
     """``--check``: 0 if ``out`` holds ``text``, else 1 with the command that fixes it."""
-    try:
-        current = out.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError):
-        current = None
-    if current != text:
-        print(f"{_rel(out)} is out of date with {source}; run: {command}", file=sys.stderr)
+    if _read(out) != text:
+        print(_stale(out, text, source, command), file=sys.stderr)
         return 1
     print(f"{_rel(out)} is up to date")
     return 0
 
 
-def _check(args, out: Path, text: str, extra: dict) -> int:
+def _stale(path: Path, wanted: str | None, source: str, command: str) -> str:
+    """What is wrong with a header that does not hold ``wanted`` (None: must not exist)."""
+    if wanted is None:
+        state = f"should not exist for {source}"
+    elif not path.exists():
+        state = "is missing"
+    else:
+        state = f"is out of date with {source}"
+    return f"{_rel(path)} {state}; run: {command}"
+
+
+def _check(args, out: Path, text: str, extra: dict, command: str) -> int:
     """``--check`` of the design header and of the calibration and model headers (or their
     absence)."""
     label = source_label(args.design)
-    command = f"delta6 codegen {label}"
-    if args.calibration:
-        command += f" --calibration {source_label(args.calibration)}"
-    if args.model:
-        command += f" --model {source_label(args.model)}"
     status = check(out, text, label, command)
     for path, wanted in extra.items():
         if _read(path) != wanted:
-            print(f"{_rel(path)} is out of date with {label}; run: {command}", file=sys.stderr)
+            print(_stale(path, wanted, label, command), file=sys.stderr)
             status = 1
     return status
 
@@ -308,11 +370,13 @@ def build_image(design: design_mod.Design, include_dir: Path, cal=None,
 
 
 def design_firmware(path: Path, calibration: Path | None = None,
-                    model_path: Path | None = None, defines=()) -> avrbuild.Image:
+                    model_path: Path | None = None, defines=(),
+                    allow_implausible: bool = False) -> avrbuild.Image:
     """Generate ``path``'s header (and ``calibration``'s and ``model_path``'s) into
     build/designs/NAME/include/ (the committed headers are left alone) and build the
     application for it: what ``delta6 virtual --design [--calibration] [--model]`` runs."""
-    headers = generate_headers(path, calibration, model_path)
+    headers = generate_headers(path, calibration, model_path, allow_implausible,
+                               codegen_command(path, calibration, model_path, "--build"))
     design, cal, model = headers.design, headers.cal, headers.model
     header = avrbuild.design_include_dir(build_name(design, cal, model)) / HEADER_RELPATH
     write_headers(header, headers)

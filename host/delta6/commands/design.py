@@ -98,15 +98,22 @@ def format_single(path: str, d: design_mod.Design, s: Spec) -> str:
     return "\n".join(lines)
 
 
+def _k_range(d: design_mod.Design) -> str:
+    """The spring rate for a table cell: one value, or the per-joint list's min..max."""
+    lo, hi = min(d.k_nm_per_rad), max(d.k_nm_per_rad)
+    return f"{lo:.6g}" if lo == hi else f"{lo:.4g}..{hi:.4g}"
+
+
 def format_table(results) -> str:
     header = (f"{'design':<20} {'a mm':>6} {'b mm':>6} {'la mm':>6} {'lb mm':>6} {'th_off':>6} "
-              f"{'k Nm/rad':>9} {'|Fmax| N':>9} {'|Mmax| Nm':>9} {'Fres N':>8} {'Mres Nm':>8}")
+              f"{'lim rad':>7} {'k Nm/rad':>13} {'|Fmax| N':>9} {'|Mmax| Nm':>9} {'Fres N':>8} "
+              f"{'Mres Nm':>8}")
     lines = [header, "-" * len(header)]
     for _path, d, s in results:
-        k = d.k_nm_per_rad[0] if len(set(d.k_nm_per_rad)) == 1 else float("nan")
         lines.append(f"{d.name:<20} {d.a_mm:>6.4g} {d.b_mm:>6.4g} {d.la_mm:>6.4g} {d.lb_mm:>6.4g} "
-                     f"{d.theta_offset_rad:>6.3f} {k:>9.6g} {_g(s.force_norm_max_n):>9} "
-                     f"{_g(s.torque_norm_max_nm):>9} {_g(s.force_resolution_n):>8} "
-                     f"{_g(s.torque_resolution_nm, 3):>8}")
-    lines.append(f"({results[0][2].method}; Fres, Mres: worst case for one encoder count)")
+                     f"{d.theta_offset_rad:>6.3f} {d.joint_limit_rad:>7.4f} {_k_range(d):>13} "
+                     f"{_g(s.force_norm_max_n):>9} {_g(s.torque_norm_max_nm):>9} "
+                     f"{_g(s.force_resolution_n):>8} {_g(s.torque_resolution_nm, 3):>8}")
+    lines.append(f"({results[0][2].method}; lim: the joint box |theta_e| <= lim; Fres, Mres: "
+                 "worst case for one encoder count)")
     return "\n".join(lines)

@@ -4,15 +4,18 @@ answers with the design, calibration and model it was built with."""
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from pathlib import Path
 
 from delta6.build import flash
 from delta6.commands._port import number
 from delta6.commands.codegen import (
+    ALLOW_IMPLAUSIBLE,
     CALIBRATION_HEADER,
     HEADER_RELPATH,
     MODEL_HEADER,
+    add_allow_implausible,
     generate_headers,
     source_label,
     write_headers,
@@ -54,13 +57,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"(default {flash.ANSWER_TIMEOUT:g})")
     parser.add_argument("--dry-run", action="store_true",
                         help="print the header and the PlatformIO command, change and run nothing")
+    add_allow_implausible(parser)
+
+
+def rerun_command(args: argparse.Namespace) -> str:
+    """This ``delta6 flash`` command line, for the banners of the headers it writes."""
+    words = ["delta6", NAME, "--port", args.port, "--design", source_label(args.design)]
+    for flag, value in (("--calibration", args.calibration), ("--model", args.model),
+                        ("--firmware-dir", args.firmware_dir)):
+        if value is not None:
+            words += [flag, source_label(value)]
+    if args.env != flash.DEFAULT_ENV:
+        words += ["--env", args.env]
+    if args.allow_implausible:
+        words.append(ALLOW_IMPLAUSIBLE)
+    return shlex.join(words)
 
 
 def run(args: argparse.Namespace) -> int:
     firmware_dir = args.firmware_dir or paths.checkout() / "firmware"
     if not (firmware_dir / "platformio.ini").is_file():
         raise UserError(f"{firmware_dir}: no platformio.ini (not the firmware project)")
-    headers = generate_headers(args.design, args.calibration, args.model)
+    headers = generate_headers(args.design, args.calibration, args.model,
+                               args.allow_implausible, rerun_command(args))
     cal, model = headers.cal, headers.model
     expected = flash.Expected(
         headers.design.name, headers.design.hash32(),

@@ -77,6 +77,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "the emulator runs")
     parser.add_argument("--duration", type=number("--duration", low=0, low_open=True),
                         metavar="S", help="stop after S seconds of board time")
+    from delta6.commands.codegen import add_allow_implausible
+    add_allow_implausible(parser)
 
 
 def parse_zero(text: str | None):
@@ -109,13 +111,14 @@ def run(args: argparse.Namespace) -> int:
     zero = parse_zero(args.zero)
     if args.loop and args.replay is None:
         raise UserError("--loop goes with --replay")
-    run_of_twin = _simulate_twin(args) if args.twin else None
+    # The firmware first: its design checks refuse a unit slip before the twin simulates it.
     if args.design is not None or args.calibration is not None or args.model is not None:
         from delta6.commands.codegen import design_firmware
         image = design_firmware(args.design or Path(DEFAULT_DESIGN), args.calibration,
-                                args.model)
+                                args.model, allow_implausible=args.allow_implausible)
     else:
         image = vb.firmware()
+    run_of_twin = _simulate_twin(args) if args.twin else None
     replay_design = None
     if args.replay is not None:     # its log must come from the design the firmware is for
         from delta6.core.workspace import load_checked
@@ -128,7 +131,9 @@ def run(args: argparse.Namespace) -> int:
             what = (f"the digital twin, scenario {args.twin} (seed {args.seed}, "
                     f"{args.twin_duration:g} s looped), through the live channel")
         elif not args.static and args.live is None:
-            t, theta = vb.demo_trajectory()
+            from delta6.core.design import load
+            limit = load(args.design or DEFAULT_DESIGN).joint_limit_rad
+            t, theta = vb.demo_trajectory(limit_rad=limit)     # inside the design's joint box
             replay = vb.write_replay(Path(tmp) / "demo.d6rp", t, theta_to_counts(theta, zero))
             loop, what = True, "a demo motion (20 s, looping; --static for rest)"
         live = args.live if args.live is not None else run_of_twin is not None
@@ -149,8 +154,12 @@ def _simulate_twin(args: argparse.Namespace):
     design = load_checked(args.design or DEFAULT_DESIGN)
     print(f"simulating {args.twin_duration:g} s of the twin (scenario {args.twin}) ...",
           file=sys.stderr, flush=True)
-    return twin.simulate(design, effects, args.twin_duration, TWIN_RATE_HZ, args.seed,
-                         scenario=args.twin)
+    try:
+        return twin.simulate(design, effects, args.twin_duration, TWIN_RATE_HZ, args.seed,
+                             scenario=args.twin)
+    except ValueError as exc:    # a design or setting the twin cannot run: one line
+        raise UserError(f"--twin {args.twin}: the twin cannot simulate design "
+                        f"'{design.name}': {exc}") from None
 
 
 def _drive(board: vb.VirtualBoard, run_of_twin, speed: float, stop: threading.Event) -> None:

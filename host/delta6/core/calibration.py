@@ -419,7 +419,7 @@ def loads(text: str, source: str | None = None) -> Calibration:
 def load(path: str | Path) -> Calibration:
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")   # (an editor's BOM is not TOML)
     except FileNotFoundError:
         raise CalibrationError(f"{path}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:

@@ -216,15 +216,15 @@ def validate(raw: dict, source: str | None = None) -> Design:
 
 
 #: Sizes a hand-sized sensor of this kind plausibly has; a value far outside reads as another
-#: unit (metres or inches in a mm key, N*mm in an N*m key). Outside them a design is still
-#: taken: these are notes, not errors.
+#: unit (metres or inches in a mm key, N*mm in an N*m key). The design tools take such a design
+#: with a note; the firmware builds refuse it (delta6.commands.codegen.firmware_notes).
 PLAUSIBLE_LENGTH_MM = (1.0, 2000.0)
 PLAUSIBLE_K_NM_PER_RAD = (1e-3, 100.0)
 
 
-def unit_slip_notes(design: Design) -> list[str]:
-    """One line per value that looks like it was written in another unit."""
-    notes = []
+def unit_slips(design: Design) -> list[str]:
+    """One phrase per value that looks like it was written in another unit."""
+    slips = []
     lo, hi = PLAUSIBLE_LENGTH_MM
     for key in LENGTH_KEYS:
         value = getattr(design, key)
@@ -232,16 +232,20 @@ def unit_slip_notes(design: Design) -> list[str]:
             continue
         if not lo <= value <= hi:
             guess = "metres or inches?" if value < lo else "micrometres?"
-            notes.append(f"note: design {design.name}: {key} = {value:g} is outside "
-                         f"{lo:g}..{hi:g} mm ({guess})")
+            slips.append(f"{key} = {value:g} is outside {lo:g}..{hi:g} mm ({guess})")
     lo, hi = PLAUSIBLE_K_NM_PER_RAD
     for j, value in enumerate(design.k_nm_per_rad):
         if not lo <= value <= hi:
             guess = "N*mm/rad?" if value > hi else "a tiny spring?"
-            notes.append(f"note: design {design.name}: k_nm_per_rad of joint {j + 1} = {value:g} "
-                         f"is outside {lo:g}..{hi:g} N*m/rad ({guess})")
+            slips.append(f"k_nm_per_rad of joint {j + 1} = {value:g} is outside {lo:g}..{hi:g} "
+                         f"N*m/rad ({guess})")
             break
-    return notes
+    return slips
+
+
+def unit_slip_notes(design: Design) -> list[str]:
+    """:func:`unit_slips` as note lines."""
+    return [f"note: design {design.name}: {slip}" for slip in unit_slips(design)]
 
 
 def load(path: str | Path) -> Design:
@@ -251,7 +255,7 @@ def load(path: str | Path) -> Design:
     path = Path(path)
     source = str(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")   # (an editor's BOM is not TOML)
     except FileNotFoundError:
         raise DesignError("file", "no such file", source) from None
     except (OSError, UnicodeDecodeError) as exc:

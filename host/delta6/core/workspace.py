@@ -41,20 +41,33 @@ def check_solvable(design: Design, source: str | None = None) -> None:
     def height2(t):
         return forward_kinematics(p, t, return_disc=True)[1]
 
+    rest = np.zeros(3)
     worst, where = boxsearch.minimize(height2, lo, hi, seeds=7, starts=4, passes=16)
-    lb = design.lb_mm * 1e-3
-    if not worst > (MIN_HEIGHT_FRACTION * lb) ** 2:
+    least = (MIN_HEIGHT_FRACTION * design.lb_mm * 1e-3) ** 2
+    if not worst > least:
         raise DesignError("lb_mm", "forward kinematics has no solution in the joint box "
-                          f"(links cannot close at theta_e1..3 = {_fmt(where)} rad)", source)
+                          f"(links cannot close at theta_e1..3 = {_fmt(where)} rad)"
+                          + _box_fix(height2(rest) > least), source)
 
     def lever(t):
         _, lev = branch_forces(p, t)
         return np.abs(lev).min(axis=-1)
 
     worst, where = boxsearch.minimize(lever, lo, hi, seeds=7, starts=4, passes=16)
-    if not worst > MIN_LEVER_FRACTION * design.la_mm * 1e-3:
+    least = MIN_LEVER_FRACTION * design.la_mm * 1e-3
+    if not worst > least:
         raise DesignError("la_mm", "the mechanism is singular in the joint box (link force "
-                          f"unbounded at theta_e1..3 = {_fmt(where)} rad)", source)
+                          f"unbounded at theta_e1..3 = {_fmt(where)} rad)"
+                          + _box_fix(lever(rest) > least), source)
+
+
+def _box_fix(fine_at_rest: bool) -> str:
+    """When the rest pose is fine, the joint box reaches the bad pose: a smaller box (or
+    another rest angle) is a fix too, not only other lengths."""
+    if not fine_at_rest:
+        return ""
+    return ("; or reduce joint_limit_rad / change theta_offset_rad (the rest pose is fine: "
+            "the joint box reaches the bad pose)")
 
 
 def _fmt(values: np.ndarray) -> str:

@@ -6,7 +6,8 @@ blob, tare, quantisation, record encoding, telemetry), the same code the board r
 stand-in board layer (``firmware/native/sim_hardware.h``) whose transmit queue drains at the
 baud rate, so a rate the link cannot carry loses records exactly as on the board. The solver is
 replaced by :func:`delta6.core.model.wrench` on the angles the counts encode, so every wrench the
-host receives can be checked against the reference.
+host receives can be checked against the reference; like the board's, it gives no wrench for a
+pose outside the joint box.
 
 Users reach it as a serial port URL, ``delta6sim://`` (see :mod:`delta6.sim.serialurl`); tests use
 :class:`SimulatedDevice` directly and move its clock by hand.
@@ -25,7 +26,14 @@ from delta6.build import nativebuild
 from delta6.core.design import DEFAULT_DESIGN, Design, load
 from delta6.core.model import wrench as model_wrench
 from delta6.core.spec import full_scale
-from delta6.link.protocol import DEFAULT_BAUD, TEMPERATURE_UNKNOWN, Mode, counts_to_theta, theta_to_counts
+from delta6.link.protocol import (
+    DEFAULT_BAUD,
+    TEMPERATURE_UNKNOWN,
+    Mode,
+    count_delta,
+    counts_to_theta,
+    theta_to_counts,
+)
 from delta6_codegen.solver_constants import limit_counts
 
 #: Encoder counts at zero deflection of the simulated mechanism (any values do).
@@ -260,10 +268,11 @@ class SimulatedDevice:
         self.temperature_centi = (TEMPERATURE_UNKNOWN if temperature_c is None
                                   else int(round(temperature_c * 100)))
         self._rng = np.random.default_rng(seed + 1)
+        self.limit_counts = limit_counts(design)
         self.core = NativeCore(design_name=design.name, design_hash=design.hash32(),
                                full_scale=self.full_scale,
                                joint_limit_rad=design.joint_limit_rad,
-                               joint_limit_counts=limit_counts(design), baud=baud,
+                               joint_limit_counts=self.limit_counts, baud=baud,
                                max_rate_hz=max_rate_hz, default_rate_hz=rate_hz,
                                zero_counts=zero_counts, serial_number=serial_number,
                                tx_capacity=tx_capacity)
@@ -331,7 +340,11 @@ class SimulatedDevice:
         # The application: angles from the device's current zero counts, then the solver.
         theta = counts_to_theta(counts, self.core.zero_counts)
         wrench = model_wrench(self.design, theta).astype(np.float32)
-        solver_ok = np.isfinite(wrench).all(axis=1) & (errors == 0)
+        # The board's solver refuses a pose outside the joint box (no wrench, SOLVER_ERROR);
+        # the model would extrapolate.
+        in_box = (np.abs(count_delta(counts, self.core.zero_counts))
+                  <= self.limit_counts).all(axis=1)
+        solver_ok = np.isfinite(wrench).all(axis=1) & (errors == 0) & in_box
         if self.solver_fail:
             solver_ok &= self._rng.random(n) >= self.solver_fail
         overrun = self._rng.random(n) < self.overrun if self.overrun else np.zeros(n, bool)

@@ -21,6 +21,9 @@ PROBE_SOURCE = avrbuild.FIRMWARE / "bench" / "solver_probe.cpp"
 SOLVER_SOURCES = (avrbuild.CORE_LIB / "delta6_solver.cpp",
                   avrbuild.FIRMWARE / "src" / "fast_mulsf3.S")
 CALIBRATED_SOURCES = (*SOLVER_SOURCES, avrbuild.CORE_LIB / "delta6_calibrated.cpp")
+#: The solver's required accuracy, % of full scale per axis (docs/firmware.md, "Accuracy"):
+#: the native tests and the AVR benchmark, analytical or calibrated, hold it to this.
+REQUIRED_ACCURACY_PCT_FS = 0.01
 SYNC = 0xD6
 FRAMES = {  # type byte -> payload layout (little-endian, as the AVR stores it)
     ord("I"): struct.Struct("<IH24s"),

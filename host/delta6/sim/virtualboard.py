@@ -141,7 +141,7 @@ def replay_from_log(log_path: Path, out: Path, zero=0, design=None) -> tuple[Pat
         try:
             check_log_meta(data.meta, design, source=f"replay file {log_path}")
         except UserError as exc:
-            raise VirtualBoardError(f"{exc}; give its design with --design") from None
+            raise VirtualBoardError(str(exc)) from None   # (it says: pass --design)
     t, theta = np.asarray(data.t, dtype=float), np.asarray(data.theta, dtype=float)
     missing = ~np.isfinite(theta).all(axis=1)
     if missing.all():

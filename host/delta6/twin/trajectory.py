@@ -24,6 +24,8 @@ import numpy as np
 # 5.7735/T^2 for a unit move of duration T.
 _PEAK_RATE = 1.875
 _PEAK_ACCEL = 10.0 / math.sqrt(3.0)
+#: The dither takes at most this share of the covered joint range (the waypoints the rest).
+MAX_DITHER_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -37,7 +39,8 @@ class TrajectorySettings:
     accel_max_rad_s2: float = 4.0
     hold_probability: float = 0.25        # a hold after a move
     hold_max_s: float = 2.0
-    dither_rad: float = 0.02              # peak dither per joint (sum of three sinusoids)
+    dither_rad: float = 0.02              # peak dither per joint (sum of three sinusoids;
+                                          # less in a narrow box: MAX_DITHER_SHARE)
     dither_min_hz: float = 0.15
     dither_max_hz: float = 1.2
     scale: float = 1.0                    # multiplies the whole path (load level)
@@ -85,9 +88,13 @@ class RandomTrajectory:
                  settings: TrajectorySettings = TrajectorySettings()):
         settings.check()
         self.settings = s = settings
-        reach = s.coverage * joint_limit_rad - s.dither_rad
+        covered = s.coverage * joint_limit_rad
+        # The dither shrinks with a narrow box (every valid design's box, down to
+        # MIN_JOINT_LIMIT_RAD, leaves the waypoints room); the default box keeps dither_rad.
+        self.dither_rad = min(s.dither_rad, MAX_DITHER_SHARE * covered)
+        reach = covered - self.dither_rad
         if reach <= 0:
-            raise ValueError("dither larger than the covered joint range")
+            raise ValueError("the joint box is empty")
         starts, durations, origins, targets = [], [], [], []
         now, here = 0.0, np.zeros(6)
         while now < duration_s:
@@ -113,7 +120,7 @@ class RandomTrajectory:
         self.freq = rng.uniform(s.dither_min_hz, s.dither_max_hz, (3, 6))
         self.phase = rng.uniform(0, 2 * np.pi, (3, 6))
         share = rng.dirichlet(np.ones(3), 6).T
-        self.amp = s.dither_rad * share
+        self.amp = self.dither_rad * share
         self.env_freq = rng.uniform(0.01, 0.05, 6)
 
     @property
