@@ -90,7 +90,8 @@ def forward_kinematics(p: Params | Design, theta_e123: np.ndarray, *, return_dis
     j = np.linalg.norm(ey_raw, axis=-1)
     ey = ey_raw / j[..., None]
     ez = np.cross(ex, ey)
-    # The solution below the base (z_B down): flip ez so that its z component is positive.
+    # The root on the tool's side of the plane through the centres (z_B down, toward the
+    # tool): flip ez so that its z component is positive.
     ez = ez * np.where(ez[..., 2:3] < 0, -1.0, 1.0)
     x = (r1**2 - r2**2 + d**2) / (2 * d)
     y = (r1**2 - r3**2 + i**2 + j**2) / (2 * j) - i * x / j
