@@ -117,3 +117,21 @@ def test_a_damaged_truth_file_for_unit_gets_one_line(tmp_path, capsys):
                      "-o", str(tmp_path / "again.csv")]) == 2, sorted(set(truth) - set(record))
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and path.name in err, err
+
+
+def test_a_reference_beyond_what_the_readers_accept_is_noted(tmp_path, capsys):
+    # Friction in N*m does not scale with the springs: on springs 300 times softer than the
+    # paper's the same effects outgrow the design's full scale, and evaluate, diagnose,
+    # calibrate and train would refuse the log; simulate says so when it writes it.
+    text = (ROOT / "designs" / "delta6.toml").read_text()
+    soft = tmp_path / "soft.toml"
+    soft.write_text(text.replace('name = "delta6"', 'name = "soft"').replace(
+        "k_nm_per_rad = 0.639236", "k_nm_per_rad = 0.002"))
+    assert simulate(tmp_path, "--scenario", "paper", "--design", str(soft)) == 0
+    out = capsys.readouterr().out
+    assert "beyond 3x the design's full scale" in out
+    assert main(["evaluate", str(tmp_path / "run.csv"), "--design", str(soft)]) == 2
+    assert "far outside the design's range" in capsys.readouterr().err
+    # The shipped design's run has no such note.
+    assert simulate(tmp_path, "--scenario", "paper", "-o", str(tmp_path / "ok.csv")) == 0
+    assert "full scale (most on" not in capsys.readouterr().out

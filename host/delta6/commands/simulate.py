@@ -12,8 +12,11 @@ import numpy as np
 from delta6.core import accuracy
 from delta6.core import design as design_mod
 from delta6.core.errors import UserError
+from delta6.core.model import AXES
 from delta6.core.outputs import check_not_an_input
+from delta6.core.spec import full_scale
 from delta6.core.workspace import load_checked
+from delta6.diagnosis.data import MAX_FULL_SCALES
 from delta6.twin import (
     EFFECT_NAMES,
     REGISTRY,
@@ -214,8 +217,26 @@ def summary(result, effects, log_path: Path, truth_file: Path, simulated: float,
     table = {k: v for k, v in truth["analytical_error_pct_fs"].items() if k != "p100"}
     lines.append("analytical model vs reference (percent of full scale):")
     lines.append(accuracy.format_table(table, title=""))
+    note = beyond_the_readers(result)
+    if note:
+        lines.append(note)
     lines.append(f"generated in {simulated:.2f} s, written in {written:.2f} s")
     return "\n".join(lines)
+
+
+def beyond_the_readers(result) -> str | None:
+    """A note when the reference leaves the range evaluate, diagnose, calibrate and train
+    accept: the effects' magnitudes are absolute (friction in N*m, a harness in N), so on a
+    design with soft springs or short links they can outgrow its full scale."""
+    fs = full_scale(result.design)
+    over = np.abs(result.wrench) > MAX_FULL_SCALES * fs
+    if not over.any():
+        return None
+    axis = int(np.argmax(over.sum(axis=0)))
+    return (f"note: {over.any(axis=1).mean():.0%} of the samples have a reference beyond "
+            f"{MAX_FULL_SCALES:g}x the design's full scale (most on {AXES[axis]}): evaluate, "
+            "diagnose, calibrate and train refuse such a log; the effects are sized for the "
+            "shipped designs (a smaller --magnitude, or stiffer springs)")
 
 
 def listing() -> str:
