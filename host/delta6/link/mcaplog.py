@@ -41,6 +41,7 @@ from delta6.link.logdata import (
     PartialOnError,
     check_rows,
     int_column,
+    meta_text,
     six_columns,
 )
 
@@ -121,7 +122,8 @@ class McapLogWriter(PartialOnError):
                                                         R.definition(datatype).encode())
                     self._channels[topic] = self._mcap.register_channel(topic, "cdr", schema)
                 self._mcap.add_metadata(METADATA_NAME, {
-                    **meta, "schema": str(SCHEMA_VERSION), "columns": ",".join(self.columns)})
+                    **{key: meta_text(value) for key, value in meta.items()},
+                    "schema": str(SCHEMA_VERSION), "columns": ",".join(self.columns)})
                 self._to_os()
         except LogError:
             # Not even the header fits: no file is left behind to be refused next time.
