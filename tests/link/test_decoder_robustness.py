@@ -280,6 +280,26 @@ def test_a_continuous_stream_is_one_session_across_both_wraps(seq0, t0, rate, n)
     assert np.array_equal(cap.time_us, t0 + period * np.arange(n))
 
 
+@settings(deadline=None)
+@given(st.lists(st.integers(0, 3), min_size=2, max_size=40), st.integers(0, 2**32 - 1))
+def test_a_time_that_stands_still_starts_a_session_in_both_decoders(steps, t0):
+    """Records with new sequence numbers and the same device time (a frozen clock, or two
+    captures joined): no session may hold a time step of zero, live or offline, and both
+    decoders cut at the same records."""
+    times = (t0 + 1000 * np.cumsum([0] + steps)) % 2**32
+    frames = [P.encode_wrench(i, int(u), 0, (0,) * 6) for i, u in enumerate(times)]
+    cap = decode_capture(b"".join(frames), max_rate_hz=1000)
+    tracker = SequenceTracker(max_rate_hz=1000)
+    live = []
+    for i, u in enumerate(times):
+        tracker.update(i, int(u))
+        live.append(tracker.session)
+    assert cap.session.tolist() == live
+    assert live[-1] == steps.count(0)
+    for rows in cap.sessions:
+        assert (np.diff(cap.time_us[rows]) > 0).all()
+
+
 def test_a_frame_with_a_crc_and_no_payload_is_counted_not_read():
     """Two bytes that are the CRC of nothing pass the CRC; there is no record type to read."""
     empty = cobs.encode(crc16(b"").to_bytes(2, "big")) + b"\x00"

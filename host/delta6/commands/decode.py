@@ -87,8 +87,9 @@ def run(args: argparse.Namespace) -> int:
                         + (f" in session {args.session}" if len(sessions) > 1 else "")
                         + ", so the wrench scale is unknown: pass --design DESIGN.toml")
     time_us = capture.time_us[rows]
-    if len(time_us) > 1:      # what the device ran at, measured: the median period
-        meta["rate_hz"] = int(round(1e6 / float(np.median(np.diff(time_us)))))
+    period = float(np.median(np.diff(time_us))) if len(time_us) > 1 else 0.0
+    if period > 0:      # what the device ran at, measured: the median period
+        meta["rate_hz"] = int(round(1e6 / period))
     if len(sessions) > 1:
         meta["session"] = f"{args.session} of {len(sessions)}"
     has_counts = capture.has_counts[rows]

@@ -160,16 +160,18 @@ def continues(seq_step, time_step_us, max_rate_hz: float = MAX_PROTOCOL_RATE_HZ)
     """Whether a data record can follow the previous one of the same device session, from the
     steps (modulo 2^16 and 2^32) between them; works on scalars and numpy arrays.
 
-    Neither counter runs backwards within a session, and the records missing in a gap must
-    have fitted into the time it spans at the board's highest rate. A step that breaks either
+    Neither counter runs backwards within a session, the clock moves on between two records
+    (the next one is latched later: a time that stands still is a restart or a joined
+    capture, never a sample rate), and the records missing in a gap must
+    have fitted into the time it spans at the board's highest rate. A step that breaks any
     rule is a new session (the device restarted, or two captures were joined): unwrapping
     across it would make up a jump of up to 71 minutes and thousands of "missing" records."""
     if isinstance(seq_step, int) and isinstance(time_step_us, int):    # the live path: fast
-        return (0 < seq_step < 1 << 15 and time_step_us < 1 << 31
+        return (0 < seq_step < 1 << 15 and 0 < time_step_us < 1 << 31
                 and seq_step - 1 <= time_step_us * max_rate_hz * 1.01e-6 + 1)
     seq_step = np.asarray(seq_step, dtype=np.int64)
     time_step_us = np.asarray(time_step_us, dtype=np.int64)
-    forward = (seq_step > 0) & (seq_step < 1 << 15) & (time_step_us < 1 << 31)
+    forward = (seq_step > 0) & (seq_step < 1 << 15) & (time_step_us > 0) & (time_step_us < 1 << 31)
     # seq_step - 1 records fell between the two, each at least one period apart.
     return forward & (seq_step - 1 <= time_step_us * max_rate_hz * 1.01e-6 + 1)
 
