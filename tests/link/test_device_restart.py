@@ -6,46 +6,11 @@ from __future__ import annotations
 import pytest
 
 from delta6.link import protocol as P
-from delta6.link.device import Device, DeviceRestarted
+from delta6.link.device import DeviceRestarted
 
-from support.streams import an_info
+from support.scripted import Scripted
 
 C = P.Command
-
-
-class Scripted:
-    """A device in this process: each command the host writes is answered by ``answer``
-    (bytes put on the loop:// port the host reads), and recorded."""
-
-    def __init__(self, answer):
-        self.answer = answer
-        self.boot_id = 1
-        self.sent = []
-
-    def open(self) -> Device:
-        dev = Device("loop://", handshake=False, timeout=0.2, retries=2)
-        dev.open()
-        loop_write = dev._serial.write
-        dev._serial.write = lambda data: loop_write(self.reply(data))
-        return dev
-
-    def reply(self, data: bytes) -> bytes:
-        payload = P.unframe(data[:-1])
-        command, request_id = C(payload[0]), payload[1]
-        self.sent.append(command)
-        return self.answer(self, command, request_id)
-
-    def info(self, request_id: int = 0) -> bytes:
-        return P.encode_info(an_info(request_id=request_id, boot_id=self.boot_id))
-
-    def reboot(self, announced: bool) -> bytes:
-        self.boot_id += 1
-        return (P.encode_event(P.EventCode.BOOT, 0) if announced else b"") + self.info()
-
-    def normal(self, command, request_id) -> bytes:
-        if command == C.GET_INFO:
-            return self.info(request_id)
-        return P.encode_ack(request_id, command, 0)
 
 
 SEQUENCE = [C.SET_FILTER, C.SET_LIMITS, C.SAVE_CONFIG]
