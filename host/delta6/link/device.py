@@ -133,6 +133,7 @@ class Health:
     device_resets: int = 0   # BOOT events seen
     restarts: int = 0        # new sessions seen without a BOOT event (counters, boot id)
     stale_dropped: int = 0   # samples queued before a command changed what they mean
+    impossible_counts: int = 0   # raw counts beyond 0..16383: left empty like a failed read
     commands: int = 0
     command_retries: int = 0
     telemetry: P.Telemetry | None = field(default=None)
@@ -150,6 +151,8 @@ class Health:
         """The losses on the way (decoder, queue), then the device's own if it reported any."""
         text = (f"{self.decoder.errors} bad frames, {self.decoder.bytes_discarded} bytes "
                 f"discarded, {self.queue_drops} queue drops")
+        if self.impossible_counts:
+            text += f", {self.impossible_counts} impossible encoder counts left empty"
         if self.telemetry is not None:
             t = self.telemetry
             text += (f"; device: {t.overruns} overruns, {t.tx_dropped} tx drops, "
@@ -675,6 +678,9 @@ class Device:
                     self._queue.append(item)
                     self._latest = item
                     self._health.samples += 1
+                    if r.counts is not None and max(r.counts) >= P.COUNTS_PER_TURN:
+                        self._health.impossible_counts += sum(
+                            c >= P.COUNTS_PER_TURN for c in r.counts)
                     if self._callbacks:
                         fresh.append(item)
                 elif isinstance(r, (P.Ack, P.Nack)):

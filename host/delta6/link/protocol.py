@@ -649,9 +649,17 @@ def wrench_values(wrench_counts, status, lsb) -> np.ndarray:
     return np.where(invalid, np.nan, wrench_counts * np.asarray(lsb, dtype=float))
 
 
+def impossible_counts(counts) -> np.ndarray:
+    """Where raw counts lie beyond a 14-bit encoder's 0..16383 (a u16 on the wire can hold
+    them; no encoder reads them): never an angle."""
+    return np.asarray(counts) >= COUNTS_PER_TURN
+
+
 def theta_values(counts, status, zero) -> np.ndarray:
     """(N, 6) encoder angles (rad) from raw counts; NaN where a sample sent no counts
-    (:data:`NO_COUNTS`) or its status flags that encoder as failed."""
+    (:data:`NO_COUNTS`), its status flags that encoder as failed, or the count is impossible
+    (:func:`impossible_counts`): all three are a read that gave no angle."""
     counts = np.asarray(counts)
     failed = ((np.asarray(status)[:, None] >> np.arange(6)) & 1) != 0
-    return np.where(failed | (counts < 0), np.nan, counts_to_theta(counts, zero))
+    missing = failed | (counts < 0) | impossible_counts(counts)
+    return np.where(missing, np.nan, counts_to_theta(counts, zero))
