@@ -122,7 +122,7 @@ class McapLogWriter(PartialOnError):
                                                         R.definition(datatype).encode())
                     self._channels[topic] = self._mcap.register_channel(topic, "cdr", schema)
                 self._mcap.add_metadata(METADATA_NAME, {
-                    **{key: meta_text(value) for key, value in meta.items()},
+                    **{meta_text(key): meta_text(value) for key, value in meta.items()},
                     "schema": str(SCHEMA_VERSION), "columns": ",".join(self.columns)})
                 self._to_os()
         except LogError:
