@@ -12,7 +12,7 @@ from delta6.link import cobs
 from delta6.link import protocol as P
 from delta6.link.bulkdecode import decode_capture
 from delta6.link.crc import crc16
-from delta6.link.decoder import SequenceTracker, StreamDecoder
+from delta6.link.decoder import MAX_FRAME, SequenceTracker, StreamDecoder
 
 from support.streams import make_frames
 
@@ -200,6 +200,31 @@ def test_a_stream_without_delimiters_keeps_memory_bounded():
     frames, records = make_frames(3, 1, data_only=True)
     got = decoder.feed(b"".join(frames))
     assert got == records                     # the first one recovered from the long tail
+
+
+@settings(deadline=None)
+@given(st.integers(0, 3000), st.integers(1, 700), st.integers(0, 2**32))
+def test_bytes_before_the_first_delimiter_count_as_startup_only_up_to_a_frame(noise, chunk,
+                                                                                seed):
+    """Only the end of one frame can come before the first 0x00: beyond the longest frame,
+    bytes without a delimiter (a wrong baud rate) are an error, discarded, not startup bytes.
+    The stream decoder, fed in any chunks, and the bulk decoder count alike."""
+    rnd = random.Random(seed)
+    frames, records = make_frames(4, seed, data_only=True)
+    stream = bytes(rnd.randrange(1, 256) for _ in range(noise)) + b"".join(frames)
+    decoder = StreamDecoder()
+    got = []
+    for at in range(0, len(stream), chunk):
+        got += decoder.feed(stream[at:at + chunk])
+    s = decoder.stats
+    assert got == records
+    first = noise + len(frames[0]) - 1          # the bytes before the first delimiter
+    assert s.startup_bytes == min(first, MAX_FRAME) - (len(frames[0]) - 1)
+    assert s.bytes_discarded == max(0, first - MAX_FRAME)
+    assert (s.oversize, s.resyncs) == ((1, 1) if first > MAX_FRAME else (0, 0))
+    bulk = decode_capture(stream).stats
+    fields = ("startup_bytes", "bytes_discarded", "oversize", "resyncs", "records")
+    assert [getattr(bulk, f) for f in fields] == [getattr(s, f) for f in fields]
 
 
 def test_sequence_tracker_unwraps_and_counts():

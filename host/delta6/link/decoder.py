@@ -43,7 +43,8 @@ class DecoderStats:
     resyncs: int = 0             # rejected frames: the decoder skipped to the next 0x00
     bytes_discarded: int = 0     # bytes of rejected frames not recovered as a record
     recovered: int = 0           # intact records found at the end of a damaged frame
-    startup_bytes: int = 0       # a partial frame before the first delimiter
+    startup_bytes: int = 0       # a partial frame before the first delimiter (at most
+                                 # MAX_FRAME: older bytes are noise, oversize and discarded)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -56,8 +57,10 @@ class DecoderStats:
 def decode_frame(encoded: bytes, stats: DecoderStats, first: bool = False):
     """One delimited frame (without the 0x00) to a record, or None; updates ``stats``.
 
-    ``first`` marks the bytes before the first delimiter of a stream: they may be the end of a
-    frame sent before we listened, so failing them is not counted as an error."""
+    ``first`` marks the bytes before the first delimiter of a stream: their last MAX_FRAME
+    may be the end of a frame sent before we listened, so failing them is not counted as an
+    error. Bytes before those are no frame's: an oversize error, discarded (a link at the
+    wrong baud rate sends no 0x00 for long, and must not look healthy)."""
     if not encoded:
         return None
     stats.frames += 1
@@ -81,7 +84,12 @@ def decode_frame(encoded: bytes, stats: DecoderStats, first: bool = False):
     record, used = _recover_tail(encoded)
     if first:
         stats.frames -= 1
-        stats.startup_bytes += len(encoded) - used
+        noise = max(0, len(encoded) - MAX_FRAME)
+        stats.startup_bytes += len(encoded) - noise - used
+        if noise:
+            stats.oversize += 1
+            stats.resyncs += 1
+            stats.bytes_discarded += noise
     else:
         if len(encoded) > MAX_FRAME:
             stats.oversize += 1
@@ -119,16 +127,17 @@ class StreamDecoder:
         self.stats = DecoderStats()
         self._partial = b""
         self._synced = False
+        self._noise = False         # the bytes before the first delimiter overflowed
 
     def feed(self, data: bytes) -> list:
         self.stats.bytes_received += len(data)
         if b"\x00" not in data:
-            self._partial += data
-            if len(self._partial) > MAX_FRAME:     # bound memory on a stream without 0x00
-                self._drop_partial()
+            self._partial = self._bounded(self._partial + data)  # memory on a stream without 0x00
             return []
         chunks = (self._partial + data).split(b"\x00")
-        self._partial = chunks.pop()
+        self._partial = self._bounded(chunks.pop())
+        if not self._synced:
+            chunks[0] = self._bounded(chunks[0])
         out = []
         for chunk in chunks:
             record = decode_frame(chunk, self.stats, first=not self._synced)
@@ -137,14 +146,19 @@ class StreamDecoder:
                 out.append(record)
         return out
 
-    def _drop_partial(self) -> None:
-        # Keep the last MAX_FRAME bytes: a frame ending later can still be recovered.
-        excess = len(self._partial) - MAX_FRAME
-        self._partial = self._partial[excess:]
-        if self._synced:
-            self.stats.bytes_discarded += excess
-        else:
-            self.stats.startup_bytes += excess
+    def _bounded(self, partial: bytes) -> bytes:
+        """The last MAX_FRAME bytes of an unfinished frame (a frame ending later can still be
+        recovered from them); the older ones are discarded."""
+        excess = len(partial) - MAX_FRAME
+        if excess <= 0:
+            return partial
+        self.stats.bytes_discarded += excess
+        if not self._synced and not self._noise:
+            # Longer than any frame before the first delimiter: counted as decode_frame does.
+            self._noise = True
+            self.stats.oversize += 1
+            self.stats.resyncs += 1
+        return partial[excess:]
 
     @property
     def pending_bytes(self) -> int:
