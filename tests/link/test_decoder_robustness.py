@@ -227,6 +227,19 @@ def test_bytes_before_the_first_delimiter_count_as_startup_only_up_to_a_frame(no
     assert [getattr(bulk, f) for f in fields] == [getattr(s, f) for f in fields]
 
 
+@given(st.integers(0, 2**32), st.integers(1, 3), st.integers(0, 9))
+def test_0x01_bytes_before_a_delimiter_are_the_damage_the_crc_cannot_see(seed, k, at):
+    """Each is one more zero byte after the frame's CRC, which keeps it 0 (no final XOR): the
+    record arrives whole, read as a longer record of its type, and nothing is counted."""
+    frames, records = make_frames(10, seed)
+    frames[at] = frames[at][:-1] + b"\x01" * k + b"\x00"
+    decoder = StreamDecoder()
+    assert decoder.feed(b"\x00" + b"".join(frames)) == records
+    s = decoder.stats
+    assert s.errors == s.resyncs == s.bytes_discarded == 0
+    assert decode_capture(b"\x00" + b"".join(frames)).stats.errors == 0
+
+
 def test_sequence_tracker_unwraps_and_counts():
     tracker = SequenceTracker()
     out = [tracker.update(s, t) for s, t in [(65534, 2**32 - 1000), (65535, 2**32 - 10),

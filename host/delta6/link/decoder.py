@@ -37,7 +37,7 @@ class DecoderStats:
     records: int = 0             # records delivered
     crc_errors: int = 0          # valid COBS, wrong CRC
     cobs_errors: int = 0         # not valid COBS
-    length_errors: int = 0       # valid CRC, too short for its type
+    length_errors: int = 0       # valid CRC, a length no version sends for its type
     unknown_types: int = 0       # valid CRC, a type this version does not know
     oversize: int = 0            # longer than MAX_FRAME: discarded undecoded
     resyncs: int = 0             # rejected frames: the decoder skipped to the next 0x00
