@@ -55,7 +55,7 @@ def info_problem(info: Info) -> str | None:
         # Names go into log headers and onto the terminal: printable ASCII, as the doc says.
         name = getattr(info, key)
         if not (name.isascii() and name.isprintable()):
-            return f"the {what} name {name!r} is not printable ASCII"
+            return f"the {what} name {ascii(name)} is not printable ASCII"
     limit = info.joint_limit_rad
     if not (_within(MIN_JOINT_LIMIT_RAD, limit) and limit < math.pi / 2):
         return (f"joint limit {limit:g} rad lies outside a design's "
