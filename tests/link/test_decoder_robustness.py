@@ -47,10 +47,12 @@ def inject(frames: list[bytes], sites: dict[int, str], rnd: random.Random):
                 recovered += 1
             elif (decoded is not None and decoded.startswith(original)
                   and not decoded[len(original):].strip(b"\x00")):
-                # A CRC ending in 0x00 and its COBS code repeated: the frame decodes to itself
-                # plus a zero, which a CRC with no final XOR cannot tell (its register stays 0).
-                # The record arrives whole, its own bytes first (the extra byte reads as an
-                # appended field): nothing is lost, nothing to count.
+                # The frame decodes to itself plus zeros, which a CRC with no final XOR cannot
+                # tell (its register stays 0): the one damage that passes by construction
+                # (0x01 bytes before a delimiter; a duplicate makes one only when the CRC ends
+                # in 0x00, so the frame ends in a 0x01 code). Decoding decides it here, so the
+                # oracle is that exact set. The record arrives whole, its own bytes first (the
+                # extra byte reads as an appended field): nothing is lost, nothing to count.
                 resyncs -= 1
             else:
                 lost.add(i)
