@@ -67,3 +67,24 @@ def test_a_question_is_asked_again_after_a_restart():
     device = Scripted(answer)
     with device.open() as dev:
         assert dev.info(refresh=True).boot_id == 2
+
+
+def test_tare_save_saves_nothing_after_a_restart(monkeypatch, capsys):
+    """`delta6 tare --save`: the device restarts after the tare is done and read back (a
+    question: no command was under way); SAVE_CONFIG would store the fresh device's defaults,
+    so it is not sent, and the command says why in one line."""
+    from delta6.cli import main
+    from delta6.commands import tare
+
+    def answer(device, command, request_id):
+        reply = device.normal(command, request_id)
+        if command == C.GET_INFO and C.TARE in device.sent:   # the read-back after the tare
+            return reply + device.reboot(True)
+        return reply
+
+    device = Scripted(answer)
+    monkeypatch.setattr(tare, "open_device", lambda args, **kw: device.open(handshake=True))
+    assert main(["tare", "--port", "scripted", "--samples", "5", "--save"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "restarted during tare" in err
+    assert C.SAVE_CONFIG not in device.sent

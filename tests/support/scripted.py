@@ -19,11 +19,15 @@ class Scripted:
         self.boot_id = 1
         self.sent = []
 
-    def open(self) -> Device:
+    def open(self, handshake: bool = False) -> Device:
+        """The host's Device on it; ``handshake``: it has asked for the device info, as a
+        Device opened on a real port has."""
         dev = Device("loop://", handshake=False, timeout=0.2, retries=2)
         dev.open()
         self.loop_write = dev._serial.write         # what the device sends unasked
         dev._serial.write = lambda data: self.loop_write(self.reply(data))
+        if handshake:
+            dev.info(refresh=True)
         return dev
 
     def reply(self, data: bytes) -> bytes:
