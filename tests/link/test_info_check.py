@@ -106,5 +106,6 @@ def test_any_header_value_is_written_as_one_line_and_read_back(tmp_path_factory,
     assert meta["source"] == "test"
     written = meta["design"]
     assert written.isascii() and written.isprintable()
-    if value.isascii() and value.isprintable():
-        assert written in (value, value.strip())
+    # (a CSV reader strips what a spreadsheet pads a header line with: spaces, commas)
+    if value.isascii() and value.isprintable() and value == value.strip(" ,"):
+        assert written == value
