@@ -1,5 +1,5 @@
 import sys
 
-from delta6.cli import main
+from delta6.console import main
 
 sys.exit(main())

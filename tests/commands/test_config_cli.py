@@ -86,7 +86,7 @@ def test_an_info_record_of_protocol_1_0_reads_with_the_pipeline_at_its_defaults(
                 if P.RECORD_LAYOUTS[P.RecordType.INFO].offsets[k] > boot_id_at}
     before = payload[:boot_id_at + 2]
     assert P.parse_payload(before) == info._replace(**pipeline)
-    with pytest.raises(P.ProtocolError, match="inside a field"):
+    with pytest.raises(P.ProtocolError, match="no version sends that"):
         P.parse_payload(payload[:-3])
 
 
@@ -157,3 +157,21 @@ def test_nan_and_out_of_range_numbers_are_refused_in_one_line(argv, words, tmp_p
     assert status == 2
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err
+
+
+def test_config_saves_only_what_the_device_reports_back():
+    """A device that ACKs a setting and then reports another (a restart missed, a firmware
+    that ignored it) gets nothing saved."""
+    from delta6.commands.config import _check_read_back
+
+    from support.streams import an_info
+
+    sent = P.parse_payload(P.unframe(P.encode_info(an_info(
+        filter_hz=20.0, tool_translation=(0.01, 0.0, 0.0), tool_rpy=(0.0, 0.0, 0.1),
+        limits=(5000, 0, 0, 0, 0, 0)))[:-1]))
+    _check_read_back(sent, 20, [0.01, 0, 0, 0, 0, 0.1], [5.0, None, None, None, None, None], "p")
+    for cutoff, tool, limits, words in [(15, None, None, "filter of 20 Hz instead of 15"),
+                                        (None, [0.0] * 6, None, "tool frame"),
+                                        (None, None, [None] * 6, "overload limits")]:
+        with pytest.raises(DeviceError, match=words):
+            _check_read_back(sent, cutoff, tool, limits, "p")

@@ -151,3 +151,41 @@ async def _receive(port: int, listen: float):
                 if channels[sub]["topic"] == R.TOPIC_WRENCH:
                     wall.append(time.monotonic())
     return channels, messages, wall
+
+
+@pytest.mark.parametrize("announced", [False, True])
+def test_a_device_restart_while_streaming_is_reported(capsys, monkeypatch, announced):
+    """The device's counters begin again (a restart whose BOOT event may be lost): stream
+    says so on stderr, once per restart, and counts it in its summary, as log does."""
+    import threading
+
+    from delta6.commands import stream
+    from delta6.link import protocol as P
+
+    from support.scripted import Scripted
+
+    stop = threading.Event()
+
+    def records():      # 30 records, then the counters begin again until the end
+        i = 0
+        while not stop.wait(0.002):
+            n = i if i < 30 else i - 30
+            boot = P.encode_event(P.EventCode.BOOT, 0) if announced and i == 30 else b""
+            device.loop_write(boot + P.encode_wrench(n, 1000 + 4000 * n, 0, (0,) * 6))
+            i += 1
+
+    def answer(device, command, request_id):
+        if command == P.Command.START:
+            threading.Thread(target=records, daemon=True).start()
+        return device.normal(command, request_id)
+
+    device = Scripted(answer)
+    monkeypatch.setattr(stream, "open_device", lambda args, **kw: device.open())
+    try:
+        assert main(["stream", "--port", "scripted", "--duration", "0.5", "--format", "csv"]) == 0
+    finally:
+        stop.set()
+    captured = capsys.readouterr()
+    assert len(captured.out.strip().splitlines()) > 1 + 30
+    assert captured.err.count("the device restarted: a new session") == 1
+    assert captured.err.strip().splitlines()[-1].endswith("the device restarted 1 time")

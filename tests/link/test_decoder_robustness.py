@@ -12,7 +12,7 @@ from delta6.link import cobs
 from delta6.link import protocol as P
 from delta6.link.bulkdecode import decode_capture
 from delta6.link.crc import crc16
-from delta6.link.decoder import SequenceTracker, StreamDecoder
+from delta6.link.decoder import MAX_FRAME, SequenceTracker, StreamDecoder
 
 from support.streams import make_frames
 
@@ -47,10 +47,12 @@ def inject(frames: list[bytes], sites: dict[int, str], rnd: random.Random):
                 recovered += 1
             elif (decoded is not None and decoded.startswith(original)
                   and not decoded[len(original):].strip(b"\x00")):
-                # A CRC ending in 0x00 and its COBS code repeated: the frame decodes to itself
-                # plus a zero, which a CRC with no final XOR cannot tell (its register stays 0).
-                # The record arrives whole, its own bytes first (the extra byte reads as an
-                # appended field): nothing is lost, nothing to count.
+                # The frame decodes to itself plus zeros, which a CRC with no final XOR cannot
+                # tell (its register stays 0): the one damage that passes by construction
+                # (0x01 bytes before a delimiter; a duplicate makes one only when the CRC ends
+                # in 0x00, so the frame ends in a 0x01 code). Decoding decides it here, so the
+                # oracle is that exact set. The record arrives whole, its own bytes first (the
+                # extra byte reads as an appended field): nothing is lost, nothing to count.
                 resyncs -= 1
             else:
                 lost.add(i)
@@ -202,6 +204,44 @@ def test_a_stream_without_delimiters_keeps_memory_bounded():
     assert got == records                     # the first one recovered from the long tail
 
 
+@settings(deadline=None)
+@given(st.integers(0, 3000), st.integers(1, 700), st.integers(0, 2**32))
+def test_bytes_before_the_first_delimiter_count_as_startup_only_up_to_a_frame(noise, chunk,
+                                                                                seed):
+    """Only the end of one frame can come before the first 0x00: beyond the longest frame,
+    bytes without a delimiter (a wrong baud rate) are an error, discarded, not startup bytes.
+    The stream decoder, fed in any chunks, and the bulk decoder count alike."""
+    rnd = random.Random(seed)
+    frames, records = make_frames(4, seed, data_only=True)
+    stream = bytes(rnd.randrange(1, 256) for _ in range(noise)) + b"".join(frames)
+    decoder = StreamDecoder()
+    got = []
+    for at in range(0, len(stream), chunk):
+        got += decoder.feed(stream[at:at + chunk])
+    s = decoder.stats
+    assert got == records
+    first = noise + len(frames[0]) - 1          # the bytes before the first delimiter
+    assert s.startup_bytes == min(first, MAX_FRAME) - (len(frames[0]) - 1)
+    assert s.bytes_discarded == max(0, first - MAX_FRAME)
+    assert (s.oversize, s.resyncs) == ((1, 1) if first > MAX_FRAME else (0, 0))
+    bulk = decode_capture(stream).stats
+    fields = ("startup_bytes", "bytes_discarded", "oversize", "resyncs", "records")
+    assert [getattr(bulk, f) for f in fields] == [getattr(s, f) for f in fields]
+
+
+@given(st.integers(0, 2**32), st.integers(1, 3), st.integers(0, 9))
+def test_0x01_bytes_before_a_delimiter_are_the_damage_the_crc_cannot_see(seed, k, at):
+    """Each is one more zero byte after the frame's CRC, which keeps it 0 (no final XOR): the
+    record arrives whole, read as a longer record of its type, and nothing is counted."""
+    frames, records = make_frames(10, seed)
+    frames[at] = frames[at][:-1] + b"\x01" * k + b"\x00"
+    decoder = StreamDecoder()
+    assert decoder.feed(b"\x00" + b"".join(frames)) == records
+    s = decoder.stats
+    assert s.errors == s.resyncs == s.bytes_discarded == 0
+    assert decode_capture(b"\x00" + b"".join(frames)).stats.errors == 0
+
+
 def test_sequence_tracker_unwraps_and_counts():
     tracker = SequenceTracker()
     out = [tracker.update(s, t) for s, t in [(65534, 2**32 - 1000), (65535, 2**32 - 10),
@@ -278,6 +318,26 @@ def test_a_continuous_stream_is_one_session_across_both_wraps(seq0, t0, rate, n)
     cap = decode_capture(b"".join(frames), max_rate_hz=rate)
     assert len(cap.sessions) == 1 and cap.gaps == 0
     assert np.array_equal(cap.time_us, t0 + period * np.arange(n))
+
+
+@settings(deadline=None)
+@given(st.lists(st.integers(0, 3), min_size=2, max_size=40), st.integers(0, 2**32 - 1))
+def test_a_time_that_stands_still_starts_a_session_in_both_decoders(steps, t0):
+    """Records with new sequence numbers and the same device time (a frozen clock, or two
+    captures joined): no session may hold a time step of zero, live or offline, and both
+    decoders cut at the same records."""
+    times = (t0 + 1000 * np.cumsum([0] + steps)) % 2**32
+    frames = [P.encode_wrench(i, int(u), 0, (0,) * 6) for i, u in enumerate(times)]
+    cap = decode_capture(b"".join(frames), max_rate_hz=1000)
+    tracker = SequenceTracker(max_rate_hz=1000)
+    live = []
+    for i, u in enumerate(times):
+        tracker.update(i, int(u))
+        live.append(tracker.session)
+    assert cap.session.tolist() == live
+    assert live[-1] == steps.count(0)
+    for rows in cap.sessions:
+        assert (np.diff(cap.time_us[rows]) > 0).all()
 
 
 def test_a_frame_with_a_crc_and_no_payload_is_counted_not_read():

@@ -463,7 +463,7 @@ def test_a_1_0_device_has_no_abort():
     sim.close()
     old = info._replace(protocol=(1, 0), boot_id=None)
     with Device("loop://", handshake=False, timeout=0.1, retries=0) as dev:
-        dev._serial.write(P.encode_info(old))
+        dev._serial.write(P.encode_record(old, minor=0))     # 128 bytes, as 1.0 sent it
         deadline = time.monotonic() + 2
         while dev._info is None and time.monotonic() < deadline:
             time.sleep(0.01)

@@ -6,7 +6,7 @@ import io
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from mcap.reader import make_reader
@@ -213,3 +213,37 @@ def test_the_schema_text_names_every_dependency():
     for datatype in (R.WRENCH_STAMPED, R.JOINT_STATE, R.FLOAT64_MULTI_ARRAY, R.DIAGNOSTIC_ARRAY):
         w.register_msgdef(datatype, R.definition(datatype))   # parses, or raises
     w.finish()
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 10**9), st.booleans())
+@example(10**9, True)                   # the whole partial: every sample, none dropped
+@example(10**9, False)
+def test_a_killed_writers_partial_says_cut_row_dropped_only_when_one_was(tmp_path_factory, at,
+                                                                          with_theta):
+    """What SIGKILL leaves: the blocks that reached the OS, cut anywhere after the header.
+    The metadata flags a dropped row exactly when a sample lost a message to the cut."""
+    from delta6.link import mcaplog
+
+    folder = tmp_path_factory.mktemp("kill")
+    path, partial = folder / "run.mcap", folder / ("run.mcap" + PARTIAL_SUFFIX)
+    log = McapLogWriter(path, {"source": "test"}, optional=("seq", "status"))
+    for i in range(4):
+        t = np.arange(20) * 0.004 + 0.08 * i
+        log.write_block(t, np.zeros((20, 6)) if with_theta else None, np.ones((20, 6)),
+                        seq=np.arange(20) + 20 * i, status=np.zeros(20, int))
+    whole = partial.read_bytes()        # the writer killed here: no footer
+    log.close()
+    header = whole.index(b"delta6-log") + 200
+    cut = whole[:header + min(at, len(whole) - header)]
+    killed = folder / ("killed.mcap" + PARTIAL_SUFFIX)
+    killed.write_bytes(cut)
+    try:
+        data = read_log(killed, require_complete_rows=False)
+    except LogError:
+        return                          # nothing whole before the cut: one line, fine
+    _, topics, _ = mcaplog._records(killed, cut, cut_ok=True)
+    wrench_messages = len(topics[R.TOPIC_WRENCH][1])
+    assert ("cut_row_dropped" in data.meta) == (len(data.t) < wrench_messages)
+    if len(cut) == len(whole):
+        assert len(data.t) == 80 and "cut_row_dropped" not in data.meta

@@ -228,3 +228,18 @@ def test_one_encoder_count_is_never_lost_on_the_wire(path):
             assert np.linalg.norm(step[:, :3], axis=1).min() >= check.force_step_min * (1 - 1e-6)
         else:
             assert np.linalg.norm(step[:, 3:], axis=1).min() >= check.moment_step_min * (1 - 1e-6)
+
+
+@given(st.sampled_from([P.RecordType.INFO, P.RecordType.TELEMETRY]), st.integers(1, 300))
+def test_a_record_is_read_at_exactly_the_lengths_a_version_sends(kind, length):
+    """docs/protocol.md section 11: the sizes of older minor versions, or the current one and
+    longer; any other length is a record cut short."""
+    payload = bytes([kind]) + bytes(length - 1)
+    sizes = P.RECORD_SIZES_BY_MINOR[kind]
+    accepted = length in sizes or length >= P.RECORD_SIZES[kind]
+    try:
+        P.parse_payload(payload)
+    except P.ProtocolError:
+        assert not accepted
+    else:
+        assert accepted

@@ -39,3 +39,14 @@ def make_frames(n: int, seed: int = 0, data_only: bool = False) -> tuple[list[by
         frames.append(frame)
         records.append(record)
     return frames, records
+
+
+def an_info(**changes) -> P.Info:
+    """A usable 1.3 INFO record (the baseline's identity, 250 Hz), with ``changes``."""
+    base = P.Info(request_id=0, protocol=P.VERSION, firmware=(1, 0, 0), mode=1,
+                  design_hash=0x535534AF, design_name="delta6", full_scale=(1.0,) * 6,
+                  lsb_mantissa=(1,) * 6, lsb_exponent=(-3,) * 6, rate_hz=250, max_rate_hz=350,
+                  status=0, streaming=False, config_problem=0, baud=500000, serial_number=0,
+                  zero_counts=(0,) * 6, tare=(0.0,) * 6, joint_limit_rad=0.5, boot_id=1,
+                  max_rate_pipeline_hz=250)
+    return base._replace(**changes)

@@ -5,7 +5,10 @@ from __future__ import annotations
 import argparse
 import math
 
+import numpy as np
+
 from delta6.commands._port import AXES, add_port_arguments, open_device
+from delta6.link.device import DeviceError, limit_counts
 from delta6.link.protocol import Info
 
 NAME = "config"
@@ -69,21 +72,43 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    with open_device(args) as dev:
+    with open_device(args) as dev, dev.restart_guard("config"):
+        tool = limits = None
         if args.filter_hz is not None:
             dev.set_filter(args.filter_hz)
         if args.tool is not None:
             tool = args.tool or [0.0] * 6
-            dev.set_tool(tool[:3], [math.radians(a) for a in tool[3:]])
+            tool = [*tool[:3], *(math.radians(a) for a in tool[3:])]
+            dev.set_tool(tool[:3], tool[3:])
         if args.limits is not None:
-            dev.set_limits(args.limits or [None] * 6)
+            limits = args.limits or [None] * 6
+            dev.set_limits(limits)
         if args.save:
+            # Save only what was set: a device that lost it (a restart the guard did not see,
+            # a firmware that ignored a command) would store something else.
+            _check_read_back(dev.info(refresh=True), args.filter_hz, tool, limits, dev.port)
             dev.save_config()
         info = dev.info(refresh=True)
     print("\n".join(pipeline_lines(info)))
     if args.save:
         print("configuration saved to EEPROM")
     return 0
+
+
+def _check_read_back(info: Info, cutoff, tool, limits, port: str) -> None:
+    """Raise unless the device reports the cutoff, tool frame and limits just set (each as
+    the float32 or counts the device holds)."""
+    wrong = []
+    if cutoff is not None and np.float32(info.filter_hz) != np.float32(cutoff):
+        wrong.append(f"a filter of {info.filter_hz:g} Hz instead of {cutoff:g} Hz")
+    if tool is not None and not np.array_equal(
+            np.float32([*info.tool_translation, *info.tool_rpy]), np.float32(tool)):
+        wrong.append("another tool frame")
+    if limits is not None and list(info.limits) != limit_counts(limits, info.lsb):
+        wrong.append("other overload limits")
+    if wrong:
+        raise DeviceError(f"{port} does not report what was just set ({', '.join(wrong)}): "
+                          "nothing saved")
 
 
 def pipeline_lines(info: Info) -> list[str]:

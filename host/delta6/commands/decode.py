@@ -19,7 +19,7 @@ from delta6.core.outputs import check_output_file
 from delta6.link.bulkdecode import Capture, decode_capture, sequence_counts
 from delta6.link.infocheck import info_problem
 from delta6.link.logfile import open_log_writer
-from delta6.link.protocol import Info
+from delta6.link.protocol import Info, impossible_counts
 from delta6.link.wirescale import design_lsb
 
 NAME = "decode"
@@ -87,8 +87,9 @@ def run(args: argparse.Namespace) -> int:
                         + (f" in session {args.session}" if len(sessions) > 1 else "")
                         + ", so the wrench scale is unknown: pass --design DESIGN.toml")
     time_us = capture.time_us[rows]
-    if len(time_us) > 1:      # what the device ran at, measured: the median period
-        meta["rate_hz"] = int(round(1e6 / float(np.median(np.diff(time_us)))))
+    period = float(np.median(np.diff(time_us))) if len(time_us) > 1 else 0.0
+    if period > 0:      # what the device ran at, measured: the median period
+        meta["rate_hz"] = int(round(1e6 / period))
     if len(sessions) > 1:
         meta["session"] = f"{args.session} of {len(sessions)}"
     has_counts = capture.has_counts[rows]
@@ -112,10 +113,12 @@ def run(args: argparse.Namespace) -> int:
     progress.end()
     s = capture.stats
     gaps, lost = sequence_counts(seq)
+    impossible = int(impossible_counts(capture.counts[rows]).sum())
     unknown = f", {s.unknown_types} records of unknown type ignored" if s.unknown_types else ""
     print(f"{args.output}: {n} samples, {lost} missing in {gaps} gaps, {flagged(status)} "
           f"flagged, {s.resyncs} damaged frames ({s.recovered} records recovered), "
           f"{s.bytes_discarded} bytes discarded, {capture.duplicates} duplicates{unknown}"
+          + (f", {impossible} impossible encoder counts left empty" if impossible else "")
           + ("" if theta is not None or zero is None else "; no raw counts: angles left empty")
           + ("" if infos else "; no device info: angles left empty")
           + (f"; the capture ends {capture.trailing_bytes} bytes into an unfinished frame"

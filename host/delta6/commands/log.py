@@ -10,6 +10,7 @@ row up to the failed write (docs/reliability.md).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import time
@@ -176,6 +177,11 @@ def _record(dev, args: argparse.Namespace, stop):
         complete = not isinstance(ending, LogError)
         if ending is None or not isinstance(ending, (DeviceRestarted, LogError)):
             try:
+                if ending is None:
+                    # Stop the stream first: the records sent before STOP's answer all
+                    # arrive before it (one queue), so the drain writes every one of them.
+                    with contextlib.suppress(DeviceError):
+                        dev.stop()
                 _drain(dev, stats, session)
             except LogError as exc:
                 ending, complete = exc, False

@@ -139,6 +139,30 @@ class _Screen:
         pass
 
 
+class _Sessions:
+    """Notices where a block's samples come from a new device session (a BOOT event, another
+    boot id, or counters that began again: the device restarted) and says so on stderr, as
+    ``delta6 log`` does: the stream goes on, its times start again."""
+
+    def __init__(self):
+        self.current = None
+        self.restarts = 0
+
+    def update(self, block) -> bool:
+        """Whether ``block`` holds a restart."""
+        if block.session is None or not len(block):
+            return False
+        if self.current is None:
+            self.current = int(block.session[0])
+        starts = np.flatnonzero(np.diff(block.session, prepend=self.current))
+        for at in starts:
+            self.restarts += 1
+            print(f"the device restarted: a new session from its time {block.t[at]:.6f} s "
+                  "(its counters began again)", file=sys.stderr)
+        self.current = int(block.session[-1])
+        return bool(starts.size)
+
+
 def learned_estimator(args: argparse.Namespace):
     """The streaming estimator of ``--model`` (None without it); the stream is then raw, at
     the model's rate."""
@@ -171,6 +195,7 @@ def run(args: argparse.Namespace) -> int:
     learned = learned_estimator(args)
     raw = bool(args.raw)
     flags = 0
+    sessions = _Sessions()
     with stop_requests() as stop, open_device(args) as dev:
         if learned is not None:
             learned.check_device(dev.info())
@@ -197,6 +222,8 @@ def run(args: argparse.Namespace) -> int:
                 if block is None:
                     break
                 flags += flagged(block.status)
+                if sessions.update(block):
+                    window = []         # device times start again: no rate across the restart
                 if learned is not None:
                     block = dataclasses.replace(
                         block, wrench=learned.update_block(block.t, block.theta, block.session))
@@ -233,6 +260,8 @@ def run(args: argparse.Namespace) -> int:
         health = dev.health
     how = f" (stopped by {stop.name})" if stop.signum else ""
     print(f"{health.summary()}, {flags} flagged"
+          + (f", the device restarted {sessions.restarts} time"
+             + ("s" if sessions.restarts > 1 else "") if sessions.restarts else "")
           + (f"; {live.published} samples served to Foxglove" if live else "") + how,
           file=sys.stderr)
     return 0

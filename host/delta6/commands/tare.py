@@ -32,14 +32,16 @@ def run(args: argparse.Namespace) -> int:
             print("stopped the averaging; nothing was changed" if dev.abort()
                   else "nothing was averaging")
             return 0
-        if args.clear:
-            dev.clear_tare()
-            print("tare cleared")
-        else:
-            offsets = dev.tare(args.samples)
-            print(f"tare over {args.samples} samples: " + ", ".join(
-                f"{axis} {value:+.5g}" for axis, value in zip(AXES, offsets)) + " (N, N*m)")
-        if args.save:
-            dev.save_config()
-            print("configuration saved to EEPROM")
+        # A restart between the tare and SAVE_CONFIG would save the fresh device's defaults.
+        with dev.restart_guard("tare"):
+            if args.clear:
+                dev.clear_tare()
+                print("tare cleared")
+            else:
+                offsets = dev.tare(args.samples)
+                print(f"tare over {args.samples} samples: " + ", ".join(
+                    f"{axis} {value:+.5g}" for axis, value in zip(AXES, offsets)) + " (N, N*m)")
+            if args.save:
+                dev.save_config()
+                print("configuration saved to EEPROM")
     return 0

@@ -38,13 +38,14 @@ class DecoderStats:
     records: int = 0             # records delivered
     crc_errors: int = 0          # valid COBS, wrong CRC
     cobs_errors: int = 0         # not valid COBS
-    length_errors: int = 0       # valid CRC, too short for its type
+    length_errors: int = 0       # valid CRC, a length no version sends for its type
     unknown_types: int = 0       # valid CRC, a type this version does not know
     oversize: int = 0            # longer than MAX_FRAME: discarded undecoded
     resyncs: int = 0             # rejected frames: the decoder skipped to the next 0x00
     bytes_discarded: int = 0     # bytes of rejected frames not recovered as a record
     recovered: int = 0           # intact records found at the end of a damaged frame
-    startup_bytes: int = 0       # a partial frame before the first delimiter
+    startup_bytes: int = 0       # a partial frame before the first delimiter (at most
+                                 # MAX_FRAME: older bytes are noise, oversize and discarded)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -57,8 +58,10 @@ class DecoderStats:
 def decode_frame(encoded: bytes, stats: DecoderStats, first: bool = False):
     """One delimited frame (without the 0x00) to a record, or None; updates ``stats``.
 
-    ``first`` marks the bytes before the first delimiter of a stream: they may be the end of a
-    frame sent before we listened, so failing them is not counted as an error."""
+    ``first`` marks the bytes before the first delimiter of a stream: their last MAX_FRAME
+    may be the end of a frame sent before we listened, so failing them is not counted as an
+    error. Bytes before those are no frame's: an oversize error, discarded (a link at the
+    wrong baud rate sends no 0x00 for long, and must not look healthy)."""
     if not encoded:
         return None
     stats.frames += 1
@@ -82,7 +85,12 @@ def decode_frame(encoded: bytes, stats: DecoderStats, first: bool = False):
     record, used = _recover_tail(encoded)
     if first:
         stats.frames -= 1
-        stats.startup_bytes += len(encoded) - used
+        noise = max(0, len(encoded) - MAX_FRAME)
+        stats.startup_bytes += len(encoded) - noise - used
+        if noise:
+            stats.oversize += 1
+            stats.resyncs += 1
+            stats.bytes_discarded += noise
     else:
         if len(encoded) > MAX_FRAME:
             stats.oversize += 1
@@ -120,16 +128,17 @@ class StreamDecoder:
         self.stats = DecoderStats()
         self._partial = b""
         self._synced = False
+        self._noise = False         # the bytes before the first delimiter overflowed
 
     def feed(self, data: bytes) -> list:
         self.stats.bytes_received += len(data)
         if b"\x00" not in data:
-            self._partial += data
-            if len(self._partial) > MAX_FRAME:     # bound memory on a stream without 0x00
-                self._drop_partial()
+            self._partial = self._bounded(self._partial + data)  # memory on a stream without 0x00
             return []
         chunks = (self._partial + data).split(b"\x00")
-        self._partial = chunks.pop()
+        self._partial = self._bounded(chunks.pop())
+        if not self._synced:
+            chunks[0] = self._bounded(chunks[0])
         out = []
         for chunk in chunks:
             record = decode_frame(chunk, self.stats, first=not self._synced)
@@ -138,14 +147,19 @@ class StreamDecoder:
                 out.append(record)
         return out
 
-    def _drop_partial(self) -> None:
-        # Keep the last MAX_FRAME bytes: a frame ending later can still be recovered.
-        excess = len(self._partial) - MAX_FRAME
-        self._partial = self._partial[excess:]
-        if self._synced:
-            self.stats.bytes_discarded += excess
-        else:
-            self.stats.startup_bytes += excess
+    def _bounded(self, partial: bytes) -> bytes:
+        """The last MAX_FRAME bytes of an unfinished frame (a frame ending later can still be
+        recovered from them); the older ones are discarded."""
+        excess = len(partial) - MAX_FRAME
+        if excess <= 0:
+            return partial
+        self.stats.bytes_discarded += excess
+        if not self._synced and not self._noise:
+            # Longer than any frame before the first delimiter: counted as decode_frame does.
+            self._noise = True
+            self.stats.oversize += 1
+            self.stats.resyncs += 1
+        return partial[excess:]
 
     @property
     def pending_bytes(self) -> int:
@@ -161,16 +175,18 @@ def continues(seq_step, time_step_us, max_rate_hz: float = MAX_PROTOCOL_RATE_HZ)
     """Whether a data record can follow the previous one of the same device session, from the
     steps (modulo 2^16 and 2^32) between them; works on scalars and numpy arrays.
 
-    Neither counter runs backwards within a session, and the records missing in a gap must
-    have fitted into the time it spans at the board's highest rate. A step that breaks either
+    Neither counter runs backwards within a session, the clock moves on between two records
+    (the next one is latched later: a time that stands still is a restart or a joined
+    capture, never a sample rate), and the records missing in a gap must
+    have fitted into the time it spans at the board's highest rate. A step that breaks any
     rule is a new session (the device restarted, or two captures were joined): unwrapping
     across it would make up a jump of up to 71 minutes and thousands of "missing" records."""
     if isinstance(seq_step, int) and isinstance(time_step_us, int):    # the live path: fast
-        return (0 < seq_step < 1 << 15 and time_step_us < 1 << 31
+        return (0 < seq_step < 1 << 15 and 0 < time_step_us < 1 << 31
                 and seq_step - 1 <= time_step_us * max_rate_hz * 1.01e-6 + 1)
     seq_step = np.asarray(seq_step, dtype=np.int64)
     time_step_us = np.asarray(time_step_us, dtype=np.int64)
-    forward = (seq_step > 0) & (seq_step < 1 << 15) & (time_step_us < 1 << 31)
+    forward = (seq_step > 0) & (seq_step < 1 << 15) & (time_step_us > 0) & (time_step_us < 1 << 31)
     # seq_step - 1 records fell between the two, each at least one period apart.
     return forward & (seq_step - 1 <= time_step_us * max_rate_hz * 1.01e-6 + 1)
 

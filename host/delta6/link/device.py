@@ -15,6 +15,7 @@ running the command twice. Every loss is counted in :attr:`Device.health`.
 from __future__ import annotations
 
 import collections
+import contextlib
 import os
 import random
 import threading
@@ -35,6 +36,8 @@ from delta6.link.protocol import DEFAULT_BAUD
 STREAM_CHANGING = frozenset({P.Command.START, P.Command.SET_MODE, P.Command.TARE,
                              P.Command.CLEAR_TARE, P.Command.SET_ZERO, P.Command.ZERO_HERE,
                              P.Command.LOAD_DEFAULTS})
+#: Commands that only ask: sending one again to a device that restarted meanwhile is harmless.
+QUESTIONS = frozenset({P.Command.GET_INFO, P.Command.PING, P.Command.GET_TELEMETRY})
 
 
 class DeviceError(UserError):
@@ -55,6 +58,11 @@ class CommandRejected(DeviceError):
     def __init__(self, message: str, nack: P.Nack):
         super().__init__(message)
         self.nack = nack
+
+
+class DeviceRestarted(DeviceError):
+    """The device restarted (a BOOT event, another boot id) while a command or a sequence of
+    commands was under way: what it had been told is gone, so nothing is sent on."""
 
 
 class ProtocolMismatch(DeviceError):
@@ -125,6 +133,7 @@ class Health:
     device_resets: int = 0   # BOOT events seen
     restarts: int = 0        # new sessions seen without a BOOT event (counters, boot id)
     stale_dropped: int = 0   # samples queued before a command changed what they mean
+    impossible_counts: int = 0   # raw counts beyond 0..16383: left empty like a failed read
     commands: int = 0
     command_retries: int = 0
     telemetry: P.Telemetry | None = field(default=None)
@@ -142,6 +151,8 @@ class Health:
         """The losses on the way (decoder, queue), then the device's own if it reported any."""
         text = (f"{self.decoder.errors} bad frames, {self.decoder.bytes_discarded} bytes "
                 f"discarded, {self.queue_drops} queue drops")
+        if self.impossible_counts:
+            text += f", {self.impossible_counts} impossible encoder counts left empty"
         if self.telemetry is not None:
             t = self.telemetry
             text += (f"; device: {t.overruns} overruns, {t.tx_dropped} tx drops, "
@@ -198,6 +209,8 @@ class Device:
         self._health = Health(decoder=self._decoder.stats)
         self._info: P.Info | None = None
         self._boot_id: int | None = None      # the device's boot session (protocol 1.1)
+        self._boots = 0                       # restarts seen (BOOT events, boot id changes)
+        self._guard: tuple[str, int] | None = None   # (what, self._boots at its start)
         self._lsb: np.ndarray | None = None       # self._info.lsb, parsed once per info
         self._failure: DeviceError | None = None
         self._started = False
@@ -214,6 +227,7 @@ class Device:
         self._decoder = StreamDecoder()          # every session counts afresh
         self._tracker = SequenceTracker()
         self._boot_id = None
+        self._guard = None
         self._health = Health(decoder=self._decoder.stats)
         try:
             self._serial = serial.serial_for_url(self.port, baudrate=self.baud, timeout=0.05,
@@ -431,6 +445,21 @@ class Device:
     def telemetry(self) -> P.Telemetry:
         return self._request(P.Command.GET_TELEMETRY)
 
+    @contextlib.contextmanager
+    def restart_guard(self, what: str):
+        """Commands that belong together (set, check, save): a restart of the device during
+        the block raises :class:`DeviceRestarted` at the next command, or at the end, instead
+        of going on with a device that forgot the first ones."""
+        if self._guard is not None:         # nested: the outer block decides
+            yield
+            return
+        self._guard = (what, self._boots)
+        try:
+            yield
+            self._check_guard()
+        finally:
+            self._guard = None
+
     # -- samples -----------------------------------------------------------------------
 
     def __iter__(self) -> Iterator[Sample]:
@@ -531,6 +560,16 @@ class Device:
                 f"{'.'.join(map(str, since))}: update the firmware")
         return self._request(command, *args)
 
+    def _restarted_during(self, what: str) -> DeviceRestarted:
+        if self._guard is not None:
+            what = self._guard[0]           # the sequence the command was part of
+        return DeviceRestarted(f"the device on {self.port} restarted during {what}: its "
+                               "settings since are lost; run the command again")
+
+    def _check_guard(self) -> None:
+        if self._guard is not None and self._guard[1] != self._boots:
+            raise self._restarted_during(self._guard[0])
+
     def _next_request_id(self) -> int:
         self._request_id = self._request_id % 255 + 1    # 1..255; 0 means unsolicited
         return self._request_id
@@ -544,6 +583,8 @@ class Device:
         timeout = self.timeout if timeout is None else timeout
         with self._command_lock:
             self._raise_failure()
+            self._check_guard()
+            boots = self._boots
             request_id = self._next_request_id()
             pending = _Pending(command)
             self._pending[request_id] = pending
@@ -553,9 +594,13 @@ class Device:
                     self._health.commands += attempt == 0
                     self._health.command_retries += attempt > 0
                     self._write(frame)
-                    if pending.event.wait(timeout):
+                    if pending.event.wait(timeout) and pending.response is not None:
                         break
                     self._raise_failure()
+                    if self._boots != boots and command not in QUESTIONS:
+                        # Never sent again to the fresh device (a second TARE, say): what
+                        # the first one was part of is gone.
+                        raise self._restarted_during(name)
                 else:
                     tries = self.retries + 1
                     hint = (" (is a Delta6 connected at this baud rate?)"
@@ -565,6 +610,9 @@ class Device:
             finally:
                 self._pending.pop(request_id, None)
             self._raise_failure()
+            if self._boots != boots and command not in QUESTIONS:
+                raise self._restarted_during(name)     # answered, then forgotten
+            self._check_guard()
         response = pending.response
         if isinstance(response, P.Nack):
             raise CommandRejected(f"{name} rejected by the device: {response.text()}", response)
@@ -630,6 +678,9 @@ class Device:
                     self._queue.append(item)
                     self._latest = item
                     self._health.samples += 1
+                    if r.counts is not None and max(r.counts) >= P.COUNTS_PER_TURN:
+                        self._health.impossible_counts += sum(
+                            c >= P.COUNTS_PER_TURN for c in r.counts)
                     if self._callbacks:
                         fresh.append(item)
                 elif isinstance(r, (P.Ack, P.Nack)):
@@ -654,6 +705,7 @@ class Device:
                     if r.code == P.EventCode.BOOT:
                         self._health.device_resets += 1
                         self._tracker.reset()
+                        self._note_restart()
             self._cond.notify_all()
         for item in fresh:
             self._call_back(item)
@@ -672,11 +724,20 @@ class Device:
         have been lost), so the records from here on are a new session."""
         if boot_id is None:
             return
-        if self._boot_id is not None and boot_id != self._boot_id \
-                and self._tracker.in_session:           # not already reset by a BOOT event
-            self._health.restarts += 1
-            self._tracker.reset()
+        if self._boot_id is not None and boot_id != self._boot_id:
+            if self._tracker.in_session:                # not already reset by a BOOT event
+                self._health.restarts += 1
+                self._tracker.reset()
+            self._note_restart()
         self._boot_id = boot_id
+
+    def _note_restart(self) -> None:
+        """Wake the commands waiting for an answer that will not come from a fresh device
+        (called with ``_cond`` held)."""
+        self._boots += 1
+        for pending in self._pending.values():
+            if pending.command not in QUESTIONS:
+                pending.event.set()
 
     def _call_back(self, item) -> None:
         if self._info is None:

@@ -9,8 +9,27 @@ from __future__ import annotations
 
 import math
 
-from delta6.link.protocol import COUNTS_PER_TURN, VERSION, Info, Mode
+import numpy as np
+
+from delta6.core.design import MIN_JOINT_LIMIT_RAD
+from delta6.core.lowpass import MAX_CUTOFF_RATIO
+from delta6.link.protocol import (
+    COUNTS_PER_TURN,
+    MAX_VALUE,
+    TOOL_MAX_ANGLE_RAD,
+    TOOL_MAX_TRANSLATION_M,
+    VERSION,
+    Info,
+    Mode,
+)
 from delta6.link.wirescale import MANTISSAS, MAX_EXPONENT, MIN_EXPONENT
+
+_NAMES = {"design_name": "design", "calibration_name": "calibration", "model_name": "model"}
+
+
+def _within(value: float, bound: float) -> bool:
+    # The device sends float32: a bound it accepts may arrive rounded up by half an ulp.
+    return bool(np.float32(value) <= np.float32(bound))
 
 
 def info_problem(info: Info) -> str | None:
@@ -32,4 +51,24 @@ def info_problem(info: Info) -> str | None:
         return "a tare offset, full scale or joint limit is not a finite number"
     if any(v <= 0 for v in info.full_scale):
         return "a full-scale value is not positive"
+    for key, what in _NAMES.items():
+        # Names go into log headers and onto the terminal: printable ASCII, as the doc says.
+        name = getattr(info, key)
+        if not (name.isascii() and name.isprintable()):
+            return f"the {what} name {ascii(name)} is not printable ASCII"
+    limit = info.joint_limit_rad
+    if not (_within(MIN_JOINT_LIMIT_RAD, limit) and limit < math.pi / 2):
+        return (f"joint limit {limit:g} rad lies outside a design's "
+                f"[{MIN_JOINT_LIMIT_RAD:g}, pi/2)")
+    if not (math.isfinite(info.filter_hz) and info.filter_hz >= 0
+            and _within(info.filter_hz, MAX_CUTOFF_RATIO * info.max_rate_hz)):
+        return (f"low-pass cutoff {info.filter_hz:g} Hz is not 0 (off) or a cutoff the board's "
+                f"highest rate allows")
+    if not all(math.isfinite(v) and _within(abs(v), TOOL_MAX_TRANSLATION_M)
+               for v in info.tool_translation) or not all(
+            math.isfinite(v) and _within(abs(v), TOOL_MAX_ANGLE_RAD) for v in info.tool_rpy):
+        return (f"tool frame {(*info.tool_translation, *info.tool_rpy)} is not finite or not "
+                f"within {TOOL_MAX_TRANSLATION_M:g} m and {TOOL_MAX_ANGLE_RAD:.4g} rad")
+    if any(not 0 <= c <= MAX_VALUE for c in info.limits):
+        return f"an overload limit lies outside 0..{MAX_VALUE} counts"
     return None

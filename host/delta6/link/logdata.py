@@ -26,6 +26,15 @@ PARTIAL_SUFFIX = ".partial"
 FLUSH_EVERY = 256
 
 
+def meta_text(value) -> str:
+    """A header value as one line of printable ASCII: anything else (a name with a newline or
+    non-ASCII letters that slipped past the checks) is written escaped, never refused."""
+    text = str(value)
+    if text.isascii() and text.isprintable():
+        return text
+    return text.encode("unicode_escape").decode("ascii")
+
+
 class LogError(UserError):
     """A log file is missing, malformed or unusable; the message names the problem."""
 

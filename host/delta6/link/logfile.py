@@ -35,6 +35,7 @@ from delta6.link.logdata import (
     PartialOnError,
     check_rows,
     int_column,
+    meta_text,
     six_columns,  # noqa: F401 - re-exported: the log API is this module's
 )
 
@@ -50,10 +51,9 @@ _COLUMN_FORMATS = {"t": _TIME_FORMAT, "host_t": _TIME_FORMAT, "seq": "%d", "stat
 def header_lines(meta: dict, columns: tuple[str, ...]) -> list[str]:
     lines = [f"# {MAGIC} schema={SCHEMA_VERSION}"]
     for key, value in meta.items():
-        text = str(value)
-        if "\n" in text or "=" in key:
-            raise ValueError(f"metadata {key!r} must be a single line without '=' in the key")
-        lines.append(f"# {key}={text}")
+        if "=" in key:
+            raise ValueError(f"metadata key {key!r} must not hold '='")
+        lines.append(f"# {meta_text(key)}={meta_text(value)}")
     lines.append("# units: " + "; ".join(f"{k} {v}" for k, v in UNITS.items()))
     lines.append(",".join(columns))
     return lines

@@ -41,6 +41,7 @@ from delta6.link.logdata import (
     PartialOnError,
     check_rows,
     int_column,
+    meta_text,
     six_columns,
 )
 
@@ -121,7 +122,8 @@ class McapLogWriter(PartialOnError):
                                                         R.definition(datatype).encode())
                     self._channels[topic] = self._mcap.register_channel(topic, "cdr", schema)
                 self._mcap.add_metadata(METADATA_NAME, {
-                    **meta, "schema": str(SCHEMA_VERSION), "columns": ",".join(self.columns)})
+                    **{meta_text(key): meta_text(value) for key, value in meta.items()},
+                    "schema": str(SCHEMA_VERSION), "columns": ",".join(self.columns)})
                 self._to_os()
         except LogError:
             # Not even the header fits: no file is left behind to be refused next time.
@@ -259,7 +261,7 @@ def read_mcap(path: str | Path, *, require_complete_rows: bool = True) -> LogDat
         raise LogError(f"{path}: no such file") from None
     except OSError as exc:
         raise LogError(f"{path}: cannot be read ({exc.strerror})") from None
-    meta, topics = _records(path, data, cut_ok=path.name.endswith(PARTIAL_SUFFIX))
+    meta, topics, cut = _records(path, data, cut_ok=path.name.endswith(PARTIAL_SUFFIX))
     if meta.get("schema", str(SCHEMA_VERSION)) != str(SCHEMA_VERSION):
         raise LogError(f"{path}: log schema {meta['schema']} is not supported "
                        f"(this version reads schema {SCHEMA_VERSION})")
@@ -308,14 +310,17 @@ def read_mcap(path: str | Path, *, require_complete_rows: bool = True) -> LogDat
         raise LogError(f"{path}: no {R.TOPIC_SAMPLE} messages for the columns "
                        f"{', '.join(optional_names)}")
 
-    if meta.get("cut_row_dropped") and n:
+    if cut and n:
         # A killed writer's last samples may have lost their other topics' messages to the
         # cut: the rows after the last one with every topic's message go (NaN values are
-        # data, not a cut).
+        # data, not a cut). The metadata says so only when one went: a cut that fell
+        # between whole samples dropped nothing.
         whole = np.logical_and.reduce(present) if present else np.ones(n, bool)
         keep = n - int(np.argmax(whole[::-1])) if whole.any() else 0
         if keep == 0:
             raise LogError(f"{path}: no whole sample before the cut")
+        if keep < n:
+            meta["cut_row_dropped"] = "1"
         t, theta, wrench = t[:keep], theta[:keep], wrench[:keep]
         extra = {name: values[:keep] for name, values in extra.items()}
     check_rows(path, t, theta, wrench, lambda i: f"sample {i + 1}", require_complete_rows)
@@ -326,9 +331,10 @@ def read_mcap(path: str | Path, *, require_complete_rows: bool = True) -> LogDat
 
 
 def _records(path: Path, data: bytes, cut_ok: bool = False):
-    """The metadata and, per topic, (schema, [messages]) of a whole file. ``cut_ok``: the file
-    is what a killed writer left (``.partial``): it may end inside a record, and the records
-    before the cut are kept (a chunk is read whole or not at all, and each carries a CRC)."""
+    """The metadata, per topic (schema, [messages]), and whether the file ends inside a
+    record. ``cut_ok``: the file is what a killed writer left (``.partial``): it may end
+    inside a record, and the records before the cut are kept (a chunk is read whole or not
+    at all, and each carries a CRC)."""
     schemas, channels, messages, meta = {}, {}, {}, {}
     cut = False
     try:
@@ -353,8 +359,6 @@ def _records(path: Path, data: bytes, cut_ok: bool = False):
     except Exception as exc:   # the mcap reader's many ways to say "damaged": one line
         raise LogError(f"{path}: not a readable MCAP file ({type(exc).__name__}: "
                        f"{str(exc)[:80]})") from None
-    if cut:
-        meta["cut_row_dropped"] = "1"
     topics = {}
     for cid, channel in channels.items():
         schema = schemas.get(channel.schema_id)
@@ -364,7 +368,7 @@ def _records(path: Path, data: bytes, cut_ok: bool = False):
             raise LogError(f"{path}: {channel.topic} is not ROS 2 CDR "
                            f"({channel.message_encoding}, {schema.encoding})")
         topics[channel.topic] = (schema, messages.get(cid, []))
-    return meta, topics
+    return meta, topics, cut
 
 
 def _decode(path: Path, topic, layout: R.FixedLayout, fields) -> np.ndarray:

@@ -480,9 +480,9 @@ def parse_payload(payload: bytes):
     """A record from a decoded, CRC-checked payload (CRC bytes removed).
 
     Longer payloads than this version defines are accepted and their known prefix parsed
-    (newer minor versions only append fields); the shorter records of an older minor version
-    are read without the fields appended since (None); shorter ones still and unknown types
-    raise ProtocolError."""
+    (newer minor versions only append fields); a shorter one only at the exact size of an
+    older minor version's record, read without the fields appended since (None); other
+    lengths and unknown types raise ProtocolError (docs/protocol.md, section 11)."""
     if not payload:
         raise ProtocolError("empty frame")
     kind = payload[0]
@@ -501,10 +501,11 @@ def parse_payload(payload: bytes):
         return WrenchRecord(v[1], v[2], v[3], v[4:10], v[10:16])
     layout = RECORD_LAYOUTS[kind]
     if len(payload) < layout.size:       # an older minor version's record
+        sizes = RECORD_SIZES_BY_MINOR[kind]
+        if len(payload) not in sizes:    # no version ends there: a record cut short
+            raise ProtocolError(f"record type 0x{kind:02x} has {len(payload)} bytes: no "
+                                f"version sends that ({', '.join(map(str, sizes))}, or more)")
         older = _older_layout(kind, len(payload))
-        if older.size != len(payload):   # no version ends there: a record cut short
-            raise ProtocolError(f"record type 0x{kind:02x} has {len(payload)} bytes: it ends "
-                                f"inside a field ({older.size} or {layout.size} expected)")
         fields = dict(APPENDED_FIELDS[kind])
         fields.update(older.unpack(payload))
     else:
@@ -562,14 +563,16 @@ def encode_record(record, minor: int | None = None) -> bytes:
     """The frame of an INFO, ACK, NACK, TELEMETRY or EVENT record (the tuples above), as this
     version sends it, or as minor version ``minor`` did (0: 1.0, without the appended fields;
     1: 1.1, without the model; 2: 1.2, without the pipeline).
-    An appended field the record does not have (None) is left off, with those after it."""
+    An appended field the record does not have (None) is left off, with those after it and
+    the rest of its minor version: the record is one a device of an older version sends."""
     kind = next(t for t, cls in _RECORD_TUPLES.items() if isinstance(record, cls))
     fields = record._asdict()
     layout = RECORD_LAYOUTS[kind]
     size = record_size(kind, VERSION[1] if minor is None else minor)
     for name in APPENDED_FIELDS.get(kind, ()):
-        if fields[name] is None:
-            size = min(size, layout.offsets[name])
+        if fields[name] is None:     # sent as the last minor version without that field
+            size = min(size, max(s for s in RECORD_SIZES_BY_MINOR[kind]
+                                 if s <= layout.offsets[name]))
     if size < layout.size:
         layout = _older_layout(kind, size)
         fields = {k: v for k, v in fields.items() if k in layout.offsets}
@@ -649,9 +652,17 @@ def wrench_values(wrench_counts, status, lsb) -> np.ndarray:
     return np.where(invalid, np.nan, wrench_counts * np.asarray(lsb, dtype=float))
 
 
+def impossible_counts(counts) -> np.ndarray:
+    """Where raw counts lie beyond a 14-bit encoder's 0..16383 (a u16 on the wire can hold
+    them; no encoder reads them): never an angle."""
+    return np.asarray(counts) >= COUNTS_PER_TURN
+
+
 def theta_values(counts, status, zero) -> np.ndarray:
     """(N, 6) encoder angles (rad) from raw counts; NaN where a sample sent no counts
-    (:data:`NO_COUNTS`) or its status flags that encoder as failed."""
+    (:data:`NO_COUNTS`), its status flags that encoder as failed, or the count is impossible
+    (:func:`impossible_counts`): all three are a read that gave no angle."""
     counts = np.asarray(counts)
     failed = ((np.asarray(status)[:, None] >> np.arange(6)) & 1) != 0
-    return np.where(failed | (counts < 0), np.nan, counts_to_theta(counts, zero))
+    missing = failed | (counts < 0) | impossible_counts(counts)
+    return np.where(missing, np.nan, counts_to_theta(counts, zero))
