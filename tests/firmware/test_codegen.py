@@ -33,16 +33,41 @@ def test_committed_header_is_up_to_date():
 
 def test_same_bytes_from_any_working_directory(tmp_path, monkeypatch):
     out = tmp_path / "generated" / "delta6_design.h"
+    committed = COMMITTED.read_bytes()          # read first: nothing here may rewrite it
     monkeypatch.chdir(ROOT)
-    assert main(["codegen", "designs/delta6.toml"]) == 0       # the committed header, in place
+    assert main(["codegen", "designs/delta6.toml", "--check"]) == 0
     assert main(["codegen", "designs/delta6.toml", "-o", str(out)]) == 0
     first = out.read_bytes()
     monkeypatch.chdir(tmp_path)
     assert main(["codegen", str(DESIGNS / "delta6.toml"), "-o", str(out)]) == 0
     assert out.read_bytes() == first
     assert main(["codegen", str(DESIGNS / "delta6.toml"), "--check", "-o", str(COMMITTED)]) == 0
-    # The banner names -o; the rest is the committed header's.
-    assert first.splitlines()[4:] == COMMITTED.read_bytes().splitlines()[4:]
+    # The banner names -o; the rest is the committed header's, which is left as it was.
+    assert first.splitlines()[4:] == committed.splitlines()[4:]
+    assert COMMITTED.read_bytes() == committed
+
+
+def test_a_calibration_or_model_leaves_the_design_header_as_delta6_codegen_writes_it(
+        tmp_path, monkeypatch):
+    """The design header is the same for every calibration and model: its banner names the
+    design alone, so flashing or generating a calibrated shipped design leaves the committed
+    header byte for byte (it said `... --calibration unit.toml`, and the tree was dirty)."""
+    from delta6.core import calibration as calibration_mod
+    cal_path = calibration_mod.save(
+        calibration_mod.neutral(load(DESIGNS / "delta6.toml"), name="unit-7"),
+        tmp_path / "unit.toml")
+    committed = COMMITTED.read_bytes()
+    out = tmp_path / "generated" / "delta6_design.h"
+    assert main(["codegen", str(DESIGNS / "delta6.toml"), "--calibration", str(cal_path),
+                 "-o", str(out)]) == 0
+    plain = tmp_path / "plain" / "generated" / "delta6_design.h"
+    assert main(["codegen", str(DESIGNS / "delta6.toml"), "-o", str(plain)]) == 0
+    assert out.read_bytes().replace(str(out).encode(), b"") == \
+        plain.read_bytes().replace(str(plain).encode(), b"")
+    assert b"--calibration" not in out.read_bytes()
+    # ... and the calibration header names the whole command.
+    assert b"--calibration" in out.with_name("delta6_calibration.h").read_bytes()
+    assert COMMITTED.read_bytes() == committed
 
 
 def test_banners_name_the_command_as_it_can_be_run_again(tmp_path, capsys, monkeypatch):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import re
 import shlex
 import sys
 from pathlib import Path
@@ -160,13 +161,16 @@ class Headers(NamedTuple):
 
 def generate_headers(design_path: Path, cal_path: Path | None = None,
                      model_path: Path | None = None, allow_implausible: bool = False,
-                     command: str | None = None) -> Headers:
+                     command: str | None = None, design_command: str | None = None) -> Headers:
     """Everything ``delta6 codegen`` (and ``delta6 flash``, ``delta6 virtual``) writes for a
     firmware: refuses a design in another unit (:func:`firmware_notes`, whose notes it prints),
     a calibration of another design and a model over another base. ``command``: the command
-    line the banners name (default: :func:`codegen_command`)."""
+    line the calibration's and model's banners name (default: :func:`codegen_command`);
+    ``design_command``: the design header's, which names no calibration or model (its bytes
+    are the same for all of them, so flashing a calibrated shipped design leaves the committed
+    header as it is; default: ``delta6 codegen DESIGN``)."""
     command = command or codegen_command(design_path, cal_path, model_path)
-    design, text = header_text(design_path, command)
+    design, text = header_text(design_path, design_command or codegen_command(design_path))
     for note in firmware_notes(design, allow_implausible):
         print(note, file=sys.stderr)
     cal, cal_text = calibration_text(design, design_path, cal_path, command)
@@ -201,10 +205,12 @@ def _write_line(path: Path, text: str, what: str) -> str:
 
 
 def build_name(design: design_mod.Design, cal=None, model=None) -> str:
-    """The build directory's name: one per design, per calibrated unit and per model."""
+    """The build directory's name: one per design, per calibrated unit and per model. A
+    model's name is a label (any printable ASCII): only its letters, digits, '.', '-' and
+    '_' reach the folder's name, which is one path component whatever the label."""
     name = design.name if cal is None else f"{design.name}-cal-{cal.hash32():08x}"
     if model is not None:
-        name += f"+{model.name}-{model.hash32():08x}"
+        name += f"+{re.sub(r'[^A-Za-z0-9._-]', '_', model.name)}-{model.hash32():08x}"
     return name
 
 
@@ -234,9 +240,10 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("give a design file (delta6 codegen designs/delta6.toml) or --wire")
     if args.build or args.output is None:
         paths.checkout()    # the firmware tree the header belongs to, or one line saying so
-    command = rerun_command(args)
+    extra = rerun_extra(args)
+    command = codegen_command(args.design, args.calibration, args.model, *extra)
     headers = generate_headers(args.design, args.calibration, args.model, args.allow_implausible,
-                               command)
+                               command, codegen_command(args.design, None, None, *extra))
     out = output_path(args, headers.design, headers.cal, headers.model)
     if args.output is not None:      # (its folder is made: generated/ next to the firmware)
         check_not_an_input(out, "-o", [args.design, args.calibration, args.model])
@@ -296,15 +303,15 @@ def run_wire(args: argparse.Namespace) -> int:
     return 0
 
 
-def rerun_command(args: argparse.Namespace) -> str:
-    """The ``delta6 codegen`` command line of ``args`` as a user re-runs it (without --check):
-    what the banners name and what --check says to run."""
+def rerun_extra(args: argparse.Namespace) -> list[str]:
+    """The arguments of ``delta6 codegen`` beyond its files that a user re-runs it with
+    (without --check): where the headers go, and the override."""
     extra = []
     if args.output is not None and args.output.resolve() != COMMITTED_HEADER.resolve():
         extra += ["-o", source_label(args.output)]
     extra += [flag for flag, given in (("--build", args.build),
                                        (ALLOW_IMPLAUSIBLE, args.allow_implausible)) if given]
-    return codegen_command(args.design, args.calibration, args.model, *extra)
+    return extra
 
 
 def check(out: Path, text: str, source: str, command: str) -> int:
@@ -375,8 +382,10 @@ def design_firmware(path: Path, calibration: Path | None = None,
     """Generate ``path``'s header (and ``calibration``'s and ``model_path``'s) into
     build/designs/NAME/include/ (the committed headers are left alone) and build the
     application for it: what ``delta6 virtual --design [--calibration] [--model]`` runs."""
+    extra = ["--build"] + ([ALLOW_IMPLAUSIBLE] if allow_implausible else [])
     headers = generate_headers(path, calibration, model_path, allow_implausible,
-                               codegen_command(path, calibration, model_path, "--build"))
+                               codegen_command(path, calibration, model_path, *extra),
+                               codegen_command(path, None, None, *extra))
     design, cal, model = headers.design, headers.cal, headers.model
     header = avrbuild.design_include_dir(build_name(design, cal, model)) / HEADER_RELPATH
     write_headers(header, headers)

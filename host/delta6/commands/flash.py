@@ -13,9 +13,11 @@ from delta6.commands._port import number
 from delta6.commands.codegen import (
     ALLOW_IMPLAUSIBLE,
     CALIBRATION_HEADER,
+    COMMITTED_HEADER,
     HEADER_RELPATH,
     MODEL_HEADER,
     add_allow_implausible,
+    codegen_command,
     generate_headers,
     source_label,
     write_headers,
@@ -78,14 +80,20 @@ def run(args: argparse.Namespace) -> int:
     firmware_dir = args.firmware_dir or paths.checkout() / "firmware"
     if not (firmware_dir / "platformio.ini").is_file():
         raise UserError(f"{firmware_dir}: no platformio.ini (not the firmware project)")
-    headers = generate_headers(args.design, args.calibration, args.model,
-                               args.allow_implausible, rerun_command(args))
+    header = firmware_dir / "include" / HEADER_RELPATH
+    # The design header's bytes are what `delta6 codegen DESIGN` writes there (flashing a
+    # shipped design, calibrated or not, leaves the committed header as it is).
+    extra = ([] if header.resolve() == COMMITTED_HEADER.resolve()
+             else ["-o", source_label(header)])
+    extra += [ALLOW_IMPLAUSIBLE] if args.allow_implausible else []
+    headers = generate_headers(args.design, args.calibration, args.model, args.allow_implausible,
+                               rerun_command(args),
+                               codegen_command(args.design, None, None, *extra))
     cal, model = headers.cal, headers.model
     expected = flash.Expected(
         headers.design.name, headers.design.hash32(),
         cal.name if cal else "", cal.hash32() if cal else 0,
         model.name if model else "", model.hash32() if model else 0)
-    header = firmware_dir / "include" / HEADER_RELPATH
     pio = args.pio or "pio"
     if not args.dry_run:
         pio = flash.find_pio(args.pio)
