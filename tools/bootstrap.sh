@@ -44,18 +44,25 @@ fi
 stamp="$VENV/.delta6-installed"
 want=$( { cat "$ROOT/pyproject.toml"; cd "$ROOT" && ls host/*/__init__.py codegen/*/__init__.py 2>/dev/null; } \
   | sha256sum | cut -d' ' -f1)
-# The venv with the CPU torch build takes about 1.5 GB and pip unpacks into the temporary
-# directory first: a full disk would otherwise end in pip's OSError halfway through.
-NEED_MB=2000
+# The venv with the CPU torch build takes about 1.5 GB (less when only the stamp is out of
+# date and torch is in already) and pip builds and unpacks in the temporary directory: a full
+# disk would otherwise end in pip's OSError halfway through.
 free_mb() { df -Pm "$1" 2>/dev/null | awk 'NR == 2 { print $4 }'; }
+need_free() {   # DIR MB
+  local avail
+  avail=$(free_mb "$1")
+  if [ -n "$avail" ] && [ "$avail" -lt "$2" ]; then
+    say "only $avail MB free on the disk holding $1; installing the venv needs about $2 MB there"
+    exit 1
+  fi
+}
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
-  for dir in "$ROOT" "${TMPDIR:-/tmp}"; do
-    avail=$(free_mb "$dir")
-    if [ -n "$avail" ] && [ "$avail" -lt "$NEED_MB" ]; then
-      say "only $avail MB free on the disk holding $dir; installing the venv needs about $NEED_MB MB"
-      exit 1
-    fi
-  done
+  if [ -d "$VENV/lib" ] && compgen -G "$VENV/lib/python3*/site-packages/torch" >/dev/null; then
+    need_free "$ROOT" 300
+  else
+    need_free "$ROOT" 2000
+  fi
+  need_free "${TMPDIR:-/tmp}" 500
   say "installing the delta6 package, its test dependencies and the training extra into $VENV"
   # --no-cache-dir: pip's wheel cache would keep a second copy of every download.
   "$VENV/bin/python" -m pip install -q --no-cache-dir --upgrade pip >/dev/null

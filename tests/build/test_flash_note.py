@@ -37,3 +37,16 @@ def test_an_image_that_does_not_fit_is_one_line(tmp_path):
     over = int(re.search(r"([\d,]+) bytes over its flash", message)[1].replace(",", ""))
     assert 0 < over < 500     # 32,700 B of tables and the start-up code, less 32,768
     assert "joint box" in message and "calibration" in message
+
+
+@pytest.mark.avr
+def test_an_image_over_its_static_ram_is_not_blamed_on_the_trig_tables(tmp_path):
+    src = tmp_path / "fat.c"
+    src.write_text('volatile char ram[2100] = {1};\n'
+                   'int main(void) { return ram[7]; }\n')
+    with pytest.raises(avrbuild.BuildError) as info:
+        avrbuild.build_image("too-fat", [src], arduino=False, out_dir=tmp_path / "out")
+    message = str(info.value)
+    assert "\n" not in message, message
+    assert "over its static RAM" in message and "Static RAM holds" in message
+    assert "trig tables" not in message

@@ -108,8 +108,9 @@ _run = compilecache.run
 
 
 #: The linker's words for an image too big for the MCU: "will not fit in region `text'", and
-#: usually "region `text' overflowed by N bytes".
-_NO_FIT = re.compile(r"will not fit in region `(\w+)'")
+#: usually "region `text' overflowed by N bytes"; static RAM past its end: "section `.data'
+#: is not within region `data'".
+_NO_FIT = re.compile(r"(?:will not fit in|is not within) region `(\w+)'")
 _OVERFLOW = re.compile(r"region `(\w+)' overflowed by (\d+) bytes")
 _MEMORY = {"text": "flash", "data": "static RAM"}
 
@@ -126,10 +127,20 @@ def _link(cmd: list[str], name: str, mcu: str) -> None:
             raise
         amounts = ", ".join((f"{n:,} bytes " if n else "") + f"over its {_MEMORY.get(r, r)}"
                             for r, n in over.items())
-        raise BuildError(f"{name} does not fit the {mcu}: {amounts}. The design's joint "
-                         "box sets the size of the trig tables (a wider box, more flash) and a "
-                         "calibration or a model adds its constants: narrow joint_limit_rad, "
-                         "or build without them (docs/firmware.md, \"Memory\")") from None
+        raise BuildError(f"{name} does not fit the {mcu}: {amounts}. "
+                         + " ".join(_CAUSES.get(r, "") for r in over).strip()
+                         + " (docs/firmware.md, \"Memory\")") from None
+
+
+#: Why an image outgrows each memory: the trig tables and the constants live in flash; static
+#: RAM holds the state of the calibration's history and the model's windows.
+_CAUSES = {
+    "text": "The design's joint box sets the size of the trig tables (a wider box, more "
+            "flash) and a calibration or a model adds its constants: narrow joint_limit_rad, "
+            "or build without them.",
+    "data": "Static RAM holds the calibration's history state and the model's windows: a "
+            "model with shorter windows, or the image without it, fits.",
+}
 
 
 def _object_name(src: Path) -> str:

@@ -26,6 +26,7 @@ from typing import Callable, Iterator
 import numpy as np
 import serial
 
+from delta6.core.design import MAX_RATE_HZ
 from delta6.core.errors import UserError
 from delta6.link import protocol as P
 from delta6.link.decoder import DecoderStats, SequenceTracker, StreamDecoder
@@ -323,8 +324,8 @@ class Device:
 
     def start(self, rate_hz: int | None = None) -> int:
         """Start streaming at ``rate_hz`` (default: the configured rate); returns the rate."""
-        if rate_hz is not None and not 1 <= rate_hz <= 0xFFFF:
-            raise DeviceError(f"rate must be 1..65535 Hz, got {rate_hz}")
+        if rate_hz is not None and not 1 <= rate_hz <= MAX_RATE_HZ:
+            raise DeviceError(f"rate must be 1..{MAX_RATE_HZ} Hz, got {rate_hz}")
         ack = self._request(P.Command.START, rate_hz or 0)
         self._started = True
         self._update_info(rate_hz=ack.value, streaming=True)

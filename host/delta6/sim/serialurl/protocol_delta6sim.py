@@ -30,7 +30,7 @@ from pathlib import Path
 
 from serial.serialutil import PortNotOpenError, SerialBase, SerialException
 
-from delta6.core.design import DEFAULT_DESIGN
+from delta6.core.design import DEFAULT_DESIGN, MAX_RATE_HZ
 from delta6.sim.simdevice import Motion, SimulatedDevice
 
 
@@ -203,7 +203,7 @@ class Serial(SerialBase):
 
 
 #: The ranges of the URL's numbers (a rate of -5 wrapped to 65531 Hz; nan passed as a float).
-_RANGES = {"rate": (1, 65535), "baud": (1, 10_000_000), "max_rate": (1, 65535),
+_RANGES = {"rate": (1, MAX_RATE_HZ), "baud": (1, 10_000_000), "max_rate": (1, MAX_RATE_HZ),
            "seed": (0, 2**63 - 1), "start_us": (0, 2**32 - 1), "tx_capacity": (1, 1 << 20),
            "solver_fail": (0.0, 1.0), "overrun": (0.0, 1.0), "speed": (1e-6, 1e6),
            "vanish_after": (0.0, 1e9), "amplitude": (0.0, 1.0), "encoder_fault": (0.0, 1.0)}
