@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from delta6.core.design import MAX_NAME_CHARS, name_problem
+from delta6.core.design import MAX_NAME_CHARS, label_problem, name_problem
 from delta6.core.errors import UserError
 from delta6.core.int8net import Feature, Int8Net, Layer
 
@@ -213,9 +213,10 @@ def _object(value, keys: tuple[str, ...], what: str, source: str,
     return value
 
 
-def _name(value, what: str, source: str) -> str:
-    problem = name_problem(value)
-    if problem:     # a model's name becomes a build folder's name and a C string
+def _name(value, what: str, source: str, rule=label_problem) -> str:
+    """A model's or calibration's name is a label; a design's follows the design name rule."""
+    problem = rule(value)
+    if problem:
         raise ModelFileError(f"{source}: {what} {problem}")
     return value
 
@@ -298,7 +299,7 @@ def loads(text: str, source: str = "model") -> ResidualModel:
     except ValueError as exc:
         raise ModelFileError(f"{source}: invalid network: {exc}") from None
     return ResidualModel(
-        name=name, design_name=_name(design["name"], "design name", source),
+        name=name, design_name=_name(design["name"], "design name", source, name_problem),
         design_hash=_hex32(design["hash"], "design hash", source), base=base, net=net,
         calibration_name=None if cal is None else _name(cal["name"], "calibration name",
                                                         source),
