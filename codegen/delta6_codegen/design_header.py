@@ -26,8 +26,9 @@ def c_float(x: float) -> str:
 
 
 def c_string(text: str) -> str:
-    # Design names are validated ASCII; escape what a C string literal cannot hold as is.
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    # Names are validated printable ASCII; escape what a C string literal cannot hold as is,
+    # and every '?' so that no "??/" (a trigraph: a backslash before C++17) forms.
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"').replace("?", "\\?") + '"'
 
 
 def _float_list(values) -> str:

@@ -128,3 +128,21 @@ def test_an_output_that_cannot_be_written_is_refused_before_training(tmp_path, c
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and words in err and "epoch" not in err, (options, err)
     assert not (tmp_path / "m.json").exists()
+
+
+def test_a_network_the_quantizer_refuses_is_one_line(tmp_path, capsys, monkeypatch):
+    # Whatever the integer engine cannot represent after the training is a UserError line,
+    # not a ValueError traceback, and no model file.
+    from delta6.core import int8quant
+
+    def refuse(*args, **kwargs):
+        raise ValueError("output_step: out of range")
+    monkeypatch.setattr(int8quant, "quantize", refuse)
+    log = tmp_path / "cal.csv"
+    assert main(["simulate", "--duration", "40", "-o", str(log)]) == 0
+    capsys.readouterr()
+    assert main(["train", str(log), "--target", "mcu", "--epochs", "1", "--quiet",
+                 "-o", str(tmp_path / "m.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "cannot be quantized" in err, err
+    assert "output_step: out of range" in err and not (tmp_path / "m.json").exists()

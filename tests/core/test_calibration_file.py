@@ -1,6 +1,8 @@
 """Calibration files: round trip, hash, and one-line errors for bad files (fuzzed)."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -138,3 +140,18 @@ def test_a_byte_order_mark_is_not_an_error(baseline, tmp_path):
     path = tmp_path / "cal.toml"
     path.write_bytes(b"\xef\xbb\xbf" + C.dumps(cal).encode())
     assert C.load(path).hash32() == cal.hash32()
+
+
+@pytest.mark.parametrize("name, ok", [("unit 7 (bench)", True), ('a"b\\c??/d e', True),
+                                      ("../q", True), ("", False), ("  ", False),
+                                      ("caf\u00e9", False), ("a\tb", False)])
+def test_a_calibration_name_is_a_printable_label(good_text, name, ok):
+    # What `calibrate -o "unit 7.toml"` named a calibration by default loads, even for host
+    # use; only what the device-info record cannot carry is refused.
+    text = good_text.replace('name = "unit-7"', f"name = {json.dumps(name)}", 1)
+    if ok:
+        assert C.loads(text, "cal.toml").name == name
+    else:
+        with pytest.raises(C.CalibrationError, match="name") as info:
+            C.loads(text, "cal.toml")
+        assert "\n" not in str(info.value)

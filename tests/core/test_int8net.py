@@ -191,15 +191,51 @@ def test_fuzzed_model_bytes_never_escape_as_other_errors(data):
         pass
 
 
-@pytest.mark.parametrize("name", ["../../../../q", "a/b", 'a"b', "a\\b", "a??/b", "", " ",
-                                  "x" * 24, "-lead", "caf\u00e9"])
-def test_a_model_name_follows_the_design_name_rule(name):
-    # The name becomes a build folder's name (build/designs/DESIGN+NAME-HASH/) and a C string.
+_NUMBER_FIELDS = (["network", "rate_hz"], ["network", "output_step", 0],
+                  ["network", "input_scale", 5], ["network", "features", 0, "param"],
+                  ["network", "layers", 0, "bias", 0], ["network", "features", 0, "shift", 0])
+
+
+@given(st.sampled_from(_NUMBER_FIELDS), st.integers(2**31, 10**500) | st.integers(-10**500, -2**31 - 1))
+def test_huge_json_integers_are_one_line_model_errors(path, value):
+    # One JSON number anywhere the network holds one: never an OverflowError (10**400 is no
+    # float) or a value that wraps in the generated header's int16_t/int32_t fields.
+    with pytest.raises(residualmodel.ModelFileError) as info:
+        residualmodel.loads(_tampered(_set(path, value)), "m.json")
+    assert "\n" not in str(info.value)
+
+
+def test_a_correction_beyond_half_the_full_scale_quantizes_and_loads():
+    # input_scale 16384 / FS and OUTPUT_HEADROOM 4: a correction of 1 FS puts 32767 output
+    # steps at 4 FS, twice the input's range; what the quantizer writes must load.
+    fs = 50.0
+    rng = np.random.default_rng(3)
+    v = rng.integers(-16384, 16385, (2000, 6)).astype(float)   # the base wrench, input steps
+    net = int8quant.FloatNet(50.0, np.full(6, 16384 / fs, np.float32),
+                             (int8quant.FeatureSpec("wrench"),), np.full(6, 1 / 16384),
+                             (np.eye(6),), (np.zeros(6),), np.full(6, fs))
+    assert np.percentile(np.abs(net.forward(v)), 99.99) > 0.5 * fs
+    q = int8quant.quantize(net, v)
+    again = residualmodel.loads(residualmodel.dumps(_model(q)), "m.json")
+    assert again.identity() == _model(q).identity()
+
+
+@pytest.mark.parametrize("name", ["", " ", "x" * 24, "caf\u00e9", "a\tb", "a\nb", "a\x7fb"])
+def test_a_model_name_is_a_printable_label(name):
+    # Printable ASCII in the device-info record's 24 bytes (design.label_problem).
     text = residualmodel.dumps(_model(random_int8net(np.random.default_rng(6))))
     data = json.loads(text)
     data["name"] = name
-    with pytest.raises(residualmodel.ModelFileError, match="m.json: name .*(may hold only|must)"):
+    with pytest.raises(residualmodel.ModelFileError, match="m.json: name must"):
         residualmodel.loads(json.dumps(data), "m.json")
+
+
+@pytest.mark.parametrize("name", ["unit 7 (bench)", 'a"b\\c??/d e', "../../../../q", "x" * 23])
+def test_yesterdays_model_names_load(name):
+    # A label, not a path: the header escapes it, build folders use a sanitized form.
+    data = json.loads(residualmodel.dumps(_model(random_int8net(np.random.default_rng(6)))))
+    data["name"] = name
+    assert residualmodel.loads(json.dumps(data), "m.json").name == name
 
 
 def _tampered(change):
@@ -226,6 +262,14 @@ def _set(path, value):
     (_set(["network", "input_scale"], ["1"] * 6), "input_scale must be six numbers"),
     (_set(["network", "input_scale"], [1e12] * 6), "input_scale must lie in"),
     (_set(["network", "output_step"], [1e37] * 6), "output_step: 32767 steps"),
+    (_set(["network", "output_step"], [10**400] * 6), "output_step out of range"),
+    (_set(["network", "rate_hz"], 10**400), "rate_hz out of range"),
+    (_set(["network", "features", 0], {"kind": "wrench", "param": 10**30,
+                                       "multiplier": [20000] * 6, "shift": [10] * 6}),
+     "a wrench feature takes no parameter"),
+    (_set(["network", "features", 0], {"kind": "play", "param": 10**30,
+                                       "multiplier": [20000] * 6, "shift": [10] * 6}),
+     "play radius"),
     (_set(["network", "layers", 0, "relu"], "yes"), "layer 1 relu must be true or false"),
     (_set(["training"], [1]), "training must be a JSON object"),
     (_set(["design", "hash"], 123), "design hash must be a hex string"),

@@ -268,13 +268,17 @@ def test_time_that_does_not_go_forward_starts_a_new_window(tiny_models, baseline
     assert np.nanmax(np.abs(stream - batch) / scale) < 1e-6
 
 
-def test_a_new_device_session_starts_a_new_window(tiny_models, baseline, unit_logs):
+@pytest.mark.parametrize("cut", [30, 60, 61])
+def test_a_new_device_session_starts_a_new_window(tiny_models, baseline, unit_logs, cut):
+    # The session changes at row 60: inside the second block (cut 30), exactly at its start
+    # (cut 60: the break falls on the window's first new row), or as the first block's last
+    # row (cut 61).
     log = read_log(unit_logs[1])
     t, theta = log.t[:100], log.theta[:100]
     est = LearnedEstimator(tiny_models["mlp"][0], design=baseline)
     live = est.streaming()
     session = np.repeat([3, 4], [60, 40])       # the device restarted; its clock did not
-    got = np.vstack([live.update_block(t[:30], theta[:30], session[:30]),
-                     live.update_block(t[30:], theta[30:], session[30:])])
+    got = np.vstack([live.update_block(t[:cut], theta[:cut], session[:cut]),
+                     live.update_block(t[cut:], theta[cut:], session[cut:])])
     assert np.allclose(got[60:], est.predict_arrays(t[60:], theta[60:]), rtol=0, atol=1e-9)
     assert np.allclose(got[:60], est.predict_arrays(t[:60], theta[:60]), rtol=0, atol=1e-9)

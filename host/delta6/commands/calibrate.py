@@ -10,7 +10,7 @@ from delta6.calibration.fit import check_rig_latency
 from delta6.calibration.report import corrected, write_report
 from delta6.core import calibration as calibration_mod
 from delta6.core.calibration import CORRECTED, NAME_LIMIT
-from delta6.core.design import name_problem
+from delta6.core.design import label_problem
 from delta6.core.errors import UserError
 from delta6.core.model import AXES
 from delta6.core.outputs import check_output_file, check_output_folder
@@ -45,9 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "paired with the encoders this late; 0: none), used instead of "
                              "fitting it (default: fitted, 0..0.2 s)")
     parser.add_argument("--name", metavar="NAME",
-                        help=f"the calibration's name (at most {NAME_LIMIT} letters, digits, '-', "
-                             "'_' and '.'; "
-                             "the board reports it); default: the output file's stem")
+                        help=f"the calibration's name (at most {NAME_LIMIT} printable ASCII "
+                             "characters; the board reports it); default: the output file's "
+                             f"name without .toml, cut to {NAME_LIMIT} characters")
     parser.add_argument("--report", metavar="OUT_DIR",
                         help="write a Markdown report with plots into this directory")
     parser.add_argument("--seed", type=int, default=0, help="seed of the block bootstrap")
@@ -70,11 +70,12 @@ def run(args: argparse.Namespace) -> int:
                         "states a known one)")
     design = load_checked(args.design)
     latency = None if args.rig_latency is None else check_rig_latency(args.rig_latency)
-    name = args.name or out.name.removesuffix(".toml")[:NAME_LIMIT]
-    problem = name_problem(name)
+    name = (out.name.removesuffix(".toml")[:NAME_LIMIT] if args.name is None else args.name)
+    problem = label_problem(name)
     if problem:         # before the fit, not when the file is written
-        raise UserError(f"--name: {problem}" + ("" if args.name else
-                                                " (the default is -o's file name stem)"))
+        raise UserError(f"--name: {problem}" + ("" if args.name is not None else
+                                                " (the default is -o's file name without "
+                                                f".toml, cut to {NAME_LIMIT} characters)"))
     log = read_log(args.log)
     if wrench_from_device(log.meta):
         raise UserError(f"{args.log}: the wrench in this log is the device's own model output "

@@ -9,7 +9,7 @@ from pathlib import Path
 from delta6.commands._port import Progress, number
 from delta6.core import calibration as calibration_mod
 from delta6.core.accuracy import format_table
-from delta6.core.design import name_problem
+from delta6.core.design import label_problem
 from delta6.core.errors import UserError
 from delta6.core.model import AXES
 from delta6.core.outputs import check_output_file
@@ -60,9 +60,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="--target mcu: hidden layer widths, e.g. 16 or 16x8, or 0 for a "
                              "linear map (default 16 over analytical; over a calibration a "
                              "linear map of the counts)")
-    parser.add_argument("--name", help=f"--target mcu: model name, at most {MAX_NAME} characters "
-                                       "of letters, digits, '-', '_' and '.' (the board "
-                                       "reports it; default: the output file's stem)")
+    parser.add_argument("--name", help=f"--target mcu: model name, at most {MAX_NAME} printable "
+                                       "ASCII characters (the board reports it; default: the "
+                                       "output file's name without .json)")
     parser.add_argument("-o", "--output", required=True, metavar="MODEL.onnx",
                         help="where to write the model (--target mcu: MODEL.json, and the "
                              "float network to MODEL.onnx)")
@@ -206,11 +206,12 @@ def run_mcu(args: argparse.Namespace) -> int:
                         "(see --hidden)")
     hidden = None if args.hidden is None else _hidden(args.hidden)
     output = Path(args.output)
-    name = args.name or output.stem
-    problem = name_problem(name)
-    if problem:     # the name becomes a build folder's name and a C string (codegen --model)
-        raise UserError(f"--name: {problem}" + ("" if args.name else
-                                                " (the default is -o's file name stem)"))
+    name = output.stem if args.name is None else args.name   # an empty --name is refused
+    problem = label_problem(name)
+    if problem:     # before the training, not when the file is written
+        raise UserError(f"--name: {problem}" + ("" if args.name is not None else
+                                                " (the default is -o's file name without "
+                                                "its extension)"))
     if output.suffix.lower() != ".json":
         raise UserError("-o: the model file is JSON (MODEL.json); the ONNX goes next to it")
     inputs = [args.log, args.design, args.residual_over]

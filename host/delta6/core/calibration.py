@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from delta6.core.curves import ENCODER_HARMONICS
-from delta6.core.design import MAX_NAME_CHARS, name_problem
+from delta6.core.design import MAX_NAME_CHARS, label_problem
 from delta6.core.errors import UserError
 
 SCHEMA = "delta6-calibration/1"
@@ -223,8 +223,8 @@ def _array(value, shape, key, source) -> np.ndarray:
 
 def validate(cal: Calibration, source: str | None = None) -> Calibration:
     """Check every field of ``cal``; returns it with arrays normalised."""
-    problem = name_problem(cal.name)
-    if problem:     # a C string in the calibration header, like a design's name
+    problem = label_problem(cal.name)
+    if problem:     # a label: the board reports it, the calibration header holds it escaped
         _fail(source, "name", problem)
     if not isinstance(cal.design_hash, int) or not 0 <= cal.design_hash < 2**32:
         _fail(source, "design.hash", "must be a 32-bit hash like 0x535534af")

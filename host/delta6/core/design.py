@@ -106,15 +106,25 @@ class Design:
         return validate(values, source=None)
 
 
-def name_problem(name) -> str | None:
-    """Why ``name`` cannot name a design, a calibration or an on-chip model (None: it can).
-    One rule for all three: each name becomes folder and file names (build/designs/NAME/) and
-    a C string in a generated header, and the device-info record carries it in 24 bytes
-    (NUL-terminated, ASCII)."""
+def label_problem(name) -> str | None:
+    """Why ``name`` cannot label a calibration or an on-chip model (None: it can): printable
+    ASCII, not blank, at most MAX_NAME_CHARS (the device-info record carries it in 24 bytes,
+    NUL-terminated). A label is no path: the generated headers escape it as a C string and
+    build folders are named from a sanitized form."""
     if not isinstance(name, str) or not name.strip():
         return "must be a non-empty string"
-    if len(name.encode()) > MAX_NAME_CHARS or not name.isascii():
-        return f"must be ASCII and at most {MAX_NAME_CHARS} characters"
+    if len(name) > MAX_NAME_CHARS or not all(" " <= c <= "~" for c in name):
+        return f"must be printable ASCII and at most {MAX_NAME_CHARS} characters"
+    return None
+
+
+def name_problem(name) -> str | None:
+    """Why ``name`` cannot name a design (None: it can): a label (:func:`label_problem`) that
+    also names folders and files as is (designs/NAME.toml, build/designs/NAME/), so only
+    letters, digits, '-', '_' and '.'."""
+    problem = label_problem(name)
+    if problem:
+        return problem
     if not _NAME.fullmatch(name):
         return (f"{name!r} may hold only letters, digits, '-', '_' and '.', and starts with a "
                 "letter or digit")

@@ -49,8 +49,16 @@ MAX_PLAY_RADIUS = 2000       # counts
 #: Input steps per N (N*m) of base wrench a model may scale by (trained models: 16384 / full
 #: scale, a few hundred to some ten thousands for the shipped designs).
 INPUT_SCALE_RANGE = (1e-9, 1e9)
+#: The correction's int16 range may span at most this many input ranges of the base wrench
+#: (32767 / input_scale, twice the full scale for trained models). The quantizer sizes it as
+#: OUTPUT_HEADROOM (4) times the largest correction; a log's wrench reads up to 3 full scales,
+#: so a correction (reference minus base) stays below 6 full scales = 3 input ranges: 12 at
+#: most, 64 with margin. Beyond it float32 corrections approach nonsense and then inf.
+MAX_OUTPUT_RANGES = 64
 #: Feature kinds and their codes in the generated header (delta6::residual::FeatureKind).
 FEATURE_KINDS = {"wrench": 1, "counts": 2, "wrench_step": 3, "count_step": 4, "play": 5}
+#: Kinds without a parameter: their param is 0.
+PLAIN_KINDS = ("wrench", "counts")
 STEP_KINDS = ("wrench_step", "count_step")
 
 
@@ -152,15 +160,17 @@ class Int8Net:
         if np.any(scale < INPUT_SCALE_RANGE[0]) or np.any(scale > INPUT_SCALE_RANGE[1]):
             raise ValueError(f"input_scale must lie in {INPUT_SCALE_RANGE[0]:g}.."
                              f"{INPUT_SCALE_RANGE[1]:g} input steps per N (N*m)")
-        # The correction's range (INT16_MAX output steps) within the base wrench's input range
-        # (INT16_MAX / input_scale, twice the full scale as trained): beyond it a file streams
-        # nonsense or, in float32, inf.
-        if np.any(np.asarray(self.output_step, dtype=float) * scale > 1.0):
-            raise ValueError("output_step: 32767 steps of correction must stay within the "
-                             "input's range of the base wrench (32767 / input_scale)")
+        # Bound only what would overflow: the correction's range (INT16_MAX output steps) at
+        # most MAX_OUTPUT_RANGES times the base wrench's input range (INT16_MAX / input_scale).
+        if np.any(np.asarray(self.output_step, dtype=float) * scale > MAX_OUTPUT_RANGES):
+            raise ValueError(f"output_step: 32767 steps of correction must stay within "
+                             f"{MAX_OUTPUT_RANGES} times the input's range of the base wrench "
+                             "(32767 / input_scale)")
         for f in self.features:
             if f.kind not in FEATURE_KINDS:
                 raise ValueError(f"unknown feature kind {f.kind!r}")
+            if f.kind in PLAIN_KINDS and f.param != 0:
+                raise ValueError(f"a {f.kind} feature takes no parameter (0), not {f.param}")
             if f.kind == "play" and not 1 <= f.param <= MAX_PLAY_RADIUS:
                 raise ValueError(f"play radius {f.param} outside 1..{MAX_PLAY_RADIUS} counts")
             if f.kind in STEP_KINDS and f.param not in (1, 2):

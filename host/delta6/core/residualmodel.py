@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from delta6.core.design import MAX_NAME_CHARS, name_problem
+from delta6.core.design import MAX_NAME_CHARS, label_problem, name_problem
 from delta6.core.errors import UserError
 from delta6.core.int8net import Feature, Int8Net, Layer
 
@@ -190,8 +190,11 @@ def _numbers(values, what: str, source: str) -> np.ndarray:
     if not isinstance(values, list) or len(values) != 6 or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
         raise ModelFileError(f"{source}: {what} must be six numbers")
-    with np.errstate(over="ignore"):     # a value beyond float32 becomes inf: check() says so
-        return np.asarray(values, dtype=np.float32)
+    try:
+        with np.errstate(over="ignore"):  # a value beyond float32 becomes inf: check() says so
+            return np.asarray(values, dtype=np.float32)
+    except OverflowError:   # a JSON integer beyond any float (10**400)
+        raise ModelFileError(f"{source}: {what} out of range") from None
 
 
 def _object(value, keys: tuple[str, ...], what: str, source: str,
@@ -210,9 +213,10 @@ def _object(value, keys: tuple[str, ...], what: str, source: str,
     return value
 
 
-def _name(value, what: str, source: str) -> str:
-    problem = name_problem(value)
-    if problem:     # a model's name becomes a build folder's name and a C string
+def _name(value, what: str, source: str, rule=label_problem) -> str:
+    """A model's or calibration's name is a label; a design's follows the design name rule."""
+    problem = rule(value)
+    if problem:
         raise ModelFileError(f"{source}: {what} {problem}")
     return value
 
@@ -280,18 +284,22 @@ def loads(text: str, source: str = "model") -> ResidualModel:
     rate = net_data["rate_hz"]
     if isinstance(rate, bool) or not isinstance(rate, (int, float)):
         raise ModelFileError(f"{source}: network rate_hz must be a number, got {rate!r}")
+    try:
+        rate = float(rate)
+    except OverflowError:   # a JSON integer beyond any float (10**400)
+        raise ModelFileError(f"{source}: network rate_hz out of range") from None
     features = tuple(_feature(f, i, source)
                      for i, f in enumerate(_list(net_data["features"], "features", source)))
     layers = tuple(_layer(layer, i, source)
                    for i, layer in enumerate(_list(net_data["layers"], "layers", source)))
-    net = Int8Net(float(rate), _numbers(net_data["input_scale"], "input_scale", source),
+    net = Int8Net(rate, _numbers(net_data["input_scale"], "input_scale", source),
                   _numbers(net_data["output_step"], "output_step", source), features, layers)
     try:
         net.check()
     except ValueError as exc:
         raise ModelFileError(f"{source}: invalid network: {exc}") from None
     return ResidualModel(
-        name=name, design_name=_name(design["name"], "design name", source),
+        name=name, design_name=_name(design["name"], "design name", source, name_problem),
         design_hash=_hex32(design["hash"], "design hash", source), base=base, net=net,
         calibration_name=None if cal is None else _name(cal["name"], "calibration name",
                                                         source),

@@ -225,7 +225,11 @@ def train_mcu(log, design: Design, base, *, name: str, settings: McuSettings = M
                          input_gain=gain, weights=tuple(params[0::2]), biases=tuple(params[1::2]),
                          output_gain=fs / 100.0)
     say("quantizing")
-    q = int8quant.quantize(float_net, v[train_rows])
+    try:
+        q = int8quant.quantize(float_net, v[train_rows])
+    except ValueError as exc:   # a trained network the integer engine cannot represent
+        raise UserError(f"the trained network cannot be quantized for the board: {exc}; "
+                        "try another --seed or --hidden") from None
     model = ResidualModel(name=name, design_name=design.name, design_hash=design.hash32(),
                           base=base.name if base.name in ("analytical", "calibrated") else
                           "calibrated", net=q,
