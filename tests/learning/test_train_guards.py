@@ -136,7 +136,8 @@ def test_an_end_to_end_summary_shows_the_analytical_model(tmp_path, unit_logs, c
     assert "worse than the analytical model" in text
 
 
-@pytest.mark.parametrize("name", ["", "   ", "x" * 24, "caf\u00e9", "tab\there", "new\nline"])
+@pytest.mark.parametrize("name", ["", "   ", "x" * 24, "caf\u00e9", "tab\there", "new\nline",
+                                  " lead", "trail "])
 def test_a_name_that_is_no_printable_label_is_refused_before_the_work(tmp_path, capsys, name):
     # Calibration and model names are labels (design.label_problem): printable ASCII that
     # fits the device-info record.

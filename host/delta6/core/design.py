@@ -115,6 +115,9 @@ def label_problem(name) -> str | None:
         return "must be a non-empty string"
     if len(name) > MAX_NAME_CHARS or not all(" " <= c <= "~" for c in name):
         return f"must be printable ASCII and at most {MAX_NAME_CHARS} characters"
+    if name != name.strip():
+        # A log's header and the device-info record would not keep the spaces at its ends.
+        return f"{name!r} must be without a space at either end"
     return None
 
 
