@@ -259,3 +259,34 @@ def test_latency_named_as_an_effect_is_refused_with_the_reason(runs, tmp_path, c
     assert main(["calibrate", str(cal_log), "--design", DESIGN, "-o", str(tmp_path / "x.toml"),
                  "--effect", "sensor_latency"]) == 2
     assert "always fitted, never corrected on the board" in capsys.readouterr().err
+
+
+def test_every_kth_sample_fits_the_log_at_a_lower_rate(runs, tmp_path, capsys):
+    """--every K: a long or fast log in 1/K of the memory; the same unit's effects found."""
+    _, cal_log, check_log = runs
+    out = tmp_path / "thin.toml"
+    assert main(["calibrate", str(cal_log), "--design", DESIGN, "-o", str(out), "--effect",
+                 "stiffness_mismatch", "--effect", "encoder_offset", "--every", "2",
+                 "--quiet"]) == 0
+    cal = C.load(out)
+    assert cal.fit["samples"] == (len(read_log(cal_log)) + 1) // 2
+    assert cal.fit["rate_hz"] == pytest.approx(25.0, rel=1e-6)
+    full = tmp_path / "full.toml"
+    assert main(["calibrate", str(cal_log), "--design", DESIGN, "-o", str(full), "--effect",
+                 "stiffness_mismatch", "--effect", "encoder_offset", "--quiet"]) == 0
+    np.testing.assert_allclose(cal.rate_ratio, C.load(full).rate_ratio, atol=3e-3)
+    np.testing.assert_allclose(cal.offset_rad, C.load(full).offset_rad, atol=3e-4)
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as info:      # argparse's usage error
+        main(["calibrate", str(cal_log), "-o", str(tmp_path / "x.toml"), "--every", "0"])
+    assert info.value.code == 2 and "--every must be at least 1" in capsys.readouterr().err
+
+
+def test_a_fit_the_memory_cannot_hold_is_refused_before_the_work():
+    from delta6.commands.calibrate import FIT_BYTES_PER_SAMPLE, check_memory
+    check_memory(100_000, 1, available=100_000 * FIT_BYTES_PER_SAMPLE)     # fits: nothing
+    check_memory(100_000, 1, available=None)                              # unknown: nothing
+    with pytest.raises(Exception) as info:
+        check_memory(400_000, 2, available=100_000 * FIT_BYTES_PER_SAMPLE)
+    message = str(info.value)
+    assert "400000 samples" in message and "--every 8" in message and "\n" not in message

@@ -8,6 +8,7 @@ from pathlib import Path
 from delta6.calibration import calibrate
 from delta6.calibration.fit import check_rig_latency
 from delta6.calibration.report import corrected, write_report
+from delta6.commands._port import number
 from delta6.core import calibration as calibration_mod
 from delta6.core.calibration import CORRECTED, NAME_LIMIT
 from delta6.core.design import label_problem
@@ -50,6 +51,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"name without .toml, cut to {NAME_LIMIT} characters")
     parser.add_argument("--report", metavar="OUT_DIR",
                         help="write a Markdown report with plots into this directory")
+    parser.add_argument("--every", type=number("--every", int, 1, 10_000), default=1,
+                        metavar="K",
+                        help="fit on every K-th sample (the log read at 1/K of its rate: a "
+                             "long or fast log in less memory; the calibration is defined in "
+                             "time, the board applies it at its own rate)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the block bootstrap")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
@@ -76,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--name: {problem}" + ("" if args.name is not None else
                                                 " (the default is -o's file name without "
                                                 f".toml, cut to {NAME_LIMIT} characters)"))
-    log = read_log(args.log)
+    log = read_log(args.log).every(args.every)
+    check_memory(len(log), args.every)
     if wrench_from_device(log.meta):
         raise UserError(f"{args.log}: the wrench in this log is the device's own model output "
                         "(a device log), not a reference sensor's: a calibration is fitted "
@@ -104,6 +111,36 @@ def run(args: argparse.Namespace) -> int:
         progress(f"report: {path}")
     print(summary(fit, out))
     return 0
+
+
+#: What the fit holds per sample of the log (its columns, the model's response to each
+#: parameter, the held-out copies), measured: 400,000 samples took 7.1 GB, 60,000 1.1 GB.
+FIT_BYTES_PER_SAMPLE = 18_000
+
+
+def available_memory() -> int | None:
+    """Bytes of memory the system can give without swapping (None: not known here)."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
+def check_memory(samples: int, every: int, available: int | None = None) -> None:
+    """Refuse, in one line and before the minutes of work, a fit the memory cannot hold (the
+    system would kill it halfway)."""
+    available = available_memory() if available is None else available
+    need = samples * FIT_BYTES_PER_SAMPLE
+    if available is None or need <= available:
+        return
+    k = every * -(-need // available)
+    raise UserError(f"fitting {samples} samples needs about {need / 1e9:.1f} GB of memory and "
+                    f"{available / 1e9:.1f} GB are available: pass --every {k} (the log read "
+                    f"at 1/{k} of its rate)")
 
 
 def summary(fit, out: Path) -> str:

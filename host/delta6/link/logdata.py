@@ -4,7 +4,7 @@ arrays (:class:`LogData`) and the error that names a problem. The formats are
 :mod:`delta6.link.mcaplog` (MCAP with ROS 2 messages)."""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -56,6 +56,18 @@ class LogData:
 
     def __len__(self) -> int:
         return len(self.t)
+
+    def every(self, k: int) -> LogData:
+        """Every ``k``-th row: the log as if it had been recorded at 1/k of its rate."""
+        if k == 1:
+            return self
+
+        def thin(a):
+            return None if a is None else a[::k]
+
+        return replace(self, t=self.t[::k], theta=self.theta[::k], wrench=self.wrench[::k],
+                       seq=thin(self.seq), status=thin(self.status), host_t=thin(self.host_t),
+                       temp_c=thin(self.temp_c))
 
 
 def wrench_from_device(meta: dict) -> bool:
