@@ -223,3 +223,19 @@ def test_unphysical_fitted_parameters_are_flagged():
         == ["link_compliance: axial_b1_um_per_n fitted negative (-0.5): not physical; the term "
             "stands in for something else"]
     assert warnings("encoder_offset", {"offset_j1_rad": -0.01}) == []
+
+
+def test_a_negative_viscous_term_on_every_joint_says_how_late_a_reference_would_be():
+    """A reference 10 ms late looks like viscous = -k x 10 ms on every joint (an outside
+    review's simulator: the diagnosis named friction with that warning and no word of a lag)."""
+    from delta6.diagnosis.physics import warnings
+    k = [0.64, 0.64, 0.64, 0.96, 0.96, 0.96]
+    lagging = {"viscous_equiv_nm_s_per_rad": [-ki * 0.0093 for ki in k]}
+    (line,) = warnings("joint_friction", lagging, k)
+    assert "about 9 ms late" in line and "fits the rig's latency apart" in line
+    # Not without the rates, not on some joints only, not when the joints disagree.
+    assert "late" not in warnings("joint_friction", lagging)[0]
+    some = {"viscous_equiv_nm_s_per_rad": [-0.006, -0.006, 0.001, -0.009, -0.009, -0.009]}
+    assert "late" not in warnings("joint_friction", some, k)[0]
+    mixed = {"viscous_equiv_nm_s_per_rad": [-0.001, -0.006, -0.006, -0.009, -0.009, -0.03]}
+    assert "late" not in warnings("joint_friction", mixed, k)[0]

@@ -71,3 +71,15 @@ def test_a_confirmed_but_small_family_says_its_signature_shows_it():
     (line,) = [x for x in verdict_lines(result) if "backlash" in x]
     assert "0.6 % of the gap" in line and "4.8 % alone" in line
     assert "signature shows it" in line and "neighbours" not in line
+
+
+def test_a_named_effect_no_calibration_corrects_says_so():
+    # The diagnosis predicted a harness's shrink; delta6 calibrate reports it, never applies it.
+    (line,) = [x for x in verdict_lines(_result(None)) if "not corrected" in x]
+    assert line.startswith("- harness is not corrected by `delta6 calibrate`")
+    grouped = {**_result(None, present=("stiffness_mismatch",)),
+               "groups": [{"members": ["thermal_drift", "harness"], "text": "t"}]}
+    lines = [x for x in verdict_lines(grouped) if "not corrected" in x]
+    assert [x.split()[1] for x in lines] == ["harness", "thermal_drift"]
+    assert not [x for x in verdict_lines(_result(None, present=("backlash",)))
+                if "not corrected" in x]

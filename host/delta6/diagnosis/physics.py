@@ -13,9 +13,16 @@ NON_NEGATIVE = {
 }
 
 
-def warnings(effect: str, params: dict) -> list[str]:
+#: A viscous friction fitted negative on every joint, in proportion to the joints' spring
+#: rates, is what a reference sensor paired with the encoders late looks like: the lag L
+#: turns the spring torque k * theta into k * theta(t - L), about k * theta - k * L * theta'.
+LAGGING = ("viscous_equiv_nm_s_per_rad",)
+
+
+def warnings(effect: str, params: dict, spring_rates=None) -> list[str]:
     """One line per parameter of ``effect`` whose fitted value is negative where physics
-    allows only zero or more."""
+    allows only zero or more (``spring_rates``, N*m/rad per joint: to say how late a
+    reference would be that a negative viscous term on every joint stands in for)."""
     out = []
     for name, value in params.items():
         if not any(name == k or (k.endswith("_") and name.startswith(k))
@@ -28,8 +35,16 @@ def warnings(effect: str, params: dict) -> list[str]:
                               for i, v in bad)
             # Per joint, a family of several often takes a neighbour's part there (friction,
             # hysteresis and backlash trade): the effect may still be there on the others.
-            out.append(f"{effect}: {name} fitted negative ({where}): not physical; "
-                       + ("there the term trades with a neighbouring family or stands in for "
-                          "something else" if len(bad) < len(values) else
-                          "the term stands in for something else"))
+            line = (f"{effect}: {name} fitted negative ({where}): not physical; "
+                    + ("there the term trades with a neighbouring family or stands in for "
+                       "something else" if len(bad) < len(values) else
+                       "the term stands in for something else"))
+            lag = (sorted(-v / k for v, k in zip(values, spring_rates))
+                   if name in LAGGING and len(bad) == len(values) == 6
+                   and spring_rates is not None else None)
+            if lag and lag[-1] <= 2 * lag[0]:       # one lag for every joint
+                line += (f", as a reference paired with the encoders about "
+                         f"{1e3 * (lag[2] + lag[3]) / 2:.0f} ms late would (viscous = -k x "
+                         "the lag; delta6 calibrate fits the rig's latency apart)")
+            out.append(line)
     return out

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
+from delta6.core.calibration import NOT_APPLIED
 from delta6.core.model import AXES
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.run import SMALL_SHARE
@@ -138,6 +139,12 @@ def verdict_lines(result: dict) -> list[str]:
                         f"the gap of its own "
                         f"beside {', '.join(g['named_alone'])}: {', '.join(g['folded'])}."
                         if g.get("folded") else ""))
+    named = set(result.get("present", [])) | {m for g in result["groups"] for m in g["members"]}
+    for name in sorted(named & set(NOT_APPLIED)):
+        # The shrink the ladder predicts includes it: say what a calibration leaves of it.
+        lines.append(f"- {name} is not corrected by `delta6 calibrate`: {NOT_APPLIED[name]} "
+                     "(the ladder's shrink counts it; the calibration's held-out table "
+                     "does not).")
     for p in result["partial"]:
         if p.get("fragment"):
             lines.append(f"- Not named: {p['name']} explains less of the gap, alone and in "

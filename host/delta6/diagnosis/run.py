@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from delta6.core.design import Design
-from delta6.core.model import AXES
+from delta6.core.model import AXES, Params
 from delta6.diagnosis import blas, excitation, gap, leftover, physics, selection, stream, verdicts
 from delta6.diagnosis import ladder as ladder_mod
 from delta6.diagnosis import terms as terms_mod
@@ -604,7 +604,8 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
             width = len(term.param_names)
             params[name] = term.summarize(coef_all[cols:cols + width])
             cols += width
-        notes += physics.warnings(step.added, params[step.added])
+        notes += physics.warnings(step.added, params[step.added],
+                                  Params.from_design(design).k)
         steps.append({"added": step.added,
                       "heldout_p99_pct": p99_after.tolist(),
                       # The step's refit alone, undamped: what its parameters give.
