@@ -322,3 +322,30 @@ def test_a_folded_group_member_is_fitted_from_a_real_verdict(baseline):
     verdict = diagnose(lugre_friction_log(baseline), baseline, seed=0)
     assert verdict["present"] == ["joint_friction"]
     assert effects_to_fit(verdict) == ["joint_friction", "spring_hysteresis"]
+
+
+def test_an_iterate_that_leaves_the_models_domain_ends_the_fit_at_the_one_before(
+        baseline, unit, monkeypatch):
+    """A Gauss-Newton step that makes the model non-finite (an outside review's cable pulled a
+    geometry fit past the trilateration's square root) ends the iterations at the iterate
+    before it: the family is then judged by its plausibility, not reported as NaN beyond the
+    file's bounds, and no numpy warning leaks."""
+    from delta6.calibration.fit import _Fitter
+    from delta6.core.calibration import neutral
+    from delta6.diagnosis.data import GapData
+    _, fit_run, _ = unit
+    fitter = _Fitter(GapData.from_log(fit_run, baseline), neutral(baseline), None)
+    blocks = np.arange(fitter.problem.n_blocks)
+    one, latency = fitter.fit(neutral(baseline), ["stiffness_mismatch"], blocks, 1)
+    real, calls = _Fitter.predict, []
+
+    def poisoned(self, cal, latency=0.0):
+        calls.append(cal)
+        out = real(self, cal, latency)
+        return out if len(calls) < 3 else out * np.nan      # the second iterate is bad
+    monkeypatch.setattr(_Fitter, "predict", poisoned)
+    with np.errstate(all="raise"):      # nothing may warn either
+        got, got_latency = fitter.fit(neutral(baseline), ["stiffness_mismatch"], blocks, 3)
+    assert len(calls) == 3
+    np.testing.assert_array_equal(got.rate_ratio, one.rate_ratio)      # the first iterate
+    assert got_latency == latency

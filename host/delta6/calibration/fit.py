@@ -162,13 +162,20 @@ class _Fitter:
         cols = p.cols(names)
         if len(cols) == 0:
             return cal, latency
+        previous = (cal, latency)
         gram = p.gram[np.ix_(blocks, cols, cols)].sum(axis=0)
         penalty = p.penalty[cols]
         rows = self.rows(blocks)
         x = p.x[rows][:, :, cols].reshape(-1, len(cols))
         fs = self.data.fs
         for _ in range(iterations):
-            pred = self.predict(cal, latency)
+            with np.errstate(invalid="ignore", over="ignore"):
+                pred = self.predict(cal, latency)
+            if not np.isfinite(pred).all():
+                # A step left the model's domain (the trilateration's square root, a curve's
+                # table): the iterate before it is the fit; its plausibility is judged next.
+                return previous
+            previous = (cal, latency)
             r = ((self.data.reference - pred) / fs)[rows].reshape(-1)
             # The prior is on the values (current + step), so it pulls them, not the step,
             # towards zero: (G + P) step = X^T r - P current.
@@ -181,6 +188,8 @@ class _Fitter:
             start = np.zeros(len(current)) if np.all(lower <= 0) else -current
             step = bounded.solve(gram + np.diag(penalty), x.T @ r - penalty * current,
                                  a, lower, start)
+            if not np.isfinite(step).all():
+                return previous
             at = 0
             for name in names:
                 width = p.slices[name].stop - p.slices[name].start
