@@ -229,6 +229,37 @@ def test_bytes_before_the_first_delimiter_count_as_startup_only_up_to_a_frame(no
     assert [getattr(bulk, f) for f in fields] == [getattr(s, f) for f in fields]
 
 
+def _feed_in_chunks(stream: bytes, rnd: random.Random, max_chunk: int):
+    decoder, got, at = StreamDecoder(), [], 0
+    while at < len(stream):
+        step = rnd.randint(1, max_chunk)
+        got += decoder.feed(stream[at:at + step])
+        at += step
+    return decoder, got
+
+
+@settings(deadline=None)
+@example(noise=792, lead=3, where=0, max_chunk=400, seed=1)     # the tail counted twice
+@example(noise=1000, lead=0, where=5, max_chunk=1, seed=1)      # trimmed, then a COBS error
+@given(st.integers(0, 2000), st.integers(0, 5), st.integers(0, 9), st.integers(1, 900),
+       st.integers(0, 2**32))
+def test_noise_after_the_first_delimiter_counts_alike_in_any_chunking(noise, lead, where,
+                                                                      max_chunk, seed):
+    """A stretch without 0x00 after the stream is synced is one damaged frame: oversize when
+    longer than MAX_FRAME, whatever the chunks that carry it; both decoders count alike."""
+    rnd = random.Random(seed)
+    frames, records = make_frames(10, seed, data_only=True)
+    junk = bytes(rnd.randrange(1, 256) for _ in range(noise))
+    stream = (bytes(rnd.randrange(1, 256) for _ in range(lead)) + b"\x00"
+              + b"".join(frames[:where]) + junk + b"\x00" + b"".join(frames[where:]))
+    decoder, got = _feed_in_chunks(stream, rnd, max_chunk)
+    live, bulk = decoder.stats.as_dict(), decode_capture(stream).stats.as_dict()
+    assert live == bulk
+    assert live["oversize"] == (noise > MAX_FRAME)
+    assert live["startup_bytes"] == lead
+    assert got[:where] == records[:where] and got[-(10 - where):] == records[where:]
+
+
 @given(st.integers(0, 2**32), st.integers(1, 3), st.integers(0, 9))
 def test_0x01_bytes_before_a_delimiter_are_the_damage_the_crc_cannot_see(seed, k, at):
     """Each is one more zero byte after the frame's CRC, which keeps it 0 (no final XOR): the
