@@ -332,8 +332,12 @@ class Device:
         return ack.value
 
     def stop(self) -> None:
-        self._request(P.Command.STOP)
-        self._started = False
+        """Stop the stream. Sent once (with its retries) even when unanswered: close() does
+        not send it again to a device that no longer hears the host."""
+        try:
+            self._request(P.Command.STOP)
+        finally:
+            self._started = False
         self._update_info(streaming=False)
 
     def set_mode(self, mode: P.Mode | str) -> None:
