@@ -33,6 +33,14 @@ from delta6.link.decoder import DecoderStats, SequenceTracker, StreamDecoder
 from delta6.link.infocheck import info_problem
 from delta6.link.protocol import DEFAULT_BAUD
 
+# pyserial finds URL handlers by package name and imports them only when such a URL is opened,
+# so ``delta6sim://`` works everywhere a port name does without this layer importing the
+# simulator. Registered here, where ports are opened, not at package import: ``import delta6``
+# (the console script's first step, before it handles Ctrl-C) stays free of pyserial.
+_URL_HANDLERS = "delta6.sim.serialurl"
+if _URL_HANDLERS not in serial.protocol_handler_packages:
+    serial.protocol_handler_packages.append(_URL_HANDLERS)
+
 #: Commands after whose answer the records mean something else (mode, rate, tare, zero).
 STREAM_CHANGING = frozenset({P.Command.START, P.Command.SET_MODE, P.Command.TARE,
                              P.Command.CLEAR_TARE, P.Command.SET_ZERO, P.Command.ZERO_HERE,
