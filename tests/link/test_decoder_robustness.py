@@ -273,6 +273,21 @@ def test_0x01_bytes_before_a_delimiter_are_the_damage_the_crc_cannot_see(seed, k
     assert decode_capture(b"\x00" + b"".join(frames)).stats.errors == 0
 
 
+def test_0x01_bytes_after_an_older_minor_versions_record_lose_it_or_make_up_fields():
+    """The same damage after a record at an older size (TELEMETRY 48, as 1.0 sent it): one
+    byte more is a length no version sends (the record lost), two the current size, read
+    with a boot id the device never sent (the old frame's CRC)."""
+    old = P.Telemetry(0, 0, 0, 0, 0, (0,) * 6, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, boot_id=None)
+    frame = P.encode_record(old, minor=0)
+    decoder = StreamDecoder()
+    assert decoder.feed(b"\x00" + frame[:-1] + b"\x01\x00") == []
+    assert decoder.stats.length_errors == 1
+    decoder = StreamDecoder()
+    got = decoder.feed(b"\x00" + frame[:-1] + b"\x01\x01\x00")
+    assert len(got) == 1 and got[0]._replace(boot_id=None) == old
+    assert got[0].boot_id is not None and decoder.stats.errors == 0
+
+
 def test_sequence_tracker_unwraps_and_counts():
     tracker = SequenceTracker()
     out = [tracker.update(s, t) for s, t in [(65534, 2**32 - 1000), (65535, 2**32 - 10),
