@@ -523,6 +523,12 @@ class Device:
         return lambda: self._callbacks.remove(callback) if callback in self._callbacks else None
 
     @property
+    def reboots(self) -> int:
+        """Restarts the device confirmed (BOOT events, a new boot id); a session that began
+        only because the counters stopped following on is not one."""
+        return self._boots
+
+    @property
     def health(self) -> Health:
         """A snapshot of the counters."""
         with self._cond:
