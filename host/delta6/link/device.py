@@ -603,10 +603,14 @@ class Device:
         with self._command_lock:
             self._raise_failure()
             self._check_guard()
-            boots = self._boots
             request_id = self._next_request_id()
             pending = _Pending(command)
-            self._pending[request_id] = pending
+            with self._cond:
+                # Registered as the restarts are counted (the reader counts them under this
+                # lock): a restart before is the device this command goes to, one after wakes
+                # it. Apart, a restart between the two made an answered command fail.
+                self._pending[request_id] = pending
+                boots = self._boots
             frame = P.encode_command(command, request_id, *args)
             try:
                 for attempt in range(self.retries + 1):
