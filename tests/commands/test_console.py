@@ -37,16 +37,53 @@ def test_ctrl_c_while_the_command_line_loads_is_one_line(module):
 
 
 def test_ctrl_c_after_the_command_finished_still_says_so():
-    """A signal between the command's summary and the exit (Python's own handling ends at
-    the interpreter's exit: status 130 and no line)."""
-    script = ("import os, signal, time, delta6.cli\n"
+    """A signal while what the exit runs (atexit) runs: one line and 130."""
+    script = ("import atexit, os, signal, sys, time, delta6.cli\n"
               "from delta6 import console\n"
+              "atexit.register(lambda: os.kill(os.getpid(), signal.SIGINT) or time.sleep(5))\n"
               "delta6.cli.main = lambda: print('summary') or 0\n"
-              "console.main()\n"
-              "os.kill(os.getpid(), signal.SIGINT)\n"
-              "time.sleep(5)\n")
+              "sys.exit(console.main())\n")
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                           env=_env(), timeout=60)
     assert done.returncode == 130
     assert done.stdout == "summary\n"
     assert done.stderr == "delta6: interrupted (SIGINT)\n"
+
+
+def test_the_program_ends_with_the_command_not_in_the_interpreter_shutdown():
+    """Where modules are torn down, Python has given SIGINT back to the system's default: a
+    Ctrl-C there ended the program silently with 130 (the object below is torn down there and
+    sends one). The console ends the process when the command has returned, status and
+    output intact, so no such moment comes."""
+    script = ("import os, signal, sys, time, delta6.cli\n"
+              "from delta6 import console\n"
+              "class Late:\n"
+              "    def __del__(self):\n"
+              "        print('torn down', file=sys.stderr, flush=True)\n"
+              "        os.kill(os.getpid(), signal.SIGINT)\n"
+              "        time.sleep(5)\n"
+              "late = Late()\n"
+              "delta6.cli.main = lambda: print('summary') or 3\n"
+              "sys.exit(console.main())\n")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          env=_env(), timeout=60)
+    assert (done.returncode, done.stdout, done.stderr) == (3, "summary\n", "")
+
+
+def test_importing_the_package_loads_no_serial_port_library():
+    """``import delta6`` runs before the console handles Ctrl-C: it must stay light."""
+    done = subprocess.run([sys.executable, "-c", "import sys, delta6.console\n"
+                           "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+                           "('serial', 'numpy')))"],
+                          capture_output=True, text=True, env=_env(), timeout=60)
+    assert done.stdout == "[]\n", done.stderr
+
+
+def test_usage_errors_and_help_keep_their_status():
+    """argparse's own exits (2 for a usage error, 0 for --help) pass through the console."""
+    for argv, status in ((["delta6", "--no-such-option"], 2), (["delta6", "--help"], 0)):
+        done = subprocess.run([sys.executable, "-c", "import sys\nfrom delta6 import console\n"
+                               f"sys.argv = {argv!r}\nconsole.main()\n"],
+                              capture_output=True, text=True, env=_env(), timeout=60)
+        assert done.returncode == status, done.stderr
+        assert "Traceback" not in done.stderr

@@ -229,6 +229,37 @@ def test_bytes_before_the_first_delimiter_count_as_startup_only_up_to_a_frame(no
     assert [getattr(bulk, f) for f in fields] == [getattr(s, f) for f in fields]
 
 
+def _feed_in_chunks(stream: bytes, rnd: random.Random, max_chunk: int):
+    decoder, got, at = StreamDecoder(), [], 0
+    while at < len(stream):
+        step = rnd.randint(1, max_chunk)
+        got += decoder.feed(stream[at:at + step])
+        at += step
+    return decoder, got
+
+
+@settings(deadline=None)
+@example(noise=792, lead=3, where=0, max_chunk=400, seed=1)     # the tail counted twice
+@example(noise=1000, lead=0, where=5, max_chunk=1, seed=1)      # trimmed, then a COBS error
+@given(st.integers(0, 2000), st.integers(0, 5), st.integers(0, 9), st.integers(1, 900),
+       st.integers(0, 2**32))
+def test_noise_after_the_first_delimiter_counts_alike_in_any_chunking(noise, lead, where,
+                                                                      max_chunk, seed):
+    """A stretch without 0x00 after the stream is synced is one damaged frame: oversize when
+    longer than MAX_FRAME, whatever the chunks that carry it; both decoders count alike."""
+    rnd = random.Random(seed)
+    frames, records = make_frames(10, seed, data_only=True)
+    junk = bytes(rnd.randrange(1, 256) for _ in range(noise))
+    stream = (bytes(rnd.randrange(1, 256) for _ in range(lead)) + b"\x00"
+              + b"".join(frames[:where]) + junk + b"\x00" + b"".join(frames[where:]))
+    decoder, got = _feed_in_chunks(stream, rnd, max_chunk)
+    live, bulk = decoder.stats.as_dict(), decode_capture(stream).stats.as_dict()
+    assert live == bulk
+    assert live["oversize"] == (noise > MAX_FRAME)
+    assert live["startup_bytes"] == lead
+    assert got[:where] == records[:where] and got[-(10 - where):] == records[where:]
+
+
 @given(st.integers(0, 2**32), st.integers(1, 3), st.integers(0, 9))
 def test_0x01_bytes_before_a_delimiter_are_the_damage_the_crc_cannot_see(seed, k, at):
     """Each is one more zero byte after the frame's CRC, which keeps it 0 (no final XOR): the
@@ -240,6 +271,21 @@ def test_0x01_bytes_before_a_delimiter_are_the_damage_the_crc_cannot_see(seed, k
     s = decoder.stats
     assert s.errors == s.resyncs == s.bytes_discarded == 0
     assert decode_capture(b"\x00" + b"".join(frames)).stats.errors == 0
+
+
+def test_0x01_bytes_after_an_older_minor_versions_record_lose_it_or_make_up_fields():
+    """The same damage after a record at an older size (TELEMETRY 48, as 1.0 sent it): one
+    byte more is a length no version sends (the record lost), two the current size, read
+    with a boot id the device never sent (the old frame's CRC)."""
+    old = P.Telemetry(0, 0, 0, 0, 0, (0,) * 6, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, boot_id=None)
+    frame = P.encode_record(old, minor=0)
+    decoder = StreamDecoder()
+    assert decoder.feed(b"\x00" + frame[:-1] + b"\x01\x00") == []
+    assert decoder.stats.length_errors == 1
+    decoder = StreamDecoder()
+    got = decoder.feed(b"\x00" + frame[:-1] + b"\x01\x01\x00")
+    assert len(got) == 1 and got[0]._replace(boot_id=None) == old
+    assert got[0].boot_id is not None and decoder.stats.errors == 0
 
 
 def test_sequence_tracker_unwraps_and_counts():

@@ -88,3 +88,27 @@ def test_tare_save_saves_nothing_after_a_restart(monkeypatch, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "restarted during tare" in err
     assert C.SAVE_CONFIG not in device.sent
+
+
+def test_a_restart_seen_just_before_a_command_is_registered_does_not_fail_it():
+    """The reader counts a restart between the host reading the restart count and registering
+    the command (here: while the request id is drawn): the command goes to the fresh device,
+    which answers it; it must succeed (START raised DeviceRestarted, and left the fresh device
+    streaming with the host believing it stopped)."""
+    device = Scripted(Scripted.normal)
+    dev = device.open(handshake=True)
+    real = dev._next_request_id
+
+    def restart_meanwhile():
+        with dev._cond:
+            dev._note_restart()
+        return real()
+
+    try:
+        dev._next_request_id = restart_meanwhile
+        assert dev.start() == 0
+        assert dev._started
+    finally:
+        dev._next_request_id = real
+        dev.close()
+    assert device.sent.count(P.Command.STOP) == 1        # close() stopped the stream it started

@@ -8,6 +8,7 @@ import contextlib
 import io
 import math
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -56,7 +57,9 @@ def test_a_name_is_accepted_exactly_when_it_is_printable_ascii(key, name):
     ({"joint_limit_rad": -1.0}, "joint limit"),
     ({"joint_limit_rad": 0.0}, "joint limit"),
     ({"joint_limit_rad": 1000.0}, "joint limit"),
-    ({"joint_limit_rad": math.pi / 2}, "joint limit"),
+    # (pi/2 itself arrives as float32(pi/2), as a design's 1.57079632 does: not told apart)
+    ({"joint_limit_rad": float(np.nextafter(np.float32(math.pi / 2), np.float32(2)))},
+     "joint limit"),
     ({"filter_hz": math.nan}, "cutoff"),
     ({"filter_hz": -1.0}, "cutoff"),
     ({"filter_hz": 0.45 * 350 + 1}, "cutoff"),
@@ -77,6 +80,13 @@ def test_out_of_range_fields_are_refused(changes, words):
 ])
 def test_the_bounds_themselves_are_accepted(changes):
     assert info_problem(_sent(an_info(**changes))) is None
+
+
+@given(st.floats(0.01, math.pi / 2, exclude_max=True))
+def test_every_joint_limit_a_design_accepts_is_accepted_from_the_wire(limit):
+    """Design validation takes [0.01, pi/2) in float64; the device sends float32, which
+    rounds 1.57079632 up to 1.5707963705 (above pi/2): it was refused."""
+    assert info_problem(_sent(an_info(joint_limit_rad=limit))) is None
 
 
 @pytest.mark.parametrize("name", [b"\xe9t\xe9", b"x\ny", b"\xff\xfe", b"a\x1b[2Jb"])

@@ -20,7 +20,7 @@ import tty
 
 import serial
 
-import delta6  # noqa: F401 - registers the delta6sim:// URL with pyserial
+import delta6.link.device  # noqa: F401 - registers the delta6sim:// URL with pyserial
 
 
 def garble(data: bytes, rnd: random.Random) -> bytes:

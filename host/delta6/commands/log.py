@@ -10,7 +10,6 @@ row up to the failed write (docs/reliability.md).
 from __future__ import annotations
 
 import argparse
-import contextlib
 import os
 import sys
 import time
@@ -141,9 +140,11 @@ def _check_outputs(args: argparse.Namespace) -> None:
 
 def _record(dev, args: argparse.Namespace, stop):
     """Stream into the log until the duration, a stop signal or a device error; close the log
-    (whole, or as .partial after a write failure). Returns (path, stats, health, ending)."""
+    (whole, or as .partial after a write failure). Returns (path, stats, health, ending,
+    unstopped): ``unstopped`` says why the stream may not have stopped ("" when it did)."""
     progress = Progress()
     ending: UserError | None = None
+    unstopped = ""                  # why the stream may not have stopped
     rate = start_stream(dev, args)
     info = dev.info()
     meta = {**log_meta(info, args.port, "delta6 log --port"), "rate_hz": rate,
@@ -180,8 +181,15 @@ def _record(dev, args: argparse.Namespace, stop):
                 if ending is None:
                     # Stop the stream first: the records sent before STOP's answer all
                     # arrive before it (one queue), so the drain writes every one of them.
-                    with contextlib.suppress(DeviceError):
+                    # One attempt (Device.stop does not leave it to close() to try again),
+                    # and a second stop signal while it waits ends only the wait.
+                    try:
                         dev.stop()
+                    except DeviceError:
+                        unstopped = "STOP was not acknowledged"
+                    except KeyboardInterrupt:
+                        stop.signum = stop.signum or 2
+                        unstopped = "the wait for STOP's answer was cut short"
                 _drain(dev, stats, session)
             except LogError as exc:
                 ending, complete = exc, False
@@ -194,16 +202,18 @@ def _record(dev, args: argparse.Namespace, stop):
         except LogError as exc:
             ending, path = exc, writer.partial
         progress.end()
-    return path, stats, dev.health, ending
+    return path, stats, dev.health, ending, unstopped
 
 
 def run(args: argparse.Namespace) -> int:
     _check_outputs(args)
     with stop_requests() as stop:
         with open_device(args, capture=args.capture) as dev:
-            path, stats, health, ending = _record(dev, args, stop)
+            path, stats, health, ending, unstopped = _record(dev, args, stop)
         # (the port closed under the hold _record set: the stream stopped, the capture whole)
         how = f" (stopped by {stop.name})" if stop.signum else ""
+        if unstopped:
+            how = f"; {unstopped}: the device may still be streaming{how}"
         print(f"{path}: {stats.summary(health)}{how}", file=sys.stderr)
     if ending is not None:
         if isinstance(ending, LogError):

@@ -140,27 +140,46 @@ class _Screen:
 
 
 class _Sessions:
-    """Notices where a block's samples come from a new device session (a BOOT event, another
-    boot id, or counters that began again: the device restarted) and says so on stderr, as
-    ``delta6 log`` does: the stream goes on, its times start again."""
+    """Notices where a block's samples come from a new device session and says so on stderr,
+    as ``delta6 log`` does: the stream goes on, its times start again. A new session is a
+    restart when the device confirmed one (a BOOT event, another boot id); counters that only
+    stop following on may also be a host that fell behind by 2^15 records or more."""
 
     def __init__(self):
         self.current = None
-        self.restarts = 0
+        self.restarts = 0           # confirmed by the device
+        self.breaks = 0             # counters that began again, unconfirmed
+        self._reboots = 0
 
-    def update(self, block) -> bool:
-        """Whether ``block`` holds a restart."""
+    def update(self, block, reboots: int) -> int | None:
+        """Where in ``block`` its last new session starts (None: no new session); ``reboots``
+        is the device's count of confirmed restarts (:attr:`Device.reboots`)."""
         if block.session is None or not len(block):
-            return False
+            return None
         if self.current is None:
             self.current = int(block.session[0])
+            self._reboots = reboots         # restarts before the stream began are no break
         starts = np.flatnonzero(np.diff(block.session, prepend=self.current))
-        for at in starts:
-            self.restarts += 1
-            print(f"the device restarted: a new session from its time {block.t[at]:.6f} s "
-                  "(its counters began again)", file=sys.stderr)
+        # A confirmation may come before the block with the new session: kept until then.
+        confirmed = reboots - self._reboots
+        self._reboots += min(confirmed, starts.size)
+        for i, at in enumerate(starts):
+            if i < confirmed:
+                self.restarts += 1
+                why = "the device restarted: a new session"
+            else:
+                self.breaks += 1
+                why = ("the session broke (its counters do not follow on: a restart without "
+                       "its BOOT event, or 32768 records or more lost): a new session")
+            print(f"{why} from its time {block.t[at]:.6f} s", file=sys.stderr)
         self.current = int(block.session[-1])
-        return bool(starts.size)
+        return int(starts[-1]) if starts.size else None
+
+    def summary(self) -> str:
+        def times(n):
+            return f"{n} time" + ("s" if n > 1 else "")
+        return ((f", the device restarted {times(self.restarts)}" if self.restarts else "")
+                + (f", the session broke {times(self.breaks)}" if self.breaks else ""))
 
 
 def learned_estimator(args: argparse.Namespace):
@@ -222,8 +241,9 @@ def run(args: argparse.Namespace) -> int:
                 if block is None:
                     break
                 flags += flagged(block.status)
-                if sessions.update(block):
-                    window = []         # device times start again: no rate across the restart
+                since = sessions.update(block, dev.reboots)
+                if since is not None:   # device times start again: no rate across the restart
+                    window = []
                 if learned is not None:
                     block = dataclasses.replace(
                         block, wrench=learned.update_block(block.t, block.theta, block.session))
@@ -237,7 +257,7 @@ def run(args: argparse.Namespace) -> int:
                     out.write(jsonl_rows(block, raw))
                     out.flush()
                     continue
-                window.append(block.t)
+                window.append(block.t if since is None else block.t[since:])
                 if plot is not None:
                     plot.add(block.t, block.wrench)
                 now = time.monotonic()
@@ -259,9 +279,7 @@ def run(args: argparse.Namespace) -> int:
                 live.close()
         health = dev.health
     how = f" (stopped by {stop.name})" if stop.signum else ""
-    print(f"{health.summary()}, {flags} flagged"
-          + (f", the device restarted {sessions.restarts} time"
-             + ("s" if sessions.restarts > 1 else "") if sessions.restarts else "")
+    print(f"{health.summary()}, {flags} flagged" + sessions.summary()
           + (f"; {live.published} samples served to Foxglove" if live else "") + how,
           file=sys.stderr)
     return 0

@@ -55,17 +55,22 @@ class DecoderStats:
         return self.crc_errors + self.cobs_errors + self.length_errors + self.oversize
 
 
-def decode_frame(encoded: bytes, stats: DecoderStats, first: bool = False):
+def decode_frame(encoded: bytes, stats: DecoderStats, first: bool = False, dropped: int = 0):
     """One delimited frame (without the 0x00) to a record, or None; updates ``stats``.
 
     ``first`` marks the bytes before the first delimiter of a stream: their last MAX_FRAME
     may be the end of a frame sent before we listened, so failing them is not counted as an
     error. Bytes before those are no frame's: an oversize error, discarded (a link at the
-    wrong baud rate sends no 0x00 for long, and must not look healthy)."""
+    wrong baud rate sends no 0x00 for long, and must not look healthy).
+
+    ``dropped`` is how many bytes of this frame came before ``encoded`` and were already
+    discarded by the caller, which counted them as the frame's oversize error and resync
+    (:class:`StreamDecoder` bounds its memory): the frame is judged at its full length."""
     if not encoded:
         return None
     stats.frames += 1
-    decoded = cobs.decode(encoded) if len(encoded) <= MAX_FRAME else None
+    total = len(encoded) + dropped
+    decoded = cobs.decode(encoded) if total <= MAX_FRAME else None
     payload = None if decoded is None else checked_payload(decoded)
     if payload is not None:
         if payload[0] not in _KNOWN_TYPES:
@@ -85,20 +90,21 @@ def decode_frame(encoded: bytes, stats: DecoderStats, first: bool = False):
     record, used = _recover_tail(encoded)
     if first:
         stats.frames -= 1
-        noise = max(0, len(encoded) - MAX_FRAME)
-        stats.startup_bytes += len(encoded) - noise - used
-        if noise:
+        noise = max(0, total - MAX_FRAME)
+        stats.startup_bytes += total - noise - used
+        stats.bytes_discarded += noise - dropped
+        if noise and not dropped:
             stats.oversize += 1
             stats.resyncs += 1
-            stats.bytes_discarded += noise
     else:
-        if len(encoded) > MAX_FRAME:
-            stats.oversize += 1
-        elif decoded is None:
-            stats.cobs_errors += 1
+        if total > MAX_FRAME:
+            if not dropped:
+                stats.oversize += 1
+                stats.resyncs += 1
         else:
-            stats.crc_errors += 1
-        stats.resyncs += 1
+            stats.cobs_errors += decoded is None
+            stats.crc_errors += decoded is not None
+            stats.resyncs += 1
         stats.bytes_discarded += len(encoded) - used
     if record is not None:
         stats.recovered += 1
@@ -127,8 +133,8 @@ class StreamDecoder:
     def __init__(self):
         self.stats = DecoderStats()
         self._partial = b""
+        self._dropped = 0           # bytes of the unfinished frame discarded before _partial
         self._synced = False
-        self._noise = False         # the bytes before the first delimiter overflowed
 
     def feed(self, data: bytes) -> list:
         self.stats.bytes_received += len(data)
@@ -136,29 +142,29 @@ class StreamDecoder:
             self._partial = self._bounded(self._partial + data)  # memory on a stream without 0x00
             return []
         chunks = (self._partial + data).split(b"\x00")
-        self._partial = self._bounded(chunks.pop())
-        if not self._synced:
-            chunks[0] = self._bounded(chunks[0])
         out = []
-        for chunk in chunks:
-            record = decode_frame(chunk, self.stats, first=not self._synced)
-            self._synced = True
+        for chunk in chunks[:-1]:
+            record = decode_frame(chunk, self.stats, first=not self._synced, dropped=self._dropped)
+            self._synced, self._dropped = True, 0
             if record is not None:
                 out.append(record)
+        # Bounded only now: the frames above were judged at their full length (the bulk
+        # decoder's counts, in any chunking).
+        self._partial = self._bounded(chunks[-1])
         return out
 
     def _bounded(self, partial: bytes) -> bytes:
         """The last MAX_FRAME bytes of an unfinished frame (a frame ending later can still be
-        recovered from them); the older ones are discarded."""
+        recovered from them); the older ones are discarded, and the frame is counted as
+        oversize once, as decode_frame counts it (live: a link without 0x00 shows at once)."""
         excess = len(partial) - MAX_FRAME
         if excess <= 0:
             return partial
         self.stats.bytes_discarded += excess
-        if not self._synced and not self._noise:
-            # Longer than any frame before the first delimiter: counted as decode_frame does.
-            self._noise = True
+        if not self._dropped:
             self.stats.oversize += 1
             self.stats.resyncs += 1
+        self._dropped += excess
         return partial[excess:]
 
     @property

@@ -33,6 +33,14 @@ from delta6.link.decoder import DecoderStats, SequenceTracker, StreamDecoder
 from delta6.link.infocheck import info_problem
 from delta6.link.protocol import DEFAULT_BAUD
 
+# pyserial finds URL handlers by package name and imports them only when such a URL is opened,
+# so ``delta6sim://`` works everywhere a port name does without this layer importing the
+# simulator. Registered here, where ports are opened, not at package import: ``import delta6``
+# (the console script's first step, before it handles Ctrl-C) stays free of pyserial.
+_URL_HANDLERS = "delta6.sim.serialurl"
+if _URL_HANDLERS not in serial.protocol_handler_packages:
+    serial.protocol_handler_packages.append(_URL_HANDLERS)
+
 #: Commands after whose answer the records mean something else (mode, rate, tare, zero).
 STREAM_CHANGING = frozenset({P.Command.START, P.Command.SET_MODE, P.Command.TARE,
                              P.Command.CLEAR_TARE, P.Command.SET_ZERO, P.Command.ZERO_HERE,
@@ -332,8 +340,12 @@ class Device:
         return ack.value
 
     def stop(self) -> None:
-        self._request(P.Command.STOP)
-        self._started = False
+        """Stop the stream. Sent once (with its retries) even when unanswered: close() does
+        not send it again to a device that no longer hears the host."""
+        try:
+            self._request(P.Command.STOP)
+        finally:
+            self._started = False
         self._update_info(streaming=False)
 
     def set_mode(self, mode: P.Mode | str) -> None:
@@ -511,6 +523,12 @@ class Device:
         return lambda: self._callbacks.remove(callback) if callback in self._callbacks else None
 
     @property
+    def reboots(self) -> int:
+        """Restarts the device confirmed (BOOT events, a new boot id); a session that began
+        only because the counters stopped following on is not one."""
+        return self._boots
+
+    @property
     def health(self) -> Health:
         """A snapshot of the counters."""
         with self._cond:
@@ -585,10 +603,14 @@ class Device:
         with self._command_lock:
             self._raise_failure()
             self._check_guard()
-            boots = self._boots
             request_id = self._next_request_id()
             pending = _Pending(command)
-            self._pending[request_id] = pending
+            with self._cond:
+                # Registered as the restarts are counted (the reader counts them under this
+                # lock): a restart before is the device this command goes to, one after wakes
+                # it. Apart, a restart between the two made an answered command fail.
+                self._pending[request_id] = pending
+                boots = self._boots
             frame = P.encode_command(command, request_id, *args)
             try:
                 for attempt in range(self.retries + 1):

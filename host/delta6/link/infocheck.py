@@ -57,7 +57,8 @@ def info_problem(info: Info) -> str | None:
         if not (name.isascii() and name.isprintable()):
             return f"the {what} name {ascii(name)} is not printable ASCII"
     limit = info.joint_limit_rad
-    if not (_within(MIN_JOINT_LIMIT_RAD, limit) and limit < math.pi / 2):
+    # Both bounds at float32: a limit just below pi/2 arrives as float32(pi/2), above pi/2.
+    if not (_within(MIN_JOINT_LIMIT_RAD, limit) and _within(limit, math.pi / 2)):
         return (f"joint limit {limit:g} rad lies outside a design's "
                 f"[{MIN_JOINT_LIMIT_RAD:g}, pi/2)")
     if not (math.isfinite(info.filter_hz) and info.filter_hz >= 0
