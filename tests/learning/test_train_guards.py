@@ -136,18 +136,24 @@ def test_an_end_to_end_summary_shows_the_analytical_model(tmp_path, unit_logs, c
     assert "worse than the analytical model" in text
 
 
-@pytest.mark.parametrize("name", ["", "   ", "x" * 24, "caf\u00e9", "tab\there", "new\nline",
-                                  " lead", "trail "])
-def test_a_name_that_is_no_printable_label_is_refused_before_the_work(tmp_path, capsys, name):
-    # Calibration and model names are labels (design.label_problem): printable ASCII that
-    # fits the device-info record.
-    log = str(tmp_path / "none.csv")        # the name is refused before the log is read
+def _named_runs(tmp_path, capsys, name):
+    """The error line of train --target mcu and of calibrate given ``--name NAME`` and a log
+    that does not exist (each must end with status 2 either way)."""
+    log = str(tmp_path / "none.csv")
     for argv in (["train", log, "--target", "mcu", "--name", name, "-o",
                   str(tmp_path / "m.json")],
                  ["calibrate", log, "--name", name, "-o", str(tmp_path / "c.toml")]):
         capsys.readouterr()
         assert main(argv) == 2, argv
-        err = capsys.readouterr().err.strip()
+        yield capsys.readouterr().err.strip()
+
+
+@pytest.mark.parametrize("name", ["", "   ", "x" * 24, "caf\u00e9", "tab\there", "new\nline",
+                                  " lead", "trail "])
+def test_a_name_that_is_no_printable_label_is_refused_before_the_work(tmp_path, capsys, name):
+    # Calibration and model names are labels (design.label_problem): printable ASCII that
+    # fits the device-info record; refused before the log is read.
+    for err in _named_runs(tmp_path, capsys, name):
         assert len(err.splitlines()) == 1 and "--name" in err and "must be" in err, err
     assert list(tmp_path.iterdir()) == []
 
@@ -156,13 +162,7 @@ def test_a_name_that_is_no_printable_label_is_refused_before_the_work(tmp_path, 
 def test_a_printable_label_passes_the_name_check(tmp_path, capsys, name):
     # Yesterday's files were named so (calibrate -o "unit 7.toml" by default): the name is
     # accepted and the command goes on to the log, which is missing.
-    log = str(tmp_path / "none.csv")
-    for argv in (["train", log, "--target", "mcu", "--name", name, "-o",
-                  str(tmp_path / "m.json")],
-                 ["calibrate", log, "--name", name, "-o", str(tmp_path / "c.toml")]):
-        capsys.readouterr()
-        assert main(argv) == 2, argv
-        err = capsys.readouterr().err.strip()
+    for err in _named_runs(tmp_path, capsys, name):
         assert "--name" not in err and "none.csv" in err, err
 
 
