@@ -290,3 +290,11 @@ def test_a_fit_the_memory_cannot_hold_is_refused_before_the_work():
         check_memory(400_000, 2, available=100_000 * FIT_BYTES_PER_SAMPLE)
     message = str(info.value)
     assert "400000 samples" in message and "--every 8" in message and "\n" not in message
+
+
+def test_a_log_too_short_after_every_says_so(runs, tmp_path, capsys):
+    _, cal_log, _ = runs
+    assert main(["calibrate", str(cal_log), "-o", str(tmp_path / "x.toml"), "--every",
+                 "100"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "after --every 100" in err and "too few samples" in err and "\n" not in err

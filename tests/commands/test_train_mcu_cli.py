@@ -146,3 +146,10 @@ def test_a_network_the_quantizer_refuses_is_one_line(tmp_path, capsys, monkeypat
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "cannot be quantized" in err, err
     assert "output_step: out of range" in err and not (tmp_path / "m.json").exists()
+
+
+def test_the_axes_a_model_makes_worse_are_named():
+    from delta6.commands.train import worse_axes
+    assert worse_axes([1.0, 2.0, 0.5, 0.4, 0.3, 0.2], [1.0, 1.5, 0.6, 0.3, 0.3, 0.1]) == [
+        "Fy", "Mx", "Mz"]
+    assert worse_axes([0.1] * 6, [0.2] * 6) == []

@@ -89,7 +89,9 @@ def run(args: argparse.Namespace) -> int:
                         "(a device log), not a reference sensor's: a calibration is fitted "
                         "against a reference (docs/calibration.md)")
     calibration_mod.check_log_meta(log.meta, design, source=str(args.log))
-    with errors_naming(args.log):
+    thinned = f" (after --every {args.every}: the log's every {args.every}th sample)" \
+        if args.every > 1 else ""
+    with errors_naming(str(args.log) + thinned):
         check_log(log, design)                            # (its notes below need a sound log)
     check_motion(log.theta, str(args.log), why="a calibration cannot fit a joint it never saw "
                                                "move")

@@ -146,9 +146,7 @@ def run(args: argparse.Namespace) -> int:
                            title="calibrated" if calibration else args.residual_over))
     if base != "analytical":
         print(format_table(_rows(s["holdout_analytical_pct_fs"]), title="analytical"))
-    worse = [axis for axis, model_p99, plain_p99 in
-             zip(AXES, s["holdout_pct_fs"]["p99"], s["holdout_analytical_pct_fs"]["p99"])
-             if model_p99 > plain_p99]
+    worse = worse_axes(s["holdout_pct_fs"]["p99"], s["holdout_analytical_pct_fs"]["p99"])
     if worse:
         print(f"note: on the held-out tail the model is worse than the analytical model on "
               f"{', '.join(worse)} (p99): a longer calibration run helps (docs/learning.md, "
@@ -256,4 +254,14 @@ def run_mcu(args: argparse.Namespace) -> int:
         print(f"  {key:<6} " + " ".join(f"{v:5.2f}" for v in r["heldout_p99_pct"][key]))
     print("  quantization loss (int8 - float) " +
           " ".join(f"{v:+.3f}" for v in r["quantization_loss_p99_pct"]))
+    worse = worse_axes(r["heldout_p99_pct"]["int8"], r["heldout_p99_pct"]["base"])
+    if worse:
+        print(f"note: on the held-out tail the int8 model is worse than its base ({base.name}) "
+              f"on {', '.join(worse)} (p99): the board would stream a worse wrench with it; a "
+              "longer calibration run or more epochs may help (docs/ondevice-model.md)")
     return 0
+
+
+def worse_axes(model_p99, base_p99) -> list[str]:
+    """The axes on which a model's held-out p99 is above its base's."""
+    return [axis for axis, m, b in zip(AXES, model_p99, base_p99) if m > b]
