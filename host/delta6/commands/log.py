@@ -145,6 +145,7 @@ def _record(dev, args: argparse.Namespace, stop):
     progress = Progress()
     ending: UserError | None = None
     unstopped = ""                  # why the stream may not have stopped
+    cut = False                     # a second stop signal ended the streaming loop
     rate = start_stream(dev, args)
     info = dev.info()
     meta = {**log_meta(info, args.port, "delta6 log --port"), "rate_hz": rate,
@@ -174,9 +175,14 @@ def _record(dev, args: argparse.Namespace, stop):
         ending = exc
     except KeyboardInterrupt:       # a second stop signal: end now, keep what is written
         stop.signum = stop.signum or 2
+        # It may have landed between taking a block off the queue and writing it: draining
+        # what came after would leave a hole in the log, not only a shorter one (the device
+        # is stopped when the port closes).
+        cut = True
     finally:
         complete = not isinstance(ending, LogError)
-        if ending is None or not isinstance(ending, (DeviceRestarted, LogError)):
+        if not cut and (ending is None
+                        or not isinstance(ending, (DeviceRestarted, LogError))):
             try:
                 if ending is None:
                     # Stop the stream first: the records sent before STOP's answer all
