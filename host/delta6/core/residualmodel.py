@@ -185,16 +185,27 @@ def _int(value, what: str, source: str) -> int:
     return value
 
 
-def _numbers(values, what: str, source: str) -> np.ndarray:
-    """Six JSON numbers as float32 (strings and booleans refused)."""
-    if not isinstance(values, list) or len(values) != 6 or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
-        raise ModelFileError(f"{source}: {what} must be six numbers")
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _number(value, what: str, source: str) -> float:
+    """A JSON number (strings and booleans refused) as a float."""
+    if not _is_number(value):
+        raise ModelFileError(f"{source}: {what} must be a number, got {value!r}")
     try:
-        with np.errstate(over="ignore"):  # a value beyond float32 becomes inf: check() says so
-            return np.asarray(values, dtype=np.float32)
+        return float(value)
     except OverflowError:   # a JSON integer beyond any float (10**400)
         raise ModelFileError(f"{source}: {what} out of range") from None
+
+
+def _numbers(values, what: str, source: str) -> np.ndarray:
+    """Six JSON numbers as float32 (a value beyond float32 becomes inf: check() says so)."""
+    if not isinstance(values, list) or len(values) != 6 or not all(map(_is_number, values)):
+        raise ModelFileError(f"{source}: {what} must be six numbers")
+    floats = [_number(v, what, source) for v in values]
+    with np.errstate(over="ignore"):
+        return np.asarray(floats, dtype=np.float32)
 
 
 def _object(value, keys: tuple[str, ...], what: str, source: str,
@@ -281,13 +292,7 @@ def loads(text: str, source: str = "model") -> ResidualModel:
     if not isinstance(training, dict):
         raise ModelFileError(f"{source}: training must be a JSON object")
     net_data = _object(data["network"], _NETWORK_KEYS, "network", source)
-    rate = net_data["rate_hz"]
-    if isinstance(rate, bool) or not isinstance(rate, (int, float)):
-        raise ModelFileError(f"{source}: network rate_hz must be a number, got {rate!r}")
-    try:
-        rate = float(rate)
-    except OverflowError:   # a JSON integer beyond any float (10**400)
-        raise ModelFileError(f"{source}: network rate_hz out of range") from None
+    rate = _number(net_data["rate_hz"], "network rate_hz", source)
     features = tuple(_feature(f, i, source)
                      for i, f in enumerate(_list(net_data["features"], "features", source)))
     layers = tuple(_layer(layer, i, source)
