@@ -152,6 +152,10 @@ def summary(result: dict) -> str:
              row("analytical model", result["baseline_heldout_p99_pct"])]
     for step in result["ladder"]:
         lines.append(row(f"+ {step['added']}", step["heldout_p99_pct"]))
+    on_chip = result.get("on_chip") or {}
+    if on_chip.get("heldout_p99_pct") is not None:
+        # What `delta6 calibrate` can leave on the board: causal features, applied families.
+        lines.append(row("on the chip (calibrate)", on_chip["heldout_p99_pct"]))
     if result["present"]:
         lines.append("Present (strongest first): " + ", ".join(result["present"]))
     elif not result["groups"]:

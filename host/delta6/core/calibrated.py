@@ -99,6 +99,19 @@ def speed_gains(tau: float, dt: float, periods: np.ndarray | None, n: int) -> np
     return np.where(np.asarray(periods).reshape(n, 1) > 1, 0.0, g)
 
 
+def filtered_speed(counts: np.ndarray, dt: float, tau: float,
+                   periods: np.ndarray | None = None, speed0=None, last=None) -> np.ndarray:
+    """The board's joint speed (rad/s) of counts (n, j): the filtered count difference of
+    :func:`speed_filter`, continuing from the speed ``speed0`` and the count ``last`` of the
+    sample before (default: at rest at the first sample)."""
+    x = np.asarray(counts, dtype=float)
+    a, _ = speed_filter(tau, dt)
+    g = speed_gains(tau, dt, periods, len(x))
+    step = np.diff(x, axis=0, prepend=(x[:1] if last is None else np.reshape(last, (1, -1))))
+    return affine_scan(np.full(x.shape, a), g * step,
+                       np.zeros(x.shape[1]) if speed0 is None else speed0)
+
+
 def periods_between(t: np.ndarray, dt: float, before: float | None = None) -> np.ndarray:
     """Sample periods from each row to the one before (``before``: the time of the row before
     the first; default: the first row counts 1) of a log's times: more than 1 where rows are
@@ -152,10 +165,7 @@ class CalibratedModel:
         direction = (2.0 * x - y2) / half
         yr = play(x[:, :, None], self.radii, state.plays)
         hysteresis = (x[:, :, None] - yr) / self.radii
-        a, _ = speed_filter(c.speed_filter_s, dt)
-        g = speed_gains(c.speed_filter_s, dt, periods, len(x))
-        step = np.diff(x, axis=0, prepend=state.last[None, :])
-        speed = affine_scan(np.full(x.shape, a), g * step, state.speed)
+        speed = filtered_speed(x, dt, c.speed_filter_s, periods, state.speed, state.last)
         theta = x * ENCODER_COUNT_RAD - c.offset_rad + 0.5 * c.backlash_play_rad * direction
         signs = sum(c.friction_sign_nm[:, s] * np.clip(speed / v, -1.0, 1.0)
                     for s, v in enumerate(c.friction_speeds_rad_s))

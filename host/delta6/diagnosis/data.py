@@ -3,14 +3,17 @@ per-sample sensitivity maps, computed once and shared by every candidate effect.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from delta6.core.calibrated import filtered_speed, periods_between
+from delta6.core.calibration import DEFAULT_SPEED_FILTER_S
 from delta6.core.design import Design
 from delta6.core.errors import UserError
-from delta6.core.model import AXES, Params, forward_kinematics, wrench
+from delta6.core.model import AXES, ENCODER_COUNT_RAD, Params, forward_kinematics, wrench
 from delta6.core.spec import full_scale
 from delta6.diagnosis import sensitivity
 from delta6.diagnosis.signals import dwell_ramps, lagged, play_output, smooth_velocity
@@ -32,6 +35,10 @@ RATE_MISMATCH = 5.0
 #: Samples per piece when a per-sample map of the whole log is computed (bounds the memory
 #: the model's intermediate arrays take on long logs).
 PIECE = 50_000
+#: What a causal view of a log shares with the log: everything but the look-ahead features.
+_SHARED_WITH_CAUSAL = ("model", "residual", "residual_pct", "velocity", "position_mm",
+                       "torque_map", "angle_jacobian", "geometry_jacobian",
+                       "residual_joint_torque", "_play_cache", "_lag_cache")
 
 
 class DiagnosisInputError(UserError):
@@ -66,6 +73,9 @@ class GapData:
     #: Index whose history state the next piece needs (its ``carry``), and that state.
     handoff: int | None = None
     carry_out: dict = field(default_factory=dict, repr=False)
+    #: The features a board can compute (``causal_view``): the joint speed by the board's
+    #: filtered difference, reversals where the counts show them (no look-ahead).
+    causal: bool = False
 
     def __post_init__(self):
         if not self.step:
@@ -103,7 +113,8 @@ class GapData:
                        theta=self.theta[sl], reference=self.reference[sl],
                        temp_c=None if self.temp_c is None else self.temp_c[sl], fs=self.fs,
                        ref_temp_c=self.ref_temp_c, step=self.step, carry=dict(carry or {}),
-                       handoff=None if handoff is None else handoff - start)
+                       handoff=None if handoff is None else handoff - start,
+                       causal=self.causal)
 
     def _by_piece(self, fn) -> np.ndarray:
         if len(self) <= PIECE:
@@ -160,17 +171,31 @@ class GapData:
                    power: float) -> np.ndarray:
         """The direction of motion with each reversal spread over its dwell
         (``signals.dwell_ramps``), (n, 6)."""
+        state = self.play_state((switch_rad,))[:, :, 0]
+        if self.causal:
+            return state        # a board knows of a reversal once the encoder shows it
         key = (switch_rad, max_dwell_s, still, power)
         cache = self.__dict__.setdefault("_ramp_cache", {})
         if key not in cache:
-            state = self.play_state((switch_rad,))[:, :, 0]
             cache[key] = dwell_ramps(self.theta, state, self.t, max_dwell_s, still, power)
         return cache[key]
 
     @functools.cached_property
     def smooth_velocity(self) -> np.ndarray:
-        """Encoder angular velocity by a local linear fit (``signals.smooth_velocity``)."""
+        """Encoder angular velocity by a local linear fit (``signals.smooth_velocity``); in a
+        causal view, the board's filtered count difference (``calibrated.board_speed``)."""
+        if self.causal:
+            return board_speed(self.theta, self.t, self.step)
         return smooth_velocity(self.theta, self.t, step=self.step)
+
+    def causal_view(self) -> "GapData":
+        """The same log with the features a board computes from past samples only (the
+        model, residual and sensitivity maps shared, not recomputed)."""
+        view = dataclasses.replace(self, carry=dict(self.carry), carry_out={}, causal=True)
+        for name in _SHARED_WITH_CAUSAL:
+            if name in self.__dict__:
+                view.__dict__[name] = self.__dict__[name]
+        return view
 
     @functools.cached_property
     def model(self) -> np.ndarray:
@@ -223,6 +248,13 @@ class GapData:
         """The residual expressed as the extra joint torques that would explain it,
         G^-1 r (N*m): makes torque-side effects (hysteresis, friction) visible per joint."""
         return self.joint_torque_of(self.residual)
+
+
+def board_speed(theta: np.ndarray, t: np.ndarray, step: float) -> np.ndarray:
+    """The joint speed a board computes from the counts, rad/s: the calibrated model's
+    filtered difference with its default time constant; no speed across lost samples."""
+    return filtered_speed(theta / ENCODER_COUNT_RAD, step, DEFAULT_SPEED_FILTER_S,
+                          periods_between(t, step))
 
 
 def _stated_rate_hz(meta: dict) -> float | None:

@@ -8,6 +8,7 @@ import numpy as np
 from delta6.core.calibration import NOT_APPLIED
 from delta6.core.model import AXES
 from delta6.diagnosis.data import GapData
+from delta6.diagnosis.onchip import CAUSAL_FORMS
 from delta6.diagnosis.run import SMALL_SHARE
 
 
@@ -116,6 +117,7 @@ def write_report(result: dict, data: GapData, out_dir: str | Path, source: str =
         f"| {i + 1} | {s['added']} | {s['gain']:.3f} | " + " | ".join(
             f"{v:.2f}" for v in s["heldout_p99_pct"]) + " |"
         for i, s in enumerate(result["ladder"])])
+    lines += _on_chip_lines(result)
     lines += ["", "![ladder](ladder.png)", "", "### Fitted parameters (all data)", ""]
     for step in result["ladder"]:
         lines.append(f"- **{step['added']}**: " + _format_params(step["params"]))
@@ -212,6 +214,21 @@ def verdict_lines(result: dict) -> list[str]:
     if unsupported:
         lines.append("- The log does not excite " + ", ".join(unsupported) +
                      " enough to judge them.")
+    return lines
+
+
+def _on_chip_lines(result: dict) -> list[str]:
+    on_chip = result.get("on_chip") or {}
+    if on_chip.get("heldout_p99_pct") is None:
+        return []
+    lines = ["", "On the chip (what `delta6 calibrate` can leave): the final model refitted "
+             "with the features a board computes from past samples only"
+             + (" (" + "; ".join(f"{n}: {CAUSAL_FORMS[n]}" for n in on_chip["causal_forms"])
+                + ")" if on_chip["causal_forms"] else "")
+             + (", without " + ", ".join(on_chip["not_applied"]) + " (not applied on the "
+                "board)" if on_chip["not_applied"] else "") + ", held-out p99 % FS: "
+             + " ".join(f"{a} {v:.2f}" for a, v in zip(AXES, on_chip["heldout_p99_pct"]))
+             + "."]
     return lines
 
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from delta6.core.design import Design
 from delta6.core.model import AXES, Params
-from delta6.diagnosis import blas, excitation, gap, leftover, physics, selection, stream, verdicts
+from delta6.diagnosis import blas, excitation, gap, leftover, onchip, physics, selection, stream, verdicts
 from delta6.diagnosis import ladder as ladder_mod
 from delta6.diagnosis import terms as terms_mod
 from delta6.diagnosis.data import DiagnosisInputError, GapData
@@ -621,6 +621,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     for step in steps:
         step["share_of_gap"] = selection.removal_share(problem, chosen, {step["added"]},
                                                        base_sse.sum(), final_sse)
+    on_chip = onchip.prediction(data, problem, chosen, progress=progress)
     leftover_fs = np.subtract(y, final_pred, out=final_pred)    # the prediction is not needed
     del y
     base_total = float(base_sse.sum())
@@ -694,6 +695,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         "below_noise": faint,
         "groups": group_verdicts,
         "ladder": steps,
+        "on_chip": on_chip,
         "candidates": candidates,
         "plausibility": named_plausibility,
         "implausible": implausible,

@@ -1,0 +1,138 @@
+"""What a calibration on the chip should leave (``diagnosis.onchip``): the final model refitted
+with the features a board computes from past samples only, applied without the families a board
+does not apply. The causal view's features are checked to be causal and to be the board's; the
+prediction to equal the offline one where nothing changes, to be larger where a look-ahead
+helped, and not to depend on whether the log is streamed."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from delta6 import twin
+from delta6.commands.diagnose import summary
+from delta6.core.calibrated import CalibratedModel, periods_between, sample_period
+from delta6.core.calibration import NOT_APPLIED, neutral
+from delta6.core.model import ENCODER_COUNT_RAD
+from delta6.diagnosis import run as run_module
+from delta6.diagnosis import stream
+from delta6.diagnosis.data import GapData, board_speed
+from delta6.diagnosis.onchip import CAUSAL_FORMS
+from delta6.diagnosis.run import diagnose
+from delta6.diagnosis.terms import TERMS
+from delta6.link.logfile import LogData
+
+DURATION_S = 240.0
+
+
+def log_of(r) -> LogData:
+    return LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=r.temp_c)
+
+
+def simulated(design, names, seed, duration_s=DURATION_S, magnitude=0.9):
+    effects = [twin.make_effect(n, seed=seed, magnitude=magnitude) for n in names]
+    return twin.simulate(design, effects, duration_s=duration_s, rate_hz=50.0, seed=seed,
+                         record_temp=True)
+
+
+@pytest.fixture(scope="module")
+def moving(baseline):
+    """A short run with reversals, dwells and a temperature (every history a term follows)."""
+    return simulated(baseline, ("joint_friction", "backlash", "thermal_drift"), seed=5,
+                     duration_s=60.0)
+
+
+def columns_before(design, r, theta, k, causal):
+    data = GapData.from_log(LogData(t=r.t, theta=theta, wrench=r.wrench, temp_c=r.temp_c),
+                            design)
+    data = data.causal_view() if causal else data
+    applied = [t for t in TERMS if t.name not in NOT_APPLIED]
+    return {t.name: t.columns(data)[:k] for t in applied}
+
+
+def test_the_causal_views_features_use_only_past_samples(baseline, moving):
+    """Changing the log after sample k changes no applied family's column before k in the
+    causal view; offline, the friction's centred speed and the backlash's dwell look ahead."""
+    rng = np.random.default_rng(0)
+    k = len(moving.t) // 2
+    changed = moving.theta.copy()
+    steps = rng.integers(-3, 4, size=changed[k:].shape) * ENCODER_COUNT_RAD
+    changed[k:] += np.cumsum(steps, axis=0)
+    for causal in (True, False):
+        before = columns_before(baseline, moving, moving.theta, k, causal)
+        after = columns_before(baseline, moving, changed, k, causal)
+        moved = {n for n in before if not np.array_equal(before[n], after[n])}
+        assert moved == (set() if causal else set(CAUSAL_FORMS)), (causal, moved)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(20, 300), st.integers(0, 2**32 - 1), st.sampled_from([0.004, 0.02, 0.1]),
+       st.lists(st.integers(1, 19), max_size=5))
+def test_the_board_speed_is_the_calibrated_models(baseline, n, seed, dt, gaps):
+    """The causal view's joint speed is what the calibrated model (the board's, cross-checked
+    with the firmware) computes on the same counts, lost samples included."""
+    rng = np.random.default_rng(seed)
+    counts = np.cumsum(rng.integers(-40, 41, size=(n, 6)), axis=0).astype(float)
+    t = np.arange(n) * dt
+    for g in gaps:
+        t[g % n:] += dt * (1 + g % 3)       # rows lost on the link
+    step = sample_period(t)
+    model = CalibratedModel(baseline, neutral(baseline))
+    terms, _ = model.joint_terms(counts, step, periods=periods_between(t, step))
+    assert np.allclose(board_speed(counts * ENCODER_COUNT_RAD, t, step), terms.speed,
+                       rtol=1e-12, atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def friction_run(baseline):
+    r = simulated(baseline, ("joint_friction",), seed=41)
+    return r, diagnose(log_of(r), baseline, seed=0)
+
+
+def test_a_friction_on_the_chip_leaves_more_than_offline(friction_run):
+    """The board's speed comes from past counts: what the friction leaves on the chip is more
+    than what the offline refit (a centred speed) leaves, and less than the analytical
+    model's error."""
+    _, verdict = friction_run
+    assert verdict["present"][:1] == ["joint_friction"]
+    on_chip = verdict["on_chip"]
+    assert on_chip["families"] == [s["added"] for s in verdict["ladder"]]
+    assert on_chip["causal_forms"] == [n for n in on_chip["families"] if n in CAUSAL_FORMS]
+    assert "joint_friction" in on_chip["causal_forms"] and on_chip["not_applied"] == []
+    chip = np.array(on_chip["heldout_p99_pct"])
+    offline = np.array(verdict["ladder"][-1]["refit_heldout_p99_pct"])
+    baseline_p99 = np.array(verdict["baseline_heldout_p99_pct"])
+    assert np.all(chip > offline) and np.all(chip < baseline_p99)
+    assert "on the chip (calibrate)" in summary(verdict)
+
+
+def test_a_streamed_log_gives_the_same_prediction(baseline, friction_run, monkeypatch):
+    r, kept = friction_run
+    monkeypatch.setattr(run_module, "KEEP_COLUMNS_SAMPLES", 0)
+    monkeypatch.setattr(stream, "PIECE_SAMPLES", 4000)
+    streamed = diagnose(log_of(r), baseline, seed=0)
+    assert streamed["present"] == kept["present"]
+    assert np.allclose(streamed["on_chip"]["heldout_p99_pct"],
+                       kept["on_chip"]["heldout_p99_pct"], rtol=1e-6)
+
+
+def test_a_causal_family_is_predicted_as_offline(baseline):
+    """An encoder offset needs no look-ahead: the on-chip prediction is the offline refit's,
+    the same features on the same folds (to the ladder's float32 predictions)."""
+    r = simulated(baseline, ("encoder_offset",), seed=42)
+    verdict = diagnose(log_of(r), baseline, seed=0)
+    assert verdict["on_chip"]["causal_forms"] == []
+    assert np.allclose(verdict["on_chip"]["heldout_p99_pct"],
+                       verdict["ladder"][-1]["refit_heldout_p99_pct"], rtol=1e-6)
+
+
+def test_what_a_board_does_not_apply_stays_in_the_error(baseline):
+    """A late reference is the rig's, not the unit's: named, fitted, never applied; alone,
+    there is nothing for the chip to do."""
+    r = simulated(baseline, ("sensor_latency",), seed=43)
+    verdict = diagnose(log_of(r), baseline, seed=0)
+    assert verdict["present"][:1] == ["sensor_latency"]
+    assert verdict["on_chip"] == {"families": [], "not_applied": ["sensor_latency"],
+                                  "causal_forms": [], "heldout_p99_pct": None}
+    assert "on the chip" not in summary(verdict)
