@@ -10,7 +10,9 @@ from hypothesis import strategies as st
 from delta6 import twin
 from delta6.calibration import calibrate
 from delta6.calibration.fit import check_effects
-from delta6.core.calibrated import CalibratedModel
+from delta6.core import calibration as C
+from delta6.core.calibrated import (CalibratedModel, counts_from_angles, periods_between,
+                                    sample_period)
 from delta6.core.errors import UserError
 from delta6.core.spec import full_scale
 
@@ -151,6 +153,23 @@ def test_fitted_friction_opposes_the_motion_at_every_speed(late_fit, late_rig):
               * np.clip(w[None, :, None] / speeds[None, None, :], -1, 1)).sum(axis=-1) \
         + cal.viscous_nm_s_per_rad[:, None] * w[None, :]
     assert np.all(torque >= -1e-12)
+
+
+def test_the_friction_is_held_beyond_the_fastest_speed_its_log_reached(baseline, late_fit,
+                                                                     late_rig, unit):
+    """A fitted friction is known up to the board's fastest joint speed on its log: the
+    calibration holds it there (a slope fitted on slow motion is not extrapolated); a
+    calibration without a friction sets no limit (its hash stays what it was)."""
+    log = late_rig[0]
+    model = CalibratedModel(baseline, C.neutral(baseline))
+    dt = sample_period(log.t)
+    terms, _ = model.joint_terms(counts_from_angles(log.theta), dt,
+                                 periods=periods_between(log.t, dt))
+    np.testing.assert_allclose(late_fit.calibration.friction_speed_limit_rad_s,
+                               np.abs(terms.speed).max(axis=0), rtol=1e-12)
+    fit = calibrate(unit[1], baseline, effects=["stiffness_mismatch", "encoder_offset"])
+    assert not np.any(fit.calibration.friction_speed_limit_rad_s)
+    assert "friction_speed_limit_rad_s" not in fit.calibration.canonical()
 
 
 @pytest.mark.parametrize("bad", [["thermal_drift"], ["warp_drive"], ["harness"],

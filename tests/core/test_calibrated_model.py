@@ -128,3 +128,33 @@ def test_angle_and_compliance_corrections_point_the_right_way(baseline, name, fi
 def test_counts_from_angles_rounds_to_the_encoder_grid():
     theta = np.array([[0.0, 1, -1, 2.49, -2.51, 1365]]) * ENCODER_COUNT_RAD
     assert counts_from_angles(theta).tolist() == [[0, 1, -1, 2, -3, 1365]]
+
+
+@given(st.integers(1, 6), st.floats(0.1, 0.9), st.integers(0, 5))
+@settings(max_examples=25, deadline=None)
+def test_the_friction_is_held_beyond_its_speed_limit(baseline, steps, fraction, joint):
+    """A joint turning steadily faster than the calibration's speed limit gets the friction it
+    had at the limit (the viscous slope is not extrapolated); below the limit, the slope
+    acts. Steady speeds of whole counts per sample, so the filtered speed settles exactly."""
+    dt, n = 0.004, 400
+    speed = steps * ENCODER_COUNT_RAD / dt               # rad/s, above the sign speeds
+    limit = fraction * speed
+    cal = C.neutral(baseline).with_(viscous_nm_s_per_rad=np.full(6, 0.004),
+                                    friction_sign_nm=np.full((6, 2), 0.003),
+                                    friction_speed_limit_rad_s=np.full(6, limit))
+
+    def friction(c, per_sample):
+        counts = np.zeros((n, 6))
+        counts[:, joint] = np.arange(n) * per_sample
+        terms, _ = CalibratedModel(baseline, c).joint_terms(counts, dt)
+        spring = baseline.k[joint] * counts[-1, joint] * ENCODER_COUNT_RAD
+        return terms.torque[-1, joint] - spring
+
+    signs = 0.006 if limit > 0.02 else 0.003 + 0.003 * limit / 0.02
+    at_limit = signs + 0.004 * limit
+    assert friction(cal, steps) == pytest.approx(at_limit, rel=1e-9, abs=1e-15)
+    assert friction(cal, 2 * steps) == pytest.approx(at_limit, rel=1e-9, abs=1e-15)
+    free = cal.with_(friction_speed_limit_rad_s=np.zeros(6))
+    assert friction(free, steps) == pytest.approx(0.006 + 0.004 * speed, rel=1e-9)
+    above = cal.with_(friction_speed_limit_rad_s=np.full(6, 2 * speed))
+    assert friction(above, steps) == pytest.approx(0.006 + 0.004 * speed, rel=1e-9)

@@ -23,6 +23,7 @@ def _random_cal(baseline, rng) -> C.Calibration:
         gimbal_misalignment_rad=r(-0.01, 0.01, 3), elbow_rad_per_nm=r(0, 0.2, 3),
         tilt_rad_per_nm=float(r(0, 0.1)), spring_curvature=r(-0.2, 0.2, (6, 2)),
         encoder_periodic_rad=r(-0.004, 0.004, (6, 8)),
+        friction_speed_limit_rad_s=r(0.0, 3.0, 6),
         fit={"log": "cal.csv", "samples": 100, "heldout_before": {"p99_pct": [1.0] * 6}})
 
 
@@ -32,7 +33,7 @@ def test_round_trip_is_exact(baseline, seed):
     back = C.loads(C.dumps(cal))
     assert back.hash32() == cal.hash32()
     for name in ("offset_rad", "hysteresis_nm", "friction_sign_nm", "delta_lb_mm",
-                 "spring_curvature", "encoder_periodic_rad"):
+                 "spring_curvature", "encoder_periodic_rad", "friction_speed_limit_rad_s"):
         np.testing.assert_array_equal(getattr(back, name), getattr(cal, name))
     assert back.tilt_rad_per_nm == cal.tilt_rad_per_nm
     assert back.fit == cal.fit and back.effects == cal.effects and back.name == "unit-7"
@@ -45,17 +46,18 @@ def test_hash_covers_parameters_and_design_not_name_or_fit(baseline):
     assert cal.with_(design_hash=cal.design_hash ^ 1).hash32() != cal.hash32()
 
 
-def test_curves_are_hashed_only_when_present(baseline):
-    """A calibration without curves keeps the hash it had before they existed (boards and
-    logs that report it stay recognised); a curve changes it."""
+def test_later_parameters_are_hashed_only_when_present(baseline):
+    """A calibration without curves or a friction speed limit keeps the hash it had before
+    they existed (boards and logs that report it stay recognised); setting one changes it."""
     cal = C.neutral(baseline, "a")
-    assert "spring_curvature" not in cal.canonical()
-    assert "encoder_periodic_rad" not in cal.canonical()
+    for name in C._HASHED_WHEN_PRESENT:
+        assert name not in cal.canonical()
     # The neutral calibration's hash as it was before the curves (it covers the design hash).
     assert cal.hash32() == 0x0EA94F52
-    for name, shape in (("spring_curvature", (6, 2)), ("encoder_periodic_rad", (6, 8))):
+    for name, shape in (("spring_curvature", (6, 2)), ("encoder_periodic_rad", (6, 8)),
+                        ("friction_speed_limit_rad_s", (6,))):
         value = np.zeros(shape)
-        value[2, 1] = 1e-4
+        value.flat[3] = 1e-4
         assert cal.with_(**{name: value}).hash32() != cal.hash32()
 
 
@@ -99,6 +101,14 @@ def test_bad_fields_are_named(good_text, old, new, field):
     with pytest.raises(C.CalibrationError, match=field.replace(".", r"\.")) as info:
         C.loads(good_text.replace(old, new, 1), "cal.toml")
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("value, why", [(-1.0, "must be >= 0"), (500.0, "at most 100")])
+def test_a_friction_speed_limit_is_a_speed(baseline, value, why):
+    limit = np.full(6, 0.5)
+    limit[3] = value
+    with pytest.raises(C.CalibrationError, match=f"friction.speed_limit_rad_s.*{why}"):
+        C.validate(C.neutral(baseline).with_(friction_speed_limit_rad_s=limit), "cal.toml")
 
 
 def test_edited_parameters_are_caught_by_the_hash(good_text):

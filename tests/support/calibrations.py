@@ -28,7 +28,11 @@ def random_calibration(design, seed: int, scale: float = 1.0) -> C.Calibration:
         presliding_nm=u(0.003, 6), delta_a_mm=u(0.5, 3), delta_b_mm=u(0.5, 3),
         delta_la_mm=u(0.5, 3), delta_lb_mm=u(1.0, 3), delta_azimuth_rad=u(0.01, 3),
         delta_rest_angle_rad=u(0.01, 3), gimbal_misalignment_rad=u(0.01, 3),
-        elbow_rad_per_nm=u(0.1, 3, False), tilt_rad_per_nm=float(u(0.08, (), False)))
+        elbow_rad_per_nm=u(0.1, 3, False), tilt_rad_per_nm=float(u(0.08, (), False)),
+        # The friction held beyond a speed on most joints (0: no limit), within the speeds
+        # the cross-checks' walks reach.
+        friction_speed_limit_rad_s=np.where(rng.random(6) < 0.3, 0.0,
+                                            rng.uniform(0.005, 0.5, 6)))
 
 
 def with_curves(cal: C.Calibration, seed: int, spring: bool = True,

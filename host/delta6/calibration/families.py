@@ -25,7 +25,7 @@ from typing import Callable
 import numpy as np
 
 from delta6.core import curves, model
-from delta6.core.calibrated import JointTerms, counts_from_angles
+from delta6.core.calibrated import JointTerms, counts_from_angles, friction_speed
 from delta6.core.calibration import Calibration, CalibrationError, validate
 from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.diagnosis.data import GapData
@@ -196,7 +196,8 @@ def _hysteresis(ctx):
 def _friction(ctx):
     t = ctx.terms
     speeds = ctx.cal.friction_speeds_rad_s
-    feats = [np.clip(t.speed / v, -1.0, 1.0) for v in speeds] + [t.speed, t.direction]
+    v = friction_speed(t.speed, ctx.cal.friction_speed_limit_rad_s)
+    feats = [np.clip(v / s, -1.0, 1.0) for s in speeds] + [v, t.direction]
     return _torque(ctx, np.stack(feats, axis=-1))
 
 

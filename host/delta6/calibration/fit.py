@@ -144,6 +144,7 @@ class _Fitter:
         self.settings = settings
         terms, _ = CalibratedModel(data.design, settings, saturate_curves=True).joint_terms(
             self.counts, self.dt, periods=self.periods)
+        self.speed = terms.speed
         self.families = families(settings, data.design)
         ctx = Context(data, terms, settings)
         all_terms = _terms(ctx, self.families) + [_latency_term(data)]
@@ -151,6 +152,11 @@ class _Fitter:
         # history state included), so the log is one piece.
         self.problem = selection.build_problem(data, all_terms, n_blocks=N_BLOCKS,
                                                progress=progress, piece_samples=len(data))
+
+    def speed_reached(self, rows) -> np.ndarray:
+        """Per joint, the fastest the board's joint speed went over ``rows``: how far the
+        friction fitted there is known (``Calibration.friction_speed_limit_rad_s``)."""
+        return np.abs(self.speed[rows]).max(axis=0)
 
     def rows(self, blocks) -> np.ndarray:
         b = self.problem.bounds
@@ -232,6 +238,24 @@ class _Fitter:
         if latency:
             w = w - latency * np.gradient(w, self.data.t, axis=0)
         return w
+
+
+#: The friction's speed limit as fitted: at least this (a joint that never moved), at most the
+#: calibration file's bound.
+MIN_SPEED_LIMIT_RAD_S = 1e-6
+MAX_SPEED_LIMIT_RAD_S = 100.0
+
+
+def with_speed_limit(cal: Calibration, reached: np.ndarray) -> Calibration:
+    """``cal`` with its friction held beyond the speeds its log ``reached`` (rad/s per joint),
+    when it corrects a friction: a slope fitted on slow motion is not extrapolated to fast."""
+    if "joint_friction" not in cal.effects:
+        return cal
+    # A joint that never moved holds its friction at rest (0 would mean no limit); the
+    # file's bound caps a log's glitches.
+    return cal.with_(friction_speed_limit_rad_s=np.clip(np.asarray(reached, dtype=float),
+                                                        MIN_SPEED_LIMIT_RAD_S,
+                                                        MAX_SPEED_LIMIT_RAD_S))
 
 
 def _extend(fitter: _Fitter, chosen: list[str], rng, progress) -> list[str]:
@@ -411,7 +435,9 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
         bad = _worst_implausible(fitter, cal, chosen)
         if bad is None:
             rows = fitter.rows(held)
-            calibrated = fitter.predict(cal)          # what the board gives: no latency
+            # What the board gives: no latency, the friction held at the training's speeds.
+            calibrated = fitter.predict(with_speed_limit(cal, fitter.speed_reached(
+                fitter.rows(train))))
             before, after, before_rig, after_rig = _heldout_tables(
                 data, calibrated, rows, latency)
             if progress:
@@ -429,6 +455,7 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
         if progress:
             progress(note)
     notes += _anti_dissipative(cal)
+    cal = with_speed_limit(cal, fitter.speed_reached(np.arange(len(data))))
     seconds = time.perf_counter() - started
     fit_record = {
         "log": source, "samples": len(data), "duration_s": float(data.t[-1] - data.t[0]),

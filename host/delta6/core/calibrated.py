@@ -18,7 +18,8 @@ through a few numbers of state per joint (:class:`ModelState`), in one pass per 
    its encoder by half the play in the direction of motion; e is the encoder's periodic
    error, tabulated over x: ``delta6.core.curves``).
 3. **torque**: tau = k * rate_ratio * theta + s(x) + sum_r w_r h_r
-   + sum_s c_s clamp(v / V_s, -1, 1) + viscous * v + presliding * d (s: the spring's curve
+   + sum_s c_s clamp(v / V_s, -1, 1) + viscous * v + presliding * d, with v held within
+   +-``friction_speed_limit_rad_s`` where that is set (s: the spring's curve
    beyond its rate, tabulated over x; the encoder error's torque k * rate_ratio * e(x) comes
    from the same table as the board's, ``CurveTables.torque``).
 4. **geometry**: each branch has its own a, b, la, lb, azimuth and rest angle; the elbow turns
@@ -112,6 +113,14 @@ def filtered_speed(counts: np.ndarray, dt: float, tau: float,
                        np.zeros(x.shape[1]) if speed0 is None else speed0)
 
 
+def friction_speed(speed: np.ndarray, limit) -> np.ndarray:
+    """The speed the friction is evaluated at: ``speed`` (n, 6) held within +-``limit`` (6,)
+    where the limit is set (> 0); beyond, the friction stays what it was at the limit."""
+    limit = np.asarray(limit, dtype=float)
+    bound = np.where(limit > 0, limit, np.inf)
+    return np.clip(speed, -bound, bound)
+
+
 def periods_between(t: np.ndarray, dt: float, before: float | None = None) -> np.ndarray:
     """Sample periods from each row to the one before (``before``: the time of the row before
     the first; default: the first row counts 1) of a log's times: more than 1 where rows are
@@ -167,11 +176,14 @@ class CalibratedModel:
         hysteresis = (x[:, :, None] - yr) / self.radii
         speed = filtered_speed(x, dt, c.speed_filter_s, periods, state.speed, state.last)
         theta = x * ENCODER_COUNT_RAD - c.offset_rad + 0.5 * c.backlash_play_rad * direction
-        signs = sum(c.friction_sign_nm[:, s] * np.clip(speed / v, -1.0, 1.0)
+        # The friction is known up to the speeds its calibration run reached, and held there
+        # beyond (a viscous slope fitted on slow motion does not extrapolate).
+        held = friction_speed(speed, c.friction_speed_limit_rad_s)
+        signs = sum(c.friction_sign_nm[:, s] * np.clip(held / v, -1.0, 1.0)
                     for s, v in enumerate(c.friction_speeds_rad_s))
         torque = (self.design.k * c.rate_ratio * theta
                   + np.einsum("njr,jr->nj", hysteresis, c.hysteresis_nm)
-                  + signs + c.viscous_nm_s_per_rad * speed + c.presliding_nm * direction)
+                  + signs + c.viscous_nm_s_per_rad * held + c.presliding_nm * direction)
         tables = self.curves
         if tables is not None:
             # The board's tables: the torque table holds s - k ratio e, so theta's e is

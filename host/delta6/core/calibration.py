@@ -92,6 +92,8 @@ class Calibration:
         default_factory=lambda: np.zeros((6, len(DEFAULT_FRICTION_SPEEDS))))
     viscous_nm_s_per_rad: np.ndarray = _zeros(6)
     presliding_nm: np.ndarray = _zeros(6)
+    # the friction is known up to the speeds its run reached: beyond, held (0: no limit)
+    friction_speed_limit_rad_s: np.ndarray = _zeros(6)
     # geometry, built minus nominal, per branch; the gimbal's rotation vector
     delta_a_mm: np.ndarray = _zeros(3)
     delta_b_mm: np.ndarray = _zeros(3)
@@ -149,7 +151,7 @@ _PARAMETERS = (
     ("hysteresis_radii_counts", "radii"), ("hysteresis_nm", (6, "radii")),
     ("speed_filter_s", ()), ("friction_speeds_rad_s", "speeds"),
     ("friction_sign_nm", (6, "speeds")), ("viscous_nm_s_per_rad", (6,)),
-    ("presliding_nm", (6,)),
+    ("presliding_nm", (6,)), ("friction_speed_limit_rad_s", (6,)),
     ("delta_a_mm", (3,)), ("delta_b_mm", (3,)), ("delta_la_mm", (3,)), ("delta_lb_mm", (3,)),
     ("delta_azimuth_rad", (3,)), ("delta_rest_angle_rad", (3,)),
     ("gimbal_misalignment_rad", (3,)), ("elbow_rad_per_nm", (3,)), ("tilt_rad_per_nm", ()),
@@ -160,7 +162,7 @@ _PARAMETERS = (
 #: to tabulate them with, so it takes them as written; a curve whose board tables round to
 #: zero is no curve for the model and the board (``curves.curve_tables``), and ``delta6
 #: calibrate`` writes it as zero, so a fitted file hashes as what the board applies.
-_HASHED_WHEN_PRESENT = ("encoder_periodic_rad", "spring_curvature")
+_HASHED_WHEN_PRESENT = ("encoder_periodic_rad", "spring_curvature", "friction_speed_limit_rad_s")
 
 #: The file's sections: section -> (key in the file, attribute).
 SECTIONS = {
@@ -174,7 +176,8 @@ SECTIONS = {
                  ("sign_speeds_rad_s", "friction_speeds_rad_s"),
                  ("sign_nm", "friction_sign_nm"),
                  ("viscous_nm_s_per_rad", "viscous_nm_s_per_rad"),
-                 ("presliding_nm", "presliding_nm")),
+                 ("presliding_nm", "presliding_nm"),
+                 ("speed_limit_rad_s", "friction_speed_limit_rad_s")),
     "geometry": (("delta_a_mm", "delta_a_mm"), ("delta_b_mm", "delta_b_mm"),
                  ("delta_la_mm", "delta_la_mm"), ("delta_lb_mm", "delta_lb_mm"),
                  ("delta_azimuth_rad", "delta_azimuth_rad"),
@@ -190,7 +193,7 @@ _BOUNDS = {
     "delta_rest_angle_rad": 0.1, "gimbal_misalignment_rad": 0.1, "elbow_rad_per_nm": 1.0,
     "tilt_rad_per_nm": 1.0, "hysteresis_nm": 0.5, "friction_sign_nm": 0.5,
     "viscous_nm_s_per_rad": 1.0, "presliding_nm": 0.5, "encoder_periodic_rad": 0.1,
-    "spring_curvature": 2.0,
+    "spring_curvature": 2.0, "friction_speed_limit_rad_s": 100.0,
 }
 
 
@@ -258,6 +261,8 @@ def validate(cal: Calibration, source: str | None = None) -> Calibration:
         if bound is not None and np.any(np.abs(value) > bound):
             _fail(source, _key_of(name_), f"|value| must be at most {bound:g}: wrong unit?")
         changes[name_] = value if dims else float(value)
+    if np.any(changes["friction_speed_limit_rad_s"] < 0):
+        _fail(source, "friction.speed_limit_rad_s", "must be >= 0 rad/s (0: no limit)")
     ratio = changes["rate_ratio"]
     if np.any(ratio < 0.5) or np.any(ratio > 2.0):
         _fail(source, "spring.rate_ratio", "must lie in 0.5..2 (true / nominal spring rate)")

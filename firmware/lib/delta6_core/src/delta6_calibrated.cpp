@@ -223,15 +223,18 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
         }
         st.speed[j] = v;
         st.last[j] = x;
-        // Friction: the segment of |v| among the breakpoints; its offset joins the int32 sum,
-        // its slope takes one multiply.
-        const float av = absf(v);
+        // Friction: at the speed held within the calibration's limit, the segment of |v|
+        // among the breakpoints; its offset joins the int32 sum, its slope takes one multiply.
+        float av = absf(v);
+        const float limit = flash_float(&cc.speed_limit[j]);
+        if (fastmath::at_least(av, limit)) av = limit;
+        const float vf = negative(v) ? -av : av;
         uint8_t seg = 0;
         while (seg < speeds && fastmath::at_least(av, flash_float(&cc.breakpoint[seg]))) ++seg;
         const int32_t off = flash::i32(&cc.offset[j][seg]);
         sum = wrapping_add(sum, negative(v) ? -off : off);
         tau[j] = scale_down(static_cast<float>(sum), kTorqueShift)
-                 + flash_float(&cc.slope[j][seg]) * v;
+                 + flash_float(&cc.slope[j][seg]) * vf;
     }
 }
 

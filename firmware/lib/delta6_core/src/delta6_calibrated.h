@@ -31,7 +31,7 @@ constexpr uint8_t kMaxSignSpeeds = 4;
 // The torque's count terms are summed in int32, in units of 2^-kTorqueShift N*m.
 constexpr uint8_t kTorqueShift = 28;
 // Bumped whenever CalibrationConstants changes shape; the generated header checks it.
-constexpr uint16_t kCalibrationConstantsVersion = 4;
+constexpr uint16_t kCalibrationConstantsVersion = 5;
 
 struct CalibrationConstants {
     // Torque of joint j, with x its count, y_r its plays and y2 its direction play (half
@@ -52,6 +52,9 @@ struct CalibrationConstants {
     float breakpoint[kMaxSignSpeeds];  // the sign speeds V_s, ascending, rad/s
     float slope[6][kMaxSignSpeeds + 1];   // N*m*s/rad
     int32_t offset[6][kMaxSignSpeeds + 1];
+    // The friction is known up to the speeds its calibration run reached: |v| is held
+    // within speed_limit (rad/s; 1e30 where the calibration sets none).
+    float speed_limit[6];
     // The angles: the coarse tables (flash, as the solver's) hold each joint's constant
     // correction (branches: la_i and the rest angle; all: minus the encoder offset); the part
     // that varies is ed (2x - y2) (backlash), plus elbow * tau on the branches (compliance).
