@@ -11,8 +11,7 @@ from delta6 import twin
 from delta6.calibration import calibrate
 from delta6.calibration.fit import check_effects
 from delta6.core import calibration as C
-from delta6.core.calibrated import (CalibratedModel, counts_from_angles, periods_between,
-                                    sample_period)
+from delta6.core.calibrated import CalibratedModel, counts_from_angles, periods_between, sample_period
 from delta6.core.errors import UserError
 from delta6.core.spec import full_scale
 
