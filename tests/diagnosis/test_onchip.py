@@ -16,9 +16,10 @@ from delta6.core.calibrated import CalibratedModel, periods_between, sample_peri
 from delta6.core.calibration import NOT_APPLIED, neutral
 from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.diagnosis import run as run_module
-from delta6.diagnosis import stream
+from delta6.diagnosis import selection, stream
 from delta6.diagnosis.data import GapData, board_speed
 from delta6.diagnosis.onchip import CAUSAL_FORMS
+from delta6.diagnosis.report import _on_chip_lines
 from delta6.diagnosis.run import diagnose
 from delta6.diagnosis.terms import TERMS
 from delta6.link.logfile import LogData
@@ -90,10 +91,11 @@ def friction_run(baseline):
     return r, diagnose(log_of(r), baseline, seed=0)
 
 
-def test_a_friction_on_the_chip_leaves_more_than_offline(friction_run):
-    """The board's speed comes from past counts: what the friction leaves on the chip is more
-    than what the offline refit (a centred speed) leaves, and less than the analytical
-    model's error."""
+def test_at_50_hz_a_friction_on_the_chip_leaves_more_than_offline(friction_run):
+    """The board's speed comes from past counts: at the paper's 50 Hz, what the friction
+    leaves on the chip is more than what the offline refit (a centred speed over five
+    samples) leaves, and less than the analytical model's error. (At 1 kHz the centred fit
+    spans 4 ms of quantised counts and the board's 20 ms filter can do better.)"""
     _, verdict = friction_run
     assert verdict["present"][:1] == ["joint_friction"]
     on_chip = verdict["on_chip"]
@@ -108,9 +110,11 @@ def test_a_friction_on_the_chip_leaves_more_than_offline(friction_run):
 
 
 def test_a_streamed_log_gives_the_same_prediction(baseline, friction_run, monkeypatch):
+    """The log's columns streamed in pieces (12,000 samples: two of ``stream.PIECE_SAMPLES``)
+    give the prediction of the columns kept whole."""
     r, kept = friction_run
     monkeypatch.setattr(run_module, "KEEP_COLUMNS_SAMPLES", 0)
-    monkeypatch.setattr(stream, "PIECE_SAMPLES", 4000)
+    assert len(r.t) > stream.PIECE_SAMPLES
     streamed = diagnose(log_of(r), baseline, seed=0)
     assert streamed["present"] == kept["present"]
     assert np.allclose(streamed["on_chip"]["heldout_p99_pct"],
@@ -127,12 +131,42 @@ def test_a_causal_family_is_predicted_as_offline(baseline):
                        verdict["ladder"][-1]["refit_heldout_p99_pct"], rtol=1e-6)
 
 
-def test_what_a_board_does_not_apply_stays_in_the_error(baseline):
+def test_a_late_reference_alone_leaves_the_analytical_error_on_the_chip(baseline):
     """A late reference is the rig's, not the unit's: named, fitted, never applied; alone,
     there is nothing for the chip to do."""
     r = simulated(baseline, ("sensor_latency",), seed=43)
     verdict = diagnose(log_of(r), baseline, seed=0)
     assert verdict["present"][:1] == ["sensor_latency"]
     assert verdict["on_chip"] == {"families": [], "not_applied": ["sensor_latency"],
-                                  "causal_forms": [], "heldout_p99_pct": None}
+                                  "causal_forms": [],
+                                  "heldout_p99_pct": verdict["baseline_heldout_p99_pct"]}
     assert "on the chip" not in summary(verdict)
+    assert any("nothing in the ladder is applied" in line for line in _on_chip_lines(verdict))
+
+
+def test_what_a_board_does_not_apply_is_fitted_and_left_in_the_error(baseline):
+    """Friction, a late reference and an encoder offset: all three fitted together on each
+    fold's training blocks, the held-out prediction made with the friction's and the
+    offset's columns alone (recomputed here fold by fold from the causal view's columns)."""
+    effects = ("joint_friction", "sensor_latency", "encoder_offset")
+    log = log_of(simulated(baseline, effects, seed=7))
+    verdict = diagnose(log, baseline, seed=0)
+    chosen = [s["added"] for s in verdict["ladder"]]
+    on_chip = verdict["on_chip"]
+    assert "sensor_latency" in chosen and on_chip["not_applied"] == ["sensor_latency"]
+    assert {"joint_friction", "encoder_offset"} <= set(on_chip["families"])
+    view = GapData.from_log(log, baseline).causal_view()
+    terms = sorted((t for t in TERMS if t.name in chosen), key=lambda t: chosen.index(t.name))
+    problem = selection.build_problem(view, terms, keep_columns=True)
+    applied = np.isin(problem.cols(chosen), problem.cols(on_chip["families"]))
+    pred = np.zeros_like(problem.y)
+    for fold in problem.folds:
+        coef = selection.fit(problem, chosen, selection.train_blocks(problem, fold))
+        for b in fold:
+            rows = slice(problem.bounds[b], problem.bounds[b + 1])
+            pred[rows] = problem.x[rows][:, :, problem.cols(chosen)[applied]] @ coef[applied]
+    expected = np.percentile(np.abs(100 * (problem.y - pred)), 99, axis=0)
+    np.testing.assert_allclose(on_chip["heldout_p99_pct"], expected, rtol=1e-9)
+    # Applied, the latency's columns would take the rig's delay off the reference: on a
+    # board it stays.
+    assert np.all(expected > np.array(verdict["ladder"][-1]["refit_heldout_p99_pct"]))

@@ -153,7 +153,7 @@ def summary(result: dict) -> str:
     for step in result["ladder"]:
         lines.append(row(f"+ {step['added']}", step["heldout_p99_pct"]))
     on_chip = result.get("on_chip") or {}
-    if on_chip.get("heldout_p99_pct") is not None:
+    if on_chip.get("heldout_p99_pct") is not None and on_chip["families"]:
         # What `delta6 calibrate` can leave on the board: causal features, applied families.
         lines.append(row("on the chip (calibrate)", on_chip["heldout_p99_pct"]))
     if result["present"]:

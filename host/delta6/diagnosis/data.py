@@ -36,7 +36,7 @@ RATE_MISMATCH = 5.0
 #: the model's intermediate arrays take on long logs).
 PIECE = 50_000
 #: What a causal view of a log shares with the log: everything but the look-ahead features.
-_SHARED_WITH_CAUSAL = ("model", "residual", "residual_pct", "velocity", "position_mm",
+_SHARED_WITH_CAUSAL = ("model", "residual", "residual_pct", "position_mm",
                        "torque_map", "angle_jacobian", "geometry_jacobian",
                        "residual_joint_torque", "_play_cache", "_lag_cache")
 
@@ -212,7 +212,10 @@ class GapData:
 
     @functools.cached_property
     def velocity(self) -> np.ndarray:
-        """Encoder angular velocity, rad/s (central differences)."""
+        """Encoder angular velocity, rad/s (central differences; in a causal view, the
+        board's speed: a central difference looks ahead)."""
+        if self.causal:
+            return self.smooth_velocity
         return np.gradient(self.theta, self.t, axis=0)
 
     @functools.cached_property

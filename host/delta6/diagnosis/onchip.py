@@ -7,8 +7,10 @@ moved again (a look-ahead). A board has neither: it knows the speed from past co
 difference) and a reversal once the encoder shows it. And some effects are not applied on the
 board at all (``delta6.core.calibration.NOT_APPLIED``: the rig's latency, a thermal drift, a
 harness): they are fitted with the rest, so the others are not biased by them, and left in the
-error. The held-out p99 of that prediction, with the diagnosis's own folds, is what `delta6
-calibrate` can be expected to leave on the chip (``docs/calibration.md``, "Single-effect
+error. The held-out p99 of that prediction, with the diagnosis's own folds, is the diagnosis's
+model as a board would apply it: a forecast of what a calibration on the chip leaves on a run
+like this one (``delta6 calibrate`` fits the same families in the board's own forms, and may add
+a family that lowers the held-out error further; ``docs/calibration.md``, "Single-effect
 scenarios").
 """
 from __future__ import annotations
@@ -16,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from delta6.core.calibration import NOT_APPLIED
-from delta6.diagnosis import selection, stream
+from delta6.diagnosis import ladder, selection, stream
 from delta6.diagnosis.data import GapData
 
 #: The families whose features a board computes differently (the others are causal already).
@@ -35,7 +37,9 @@ def prediction(data: GapData, problem: selection.Problem, chosen: list[str], *,
     result = {"families": applied, "not_applied": [n for n in chosen if n in NOT_APPLIED],
               "causal_forms": [n for n in applied if n in CAUSAL_FORMS]}
     if not applied:
-        result["heldout_p99_pct"] = None
+        # Nothing a board applies: it leaves the analytical model's error (None: no ladder).
+        result["heldout_p99_pct"] = (ladder.baseline_p99(data.residual / data.fs).tolist()
+                                     if chosen else None)
         return result
     if progress:
         progress("on the chip: the final model with causal features")

@@ -221,6 +221,10 @@ def _on_chip_lines(result: dict) -> list[str]:
     on_chip = result.get("on_chip") or {}
     if on_chip.get("heldout_p99_pct") is None:
         return []
+    if not on_chip["families"]:
+        return ["", "On the chip: nothing in the ladder is applied on a board ("
+                + ", ".join(on_chip["not_applied"]) + "): a calibration leaves the analytical "
+                "model's error."]
     lines = ["", "On the chip (what `delta6 calibrate` can leave): the final model refitted "
              "with the features a board computes from past samples only"
              + (" (" + "; ".join(f"{n}: {CAUSAL_FORMS[n]}" for n in on_chip["causal_forms"])
