@@ -298,3 +298,22 @@ def test_a_log_too_short_after_every_says_so(runs, tmp_path, capsys):
                  "100"]) == 2
     err = capsys.readouterr().err.strip()
     assert "after --every 100" in err and "too few samples" in err and "\n" not in err
+
+
+def test_evaluate_notes_joints_faster_than_the_calibration_run(runs, tmp_path, capsys,
+                                                             baseline):
+    """A calibration's friction is known up to the speeds its run reached: evaluating a run
+    whose joint went well beyond says so, per joint, and still gives the table."""
+    _, _, check_log = runs
+    limit = np.full(6, 50.0)
+    limit[1] = 0.01
+    for limits, expected in ((limit, ["joint 2 turned at up to"]), (np.full(6, 50.0), [])):
+        path = tmp_path / "fast.toml"
+        C.save(C.neutral(baseline, "held").with_(effects=("joint_friction",),
+                                                 friction_speed_limit_rad_s=limits), path)
+        assert main(["evaluate", str(check_log), "--design", DESIGN, "--calibration",
+                     str(path)]) == 0
+        captured = capsys.readouterr()
+        notes = [ln for ln in captured.err.splitlines() if "its calibration run reached" in ln]
+        assert [n[len("note: "):][:len(e)] for n, e in zip(notes, expected)] == expected
+        assert len(notes) == len(expected) and "calibrated" in captured.out

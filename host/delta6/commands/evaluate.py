@@ -10,7 +10,7 @@ from pathlib import Path
 
 from delta6.calibration.fit import check_rig_latency
 from delta6.core import calibration as calibration_mod
-from delta6.core.calibrated import CalibratedModel
+from delta6.core.calibrated import CalibratedModel, speeds_beyond_calibration
 from delta6.core.errors import UserError
 from delta6.core.outputs import check_output_file
 from delta6.core.paths import DEFAULT_DESIGN
@@ -136,6 +136,8 @@ def run(args: argparse.Namespace) -> int:
                                                                                  log.theta):
         print(note, file=sys.stderr)
     cal = calibration_mod.load(args.calibration) if args.calibration else None
+    for note in speeds_beyond_calibration(cal, log.t, log.theta) if cal else []:
+        print(note, file=sys.stderr)
     latency = rig_latency(args, cal)
     rows = [Computed(e.name, e.predict(log)) for e in estimators(args, design, log, cal)]
     if args.model:
