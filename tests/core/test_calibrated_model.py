@@ -158,3 +158,9 @@ def test_the_friction_is_held_beyond_its_speed_limit(baseline, steps, fraction, 
     assert friction(free, steps) == pytest.approx(0.006 + 0.004 * speed, rel=1e-9)
     above = cal.with_(friction_speed_limit_rad_s=np.full(6, 2 * speed))
     assert friction(above, steps) == pytest.approx(0.006 + 0.004 * speed, rel=1e-9)
+    # Turning the other way, the friction turns sign; a limit below the sign speeds holds
+    # the signs on their slopes too.
+    assert friction(cal, -2 * steps) == pytest.approx(-at_limit, rel=1e-9, abs=1e-15)
+    low = cal.with_(friction_speed_limit_rad_s=np.full(6, 0.003))
+    held = 0.003 * 0.003 / 0.005 + 0.003 * 0.003 / 0.02 + 0.004 * 0.003
+    assert friction(low, -steps) == pytest.approx(-held, rel=1e-9)

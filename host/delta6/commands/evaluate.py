@@ -136,10 +136,12 @@ def run(args: argparse.Namespace) -> int:
                                                                                  log.theta):
         print(note, file=sys.stderr)
     cal = calibration_mod.load(args.calibration) if args.calibration else None
-    for note in speeds_beyond_calibration(cal, log.t, log.theta) if cal else []:
-        print(note, file=sys.stderr)
     latency = rig_latency(args, cal)
     rows = [Computed(e.name, e.predict(log)) for e in estimators(args, design, log, cal)]
+    # After the estimators' checks (the calibration's design, the log's header): a note on a
+    # log that is then refused is noise.
+    for note in speeds_beyond_calibration(cal, log.t, log.theta) if cal else []:
+        print(note, file=sys.stderr)
     if args.model:
         note = mixed_rate_note(log.t)
         if note:
