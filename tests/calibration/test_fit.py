@@ -171,6 +171,38 @@ def test_the_friction_is_held_beyond_the_fastest_speed_its_log_reached(baseline,
     assert "friction_speed_limit_rad_s" not in fit.calibration.canonical()
 
 
+def test_the_held_out_table_holds_the_friction_at_the_training_blocks_speeds(
+        baseline, monkeypatch):
+    """The file's held-out table is what the board would give on blocks the fit never saw:
+    its calibration holds the friction at the fastest speed of the training blocks (not of
+    the whole log, which includes the held-out ones); the file's, at the whole log's. On
+    this run four joints go fastest in the held-out blocks (joint 6 twice as fast)."""
+    from delta6.calibration import fit as fit_module
+    limits = []
+    original = fit_module.with_speed_limit
+
+    def recording(cal, reached):
+        limits.append(np.asarray(reached))
+        return original(cal, reached)
+
+    monkeypatch.setattr(fit_module, "with_speed_limit", recording)
+    friction = twin.make_effect("joint_friction", 1, formulation="coulomb_viscous",
+                                coulomb_nm=0.002, viscous_nm_s_per_rad=TRUE_VISCOUS,
+                                smoothing_rad_s=0.005)
+    log = twin.simulate(baseline, [friction], duration_s=120, rate_hz=50, seed=4)
+    fit = calibrate(log, baseline, effects=["joint_friction"])
+    dt = sample_period(log.t)
+    terms, _ = CalibratedModel(baseline, C.neutral(baseline)).joint_terms(
+        counts_from_angles(log.theta), dt, periods=periods_between(log.t, dt))
+    speed = np.abs(terms.speed)
+    bounds = np.linspace(0, len(log.t), fit_module.N_BLOCKS + 1).astype(int)
+    train_end = bounds[fit_module.N_BLOCKS - fit_module.HELDOUT_BLOCKS - 1]
+    assert np.sum(speed.max(axis=0) > 1.05 * speed[:train_end].max(axis=0)) >= 3
+    np.testing.assert_allclose(limits[0], speed[:train_end].max(axis=0), rtol=1e-12)
+    np.testing.assert_allclose(limits[-1], speed.max(axis=0), rtol=1e-12)
+    np.testing.assert_allclose(fit.calibration.friction_speed_limit_rad_s, limits[-1])
+
+
 @pytest.mark.parametrize("bad", [["thermal_drift"], ["warp_drive"], ["harness"],
                                  ])
 def test_uncorrectable_or_unknown_effects_are_refused(bad):
