@@ -170,3 +170,25 @@ def test_what_a_board_does_not_apply_is_fitted_and_left_in_the_error(baseline):
     # Applied, the latency's columns would take the rig's delay off the reference: on a
     # board it stays.
     assert np.all(expected > np.array(verdict["ladder"][-1]["refit_heldout_p99_pct"]))
+
+
+def test_every_cached_feature_is_either_shared_with_the_causal_view_or_rebuilt(baseline,
+                                                                              moving):
+    """A feature the log computes once (a cached property) reaches the causal view only if it
+    is listed as causal (``_SHARED_WITH_CAUSAL``); the look-ahead ones are rebuilt there. A
+    new feature must be put on one side or the other."""
+    import functools
+
+    from delta6.diagnosis import data as data_module
+    cached = {name for name, value in vars(GapData).items()
+              if isinstance(value, functools.cached_property)}
+    rebuilt = {"smooth_velocity", "velocity"}
+    shared = {n for n in data_module._SHARED_WITH_CAUSAL if not n.startswith("_")}
+    assert cached == shared | rebuilt and not shared & rebuilt
+    data = GapData.from_log(log_of(moving), baseline)
+    for name in cached:
+        getattr(data, name)
+    view = data.causal_view()
+    assert all(view.__dict__.get(n) is data.__dict__[n] for n in shared)
+    assert not any(n in view.__dict__ for n in rebuilt)
+    np.testing.assert_array_equal(view.velocity, view.smooth_velocity)
