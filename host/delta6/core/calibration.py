@@ -24,6 +24,7 @@ import numpy as np
 from delta6.core.curves import ENCODER_HARMONICS
 from delta6.core.design import MAX_NAME_CHARS, label_problem
 from delta6.core.errors import UserError
+from delta6.core.hashes import parse_hash32
 
 SCHEMA = "delta6-calibration/1"
 #: Effects of the twin's vocabulary a calibration corrects on the device.
@@ -345,15 +346,10 @@ def save(cal: Calibration, path: str | Path) -> Path:
 
 
 def _hash(value, key, source) -> int:
-    if not isinstance(value, str):
-        _fail(source, key, "must be a string like \"0x535534af\"")
     try:
-        out = int(value, 16)
-    except ValueError:
-        _fail(source, key, f"not a hexadecimal hash: {value!r}")
-    if not 0 <= out < 2**32:
-        _fail(source, key, "must fit in 32 bits")
-    return out
+        return parse_hash32(value)
+    except ValueError as exc:
+        _fail(source, key, str(exc))
 
 
 def loads(text: str, source: str | None = None) -> Calibration:

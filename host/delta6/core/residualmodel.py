@@ -27,6 +27,7 @@ import numpy as np
 
 from delta6.core.design import MAX_NAME_CHARS, label_problem, name_problem
 from delta6.core.errors import UserError
+from delta6.core.hashes import parse_hash32
 from delta6.core.int8net import Feature, Int8Net, Layer
 
 SCHEMA = "delta6-residual-model/1"
@@ -154,15 +155,10 @@ def save(model: ResidualModel, path: str | Path) -> Path:
 
 
 def _hex32(value, what: str, source: str) -> int:
-    if not isinstance(value, str):
-        raise ModelFileError(f"{source}: {what} must be a hex string like \"0x1234abcd\"")
     try:
-        number = int(value, 16)
-    except ValueError:
-        raise ModelFileError(f"{source}: {what} must be a hex number like 0x1234abcd") from None
-    if not 0 <= number < 2**32:
-        raise ModelFileError(f"{source}: {what} does not fit 32 bits")
-    return number
+        return parse_hash32(value)
+    except ValueError as exc:
+        raise ModelFileError(f"{source}: {what} {exc}") from None
 
 
 def _ints(values, dtype, what: str, source: str) -> np.ndarray:

@@ -10,6 +10,7 @@ import json
 from dataclasses import dataclass, field
 
 from delta6.core.errors import UserError
+from delta6.core.hashes import parse_hash32
 from delta6.learning.windows import Normalisation
 
 SCHEMA = "delta6-learned/1"
@@ -34,15 +35,10 @@ KEYS = ("schema", "kind", "design", "design_hash", "base", "window", "rate_hz", 
 
 
 def _hash32(text: str, bad) -> int:
-    """A 32-bit hash written as hexadecimal (0x535534af); compared as a number, so the case
-    of its digits does not matter."""
     try:
-        value = int(text, 16)
-    except ValueError:
-        raise bad("is not a hexadecimal hash") from None
-    if not 0 <= value < 2**32:
-        raise bad("does not fit 32 bits")
-    return value
+        return parse_hash32(text)
+    except ValueError as exc:
+        raise bad(str(exc)) from None
 
 
 class ModelFileError(UserError):
