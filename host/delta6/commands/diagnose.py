@@ -154,7 +154,8 @@ def summary(result: dict) -> str:
         lines.append(row(f"+ {step['added']}", step["heldout_p99_pct"]))
     on_chip = result.get("on_chip") or {}
     if on_chip.get("heldout_p99_pct") is not None and on_chip["families"]:
-        # What `delta6 calibrate` can leave on the board: causal features, applied families.
+        # The final model as a board applies it (causal features, applied families): a
+        # forecast of what `delta6 calibrate` leaves on a run like this one.
         lines.append(row("on the chip (calibrate)", on_chip["heldout_p99_pct"]))
     if result["present"]:
         lines.append("Present (strongest first): " + ", ".join(result["present"]))

@@ -225,8 +225,9 @@ def _on_chip_lines(result: dict) -> list[str]:
         return ["", "On the chip: nothing in the ladder is applied on a board ("
                 + ", ".join(on_chip["not_applied"]) + "): a calibration leaves the analytical "
                 "model's error."]
-    lines = ["", "On the chip (what `delta6 calibrate` can leave): the final model refitted "
-             "with the features a board computes from past samples only"
+    lines = ["", "On the chip (a forecast of what `delta6 calibrate` leaves on a run like "
+             "this one): the final model refitted with the features a board computes from "
+             "past samples only"
              + (" (" + "; ".join(f"{n}: {CAUSAL_FORMS[n]}" for n in on_chip["causal_forms"])
                 + ")" if on_chip["causal_forms"] else "")
              + (", without " + ", ".join(on_chip["not_applied"]) + " (not applied on the "
