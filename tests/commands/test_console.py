@@ -11,8 +11,10 @@ import pytest
 from conftest import ROOT
 
 
-def _env() -> dict:
-    return {**os.environ, "PYTHONPATH": str(ROOT / "host")}
+def _python(script: str) -> subprocess.CompletedProcess:
+    """``script`` run by a fresh interpreter that imports this checkout's package."""
+    return subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(ROOT / "host")}, timeout=60)
 
 
 @pytest.mark.parametrize("module", ["numpy", "delta6.core.design"])
@@ -30,8 +32,7 @@ def test_ctrl_c_while_the_command_line_loads_is_one_line(module):
               "from delta6 import console\n"
               "sys.argv = ['delta6', 'info', '--port', 'delta6sim://']\n"
               "sys.exit(console.main())\n")
-    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                          env=_env(), timeout=60)
+    done = _python(script)
     assert done.returncode == 130, done.stderr
     assert done.stderr == "delta6: interrupted (SIGINT)\n"
 
@@ -43,8 +44,7 @@ def test_ctrl_c_after_the_command_finished_still_says_so():
               "atexit.register(lambda: os.kill(os.getpid(), signal.SIGINT) or time.sleep(5))\n"
               "delta6.cli.main = lambda: print('summary') or 0\n"
               "sys.exit(console.main())\n")
-    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                          env=_env(), timeout=60)
+    done = _python(script)
     assert done.returncode == 130
     assert done.stdout == "summary\n"
     assert done.stderr == "delta6: interrupted (SIGINT)\n"
@@ -65,25 +65,22 @@ def test_the_program_ends_with_the_command_not_in_the_interpreter_shutdown():
               "late = Late()\n"
               "delta6.cli.main = lambda: print('summary') or 3\n"
               "sys.exit(console.main())\n")
-    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                          env=_env(), timeout=60)
+    done = _python(script)
     assert (done.returncode, done.stdout, done.stderr) == (3, "summary\n", "")
 
 
 def test_importing_the_package_loads_no_serial_port_library():
     """``import delta6`` runs before the console handles Ctrl-C: it must stay light."""
-    done = subprocess.run([sys.executable, "-c", "import sys, delta6.console\n"
-                           "print(sorted(m for m in sys.modules if m.split('.')[0] in "
-                           "('serial', 'numpy')))"],
-                          capture_output=True, text=True, env=_env(), timeout=60)
+    done = _python("import sys, delta6.console\n"
+                   "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+                   "('serial', 'numpy')))")
     assert done.stdout == "[]\n", done.stderr
 
 
 def test_usage_errors_and_help_keep_their_status():
     """argparse's own exits (2 for a usage error, 0 for --help) pass through the console."""
     for argv, status in ((["delta6", "--no-such-option"], 2), (["delta6", "--help"], 0)):
-        done = subprocess.run([sys.executable, "-c", "import sys\nfrom delta6 import console\n"
-                               f"sys.argv = {argv!r}\nconsole.main()\n"],
-                              capture_output=True, text=True, env=_env(), timeout=60)
+        done = _python(f"import sys\nfrom delta6 import console\nsys.argv = {argv!r}\n"
+                       "console.main()\n")
         assert done.returncode == status, done.stderr
         assert "Traceback" not in done.stderr
