@@ -7,6 +7,7 @@ firmware sees, so results do not depend on how busy the machine is.
 from __future__ import annotations
 
 import math
+import os
 import random
 import time
 
@@ -325,7 +326,11 @@ def test_the_emulator_dies_with_the_program_that_started_it(tmp_path):
               "board = VirtualBoard(speed=1, wait_for_client=False).start()\n"
               "print(board.proc.pid, flush=True)\n"
               "time.sleep(60)\n")
-    parent = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    # The killed program cannot remove its temporary directory (the emulator writes its
+    # statistics there as it ends): keep it under tmp_path, not in the system's /tmp.
+    env = {**os.environ, "TMPDIR": str(tmp_path)}
+    parent = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True,
+                              env=env)
     try:
         emulator = int(parent.stdout.readline())
         assert _alive(emulator)
