@@ -5,11 +5,14 @@ import json
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from delta6.cli import main
 from delta6.core import calibration as C
 from delta6.core import curves
 from delta6.core.design import load as load_design
+from delta6.core.errors import UserError
 from delta6.link.logfile import read_log
 
 from conftest import DESIGNS
@@ -283,13 +286,37 @@ def test_every_kth_sample_fits_the_log_at_a_lower_rate(runs, tmp_path, capsys):
 
 
 def test_a_fit_the_memory_cannot_hold_is_refused_before_the_work():
-    from delta6.commands.calibrate import FIT_BYTES_PER_SAMPLE, check_memory
-    check_memory(100_000, 1, available=100_000 * FIT_BYTES_PER_SAMPLE)     # fits: nothing
+    from delta6.commands.calibrate import check_memory, fit_memory
+    check_memory(100_000, 1, available=fit_memory(100_000))                # fits: nothing
     check_memory(100_000, 1, available=None)                              # unknown: nothing
     with pytest.raises(Exception) as info:
-        check_memory(400_000, 2, available=100_000 * FIT_BYTES_PER_SAMPLE)
+        check_memory(400_000, 2, available=fit_memory(100_000))
     message = str(info.value)
     assert "400000 samples" in message and "--every 8" in message and "\n" not in message
+    # The --every it names fits: the log read at 1/8 of its rate, 50,000 samples.
+    check_memory(50_000, 1, available=fit_memory(100_000))
+    with pytest.raises(Exception) as info:
+        check_memory(100_000, 1, available=fit_memory(0))                 # no room at all
+    assert "too little for any fit" in str(info.value)
+
+
+@given(samples=st.integers(2_000, 10**7), every=st.integers(1, 8),
+       available=st.integers(10**8, 64 * 10**9))
+def test_the_every_a_refusal_names_fits_in_the_memory(samples, every, available):
+    from delta6.commands.calibrate import check_memory, fit_memory
+    try:
+        check_memory(samples, every, available=available)
+    except UserError as exc:
+        text = str(exc)
+        if "--every" not in text:
+            assert "too little for any fit" in text
+            return
+        k = int(text.split("--every ")[1].split()[0])
+        assert k % every == 0 and k > every
+        assert fit_memory(-(-samples // (k // every))) <= available
+        assert fit_memory(-(-samples // (k // every - 1))) > available     # the least
+    else:
+        assert fit_memory(samples) <= available
 
 
 def test_a_log_too_short_after_every_says_so(runs, tmp_path, capsys):

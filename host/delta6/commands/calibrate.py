@@ -115,9 +115,18 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-#: What the fit holds per sample of the log (its columns, the model's response to each
-#: parameter, the held-out copies), measured: 400,000 samples took 7.1 GB, 60,000 1.1 GB.
-FIT_BYTES_PER_SAMPLE = 18_000
+#: What the fit holds: a fixed part (the interpreter, the libraries, the diagnosis's state)
+#: and per sample of the log (its columns, the model's response to each parameter, the
+#: held-out copies). Peak resident memory measured on the paper unit: 20,000 samples 0.55 GB,
+#: 10^5 2.13 GB (19.7 KB a sample beyond 0.16 GB); an outside review: 30,000 1.0 GB, 60,000
+#: 1.31 GB, 400,000 7.1 GB. These bounds hold every one of them.
+FIT_BASE_BYTES = 400_000_000
+FIT_BYTES_PER_SAMPLE = 21_000
+
+
+def fit_memory(samples: int) -> int:
+    """Bytes the fit of a log of ``samples`` samples needs, at most (as measured)."""
+    return FIT_BASE_BYTES + samples * FIT_BYTES_PER_SAMPLE
 
 
 def available_memory() -> int | None:
@@ -136,10 +145,15 @@ def check_memory(samples: int, every: int, available: int | None = None) -> None
     """Refuse, in one line and before the minutes of work, a fit the memory cannot hold (the
     system would kill it halfway)."""
     available = available_memory() if available is None else available
-    need = samples * FIT_BYTES_PER_SAMPLE
+    need = fit_memory(samples)
     if available is None or need <= available:
         return
-    k = every * -(-need // available)
+    fits = (available - FIT_BASE_BYTES) // FIT_BYTES_PER_SAMPLE     # samples that fit
+    if fits < 2000:
+        raise UserError(f"fitting {samples} samples needs about {need / 1e9:.1f} GB of memory "
+                        f"and {available / 1e9:.1f} GB are available: too little for any fit "
+                        "(close other programs)")
+    k = every * -(-samples // fits)         # every k-th sample: ceil(samples / k) <= fits
     raise UserError(f"fitting {samples} samples needs about {need / 1e9:.1f} GB of memory and "
                     f"{available / 1e9:.1f} GB are available: pass --every {k} (the log read "
                     f"at 1/{k} of its rate)")
