@@ -22,7 +22,9 @@ DESCRIPTION = ("Delta6, a low-cost 6-axis force/torque sensor: design reports, f
                "virtual board, the device tools, the digital twin and the gap diagnosis.")
 EPILOG = ("Exit status: 0 done; 2 bad input, an unusable file or port, or a lost device (one "
           "line on stderr says which); 1 a check found a difference (codegen --check); 128+N "
-          "ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP). 'delta6 COMMAND --help' "
+          "ended by signal N (130 Ctrl-C, 143 SIGTERM, 129 SIGHUP), except for log, stream "
+          "and virtual, whose stop is a signal: they end as asked, with status 0. "
+          "'delta6 COMMAND --help' "
           "describes each command; docs/reliability.md the promises.")
 
 

@@ -79,6 +79,11 @@ def test_options_of_the_other_target_are_refused(tmp_path, unit_logs, capsys):
         (["--target", "mcu", "--max-minutes", "1", "-o", str(tmp_path / "a.json")],
          "--max-minutes"),
         (["--target", "mcu", "--threads", "2", "-o", str(tmp_path / "a.json")], "--threads"),
+        # ... also when the value is the host's default: it would be ignored all the same.
+        (["--target", "mcu", "--preset", "default", "-o", str(tmp_path / "a.json")],
+         "--preset"),
+        (["--target", "mcu", "--threads", "1", "-o", str(tmp_path / "a.json")], "--threads"),
+        (["--target", "mcu", "--model", "mlp", "-o", str(tmp_path / "a.json")], "--model"),
     ]
     for options, words in cases:
         capsys.readouterr()
@@ -168,12 +173,15 @@ def test_a_printable_label_passes_the_name_check(tmp_path, capsys, name):
 
 def test_the_default_name_hint_says_what_the_default_is(tmp_path, capsys):
     log = str(tmp_path / "none.csv")
+    # Both commands cut their default to the limit: a long -o names the model or the
+    # calibration fine (the command goes on to the missing log), a blank one does not.
     long = "x" * 30
     assert main(["train", log, "--target", "mcu", "-o", str(tmp_path / f"{long}.json")]) == 2
     err = capsys.readouterr().err.strip()
-    assert "--name" in err and "-o's file name without its extension" in err, err
-    # calibrate cuts its default to the limit: a long -o names the calibration fine, a blank
-    # one does not.
+    assert "--name" not in err and "none.csv" in err, err
+    assert main(["train", log, "--target", "mcu", "-o", str(tmp_path / " .json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--name" in err and "-o's file name without its extension, cut to 23" in err, err
     assert main(["calibrate", log, "-o", str(tmp_path / " .toml")]) == 2
     err = capsys.readouterr().err.strip()
     assert "--name" in err and "-o's file name without .toml, cut to 23" in err, err

@@ -370,7 +370,7 @@ def check_effects(effects) -> None:
         if e in NOT_APPLIED and e != LATENCY:
             raise UserError(f"{e} cannot be corrected on the device: {NOT_APPLIED[e]}")
         if e not in CORRECTED and e != LATENCY:
-            raise UserError(f"unknown effect {e!r} (one of {', '.join(CORRECTED + (LATENCY,))})")
+            raise UserError(f"unknown effect {e!r} (one of {', '.join(CORRECTED)})")
 
 
 def check_rig_latency(value) -> float:

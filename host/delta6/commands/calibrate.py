@@ -34,7 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", metavar="LOG.csv", help="calibration log with t, theta_e1..6, "
                         "Fx..Mz (docs/log-format.md)")
     parser.add_argument("--design", default=str(DEFAULT_DESIGN), metavar="DESIGN.toml",
-                        help="the design the log was recorded with")
+                        help="the design the log was recorded with (default: the paper's, "
+                             "designs/delta6.toml)")
     parser.add_argument("-o", "--output", required=True, metavar="CAL.toml",
                         help="calibration file to write")
     parser.add_argument("--effect", action="append", metavar="NAME",

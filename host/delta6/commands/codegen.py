@@ -24,7 +24,8 @@ NAME = "codegen"
 HELP = ("write the firmware header generated/delta6_design.h for a design, and with "
         "--calibration a unit's generated/delta6_calibration.h and with --model an on-chip "
         "residual's generated/delta6_model.h next to it "
-        "(--build: into build/designs/NAME/ and build the ATmega328P firmware image there), "
+        "(--build: into build/designs/NAME/, NAME-cal-HASH for a calibrated unit and "
+        "+MODEL-HASH with a model, and build the ATmega328P firmware image there), "
         "or with --wire the protocol's generated/delta6_wire.h")
 HEADER_RELPATH = Path("generated") / "delta6_design.h"
 CALIBRATION_HEADER = "delta6_calibration.h"
@@ -42,7 +43,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", metavar="PATH", type=Path,
                         help=f"header to write (default: {_rel(COMMITTED_HEADER)}, the one the "
                              "PlatformIO build uses; with --build: "
-                             "build/designs/NAME/include/generated/delta6_design.h; with --wire: "
+                             "build/designs/NAME/include/generated/delta6_design.h, NAME as "
+                             "above; with --wire: "
                              f"{WIRE_RELPATH})")
     parser.add_argument("--build", action="store_true",
                         help="also build the ATmega328P firmware application for this design "

@@ -38,7 +38,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("log", metavar="LOG.csv", help="log with t, theta_e1..6, Fx..Mz "
                         "(docs/log-format.md)")
     parser.add_argument("--design", default=str(DEFAULT_DESIGN), metavar="DESIGN.toml",
-                        help="the design the log was recorded with")
+                        help="the design the log was recorded with (default: the paper's, "
+                             "designs/delta6.toml)")
     parser.add_argument("--calibration", metavar="CAL.toml",
                         help="also evaluate the calibrated model (delta6 calibrate)")
     parser.add_argument("--model", nargs="+", action="extend", default=[], metavar="M.onnx",

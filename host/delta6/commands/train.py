@@ -37,14 +37,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="host (default): an ONNX estimator for the host; mcu: an int8 "
                              "residual model compiled into the firmware (docs/ondevice-model.md)")
     parser.add_argument("--model", choices=KINDS,
-                        help="network: mlp, lstm, gru or transformer (--target host)")
+                        help="network: mlp, lstm, gru or transformer (required for --target "
+                             "host)")
     parser.add_argument("--residual-over", default="none", metavar="BASE",
                         help="learn only what BASE misses: 'analytical' (the paper's model) "
                              "or a calibration file CAL.toml (delta6 calibrate: the hybrid); "
                              "default: the whole wrench (end-to-end)")
-    parser.add_argument("--preset", choices=tuple(PRESETS), default="default",
+    parser.add_argument("--preset", choices=tuple(PRESETS),
                         help="'paper': the paper's Table IV sizes and recipe (slow on a CPU); "
-                             "'default': small models that train in minutes")
+                             "'default' (the default): small models that train in minutes")
     parser.add_argument("--seed", type=number("--seed", int, 0), default=0,
                         help="seed of the initial weights and the batch order (default 0)")
     parser.add_argument("--epochs", type=number("--epochs", int, 1), metavar="N",
@@ -53,7 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-minutes", type=number("--max-minutes", low=0, low_open=True),
                         metavar="M", help="stop after about M minutes, keeping the best "
                                           "checkpoint so far")
-    parser.add_argument("--threads", type=number("--threads", int, 1), default=1, metavar="N",
+    parser.add_argument("--threads", type=number("--threads", int, 1), metavar="N",
                         help="CPU threads for training (default 1: these networks are small, "
                              "and on a busy machine more threads wait more than they work)")
     parser.add_argument("--hidden", metavar="N[xM]",
@@ -62,17 +63,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "linear map of the counts)")
     parser.add_argument("--name", help=f"--target mcu: model name, at most {MAX_NAME} printable "
                                        "ASCII characters (the board reports it; default: the "
-                                       "output file's name without .json)")
+                                       f"output file's name without .json, cut to {MAX_NAME})")
     parser.add_argument("-o", "--output", required=True, metavar="MODEL.onnx",
                         help="where to write the model (--target mcu: MODEL.json, and the "
                              "float network to MODEL.onnx)")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
 
 
-#: Options of one target that the other would ignore: refused instead.
-HOST_ONLY = (("--preset", lambda a: a.preset != "default"),
+#: Options of one target that the other would ignore: refused instead, whatever their value.
+HOST_ONLY = (("--model", lambda a: a.model is not None),
+             ("--preset", lambda a: a.preset is not None),
              ("--max-minutes", lambda a: a.max_minutes is not None),
-             ("--threads", lambda a: a.threads != 1))
+             ("--threads", lambda a: a.threads is not None))
 MCU_ONLY = (("--hidden", lambda a: a.hidden is not None),
             ("--name", lambda a: a.name is not None))
 
@@ -87,6 +89,8 @@ def _refuse_other_target(args) -> None:
 
 def run(args: argparse.Namespace) -> int:
     _refuse_other_target(args)
+    args.preset = args.preset or "default"
+    args.threads = args.threads or 1
     if args.target == "mcu":
         return run_mcu(args)
     if args.model is None:
@@ -199,17 +203,16 @@ def _mcu_base(args, design):
 def run_mcu(args: argparse.Namespace) -> int:
     """``--target mcu``: fit, quantize and score the integer residual model; write it as JSON
     and its float network as ONNX."""
-    if args.model is not None:
-        raise UserError("--model picks a host network; --target mcu trains its own small MLP "
-                        "(see --hidden)")
     hidden = None if args.hidden is None else _hidden(args.hidden)
     output = Path(args.output)
-    name = output.stem if args.name is None else args.name   # an empty --name is refused
+    # An empty --name is refused; the default is cut as a calibration's is (delta6 calibrate).
+    name = output.stem[:MAX_NAME] if args.name is None else args.name
     problem = label_problem(name)
     if problem:     # before the training, not when the file is written
         raise UserError(f"--name: {problem}" + ("" if args.name is not None else
                                                 " (the default is -o's file name without "
-                                                "its extension)"))
+                                                f"its extension, cut to {MAX_NAME} "
+                                                "characters)"))
     if output.suffix.lower() != ".json":
         raise UserError("-o: the model file is JSON (MODEL.json); the ONNX goes next to it")
     inputs = [args.log, args.design, args.residual_over]
