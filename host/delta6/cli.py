@@ -28,8 +28,15 @@ EPILOG = ("Exit status: 0 done; 2 bad input, an unusable file or port, or a lost
           "describes each command; docs/reliability.md the promises.")
 
 
+class _Parser(argparse.ArgumentParser):
+    """A usage error is one line, as every other error is (the usage is one --help away)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="delta6", description=DESCRIPTION, epilog=EPILOG)
+    parser = _Parser(prog="delta6", description=DESCRIPTION, epilog=EPILOG)
     parser.add_argument("--version", action="version", version=f"delta6 {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in COMMAND_MODULES:

@@ -45,6 +45,8 @@ def broken(log, how):
         out.wrench[:, 3:] *= 1000.0
     elif how == "degrees":
         out.theta = np.degrees(out.theta)
+    elif how == "glitch":
+        out.theta[1234, 0] = 3.0                     # one corrupt row, far outside the box
     return out
 
 
@@ -53,14 +55,25 @@ def broken(log, how):
     ("milliseconds", "t must be in seconds"),
     ("newton-millimetres", "far outside the design's range"),
     ("degrees", "degrees"),
+    ("glitch", "1 sample has an encoder angle far outside the joint box, the first at t ="),
 ])
-@pytest.mark.parametrize("command", ["evaluate", "diagnose"])
+@pytest.mark.parametrize("command", ["evaluate", "diagnose", "calibrate"])
 def test_a_broken_log_is_refused_by_every_command(tmp_path, clean, capsys, how, words,
                                                    command):
     path = write(tmp_path / "bad.csv", broken(clean, how))
-    extra = ["--quiet"] if command == "diagnose" else []
+    extra = {"diagnose": ["--quiet"], "calibrate": ["--quiet", "-o", str(tmp_path / "c.toml")]
+             }.get(command, [])
     assert main([command, str(path), "--design", DESIGN, *extra]) == 2
     assert words in one_line(capsys)
+
+
+def test_a_corrupt_row_removed_reads_as_a_lost_sample(tmp_path, clean, capsys):
+    """What the refusal of a corrupt row advises works: the log without that row is scored."""
+    keep = np.ones(len(clean.t), bool)
+    keep[1234] = False
+    cut = type(clean)(t=clean.t[keep], theta=clean.theta[keep], wrench=clean.wrench[keep])
+    assert main(["evaluate", str(write(tmp_path / "cut.csv", cut)), "--design", DESIGN]) == 0
+    assert "analytical" in capsys.readouterr().out
 
 
 def test_evaluate_scores_a_clean_short_log(tmp_path, clean, capsys):

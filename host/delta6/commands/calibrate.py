@@ -57,7 +57,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="fit on every K-th sample (the log read at 1/K of its rate: a "
                              "long or fast log in less memory; the calibration is defined in "
                              "time, the board applies it at its own rate)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the block bootstrap")
+    parser.add_argument("--seed", type=number("--seed", int, 0), default=0, metavar="N",
+                        help="seed of the block bootstrap (default 0)")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
 

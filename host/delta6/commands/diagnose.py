@@ -8,6 +8,7 @@ import math
 import sys
 from pathlib import Path
 
+from delta6.commands._port import number
 from delta6.core.design import load, shipped_design, shipped_design_named
 from delta6.core.errors import UserError
 from delta6.core.model import AXES
@@ -40,7 +41,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", metavar="OUT.json", help="write the full result as JSON")
     parser.add_argument("--report", metavar="OUT_DIR",
                         help="write a Markdown report with plots into this directory")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the block bootstrap")
+    parser.add_argument("--seed", type=number("--seed", int, 0), default=0, metavar="N",
+                        help="seed of the block bootstrap (default 0)")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
 
 

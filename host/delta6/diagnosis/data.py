@@ -328,6 +328,16 @@ def check_log(log: LogData, design: Design, min_samples: int = MIN_SAMPLES) -> N
             f"{outside.any(axis=1).mean():.0%} of the samples have encoder angles far "
             f"outside the joint box (|theta_e| > {1.5 * limit:.2f} rad): wrong units "
             "(degrees?) or wrong design")
+    if outside.any():
+        # A few: corrupt rows. Scored, they were wrenches where the board reports none (up to
+        # 10^5 % FS); fitted, they bent a calibration. Removed, a row reads as a lost sample.
+        row, joint = (int(v) for v in np.argwhere(outside)[0])
+        n = int(outside.any(axis=1).sum())
+        raise DiagnosisInputError(
+            f"{n} {'sample has' if n == 1 else 'samples have'} an encoder angle far outside the "
+            f"joint box, the first at t = {log.t[row]:g} s: theta_e{joint + 1} = "
+            f"{log.theta[row, joint]:.4g} rad (|theta_e| up to {1.5 * limit:.2f} is accepted): "
+            "corrupt rows (delete them: a missing row reads as a lost sample)")
 
 
 #: A joint whose angle spreads less than this over a log was not moved (or its encoder is
