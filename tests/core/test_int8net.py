@@ -276,6 +276,10 @@ def _set(path, value):
     (_set(["extra"], 1), "unknown key 'extra' in the model"),
     (_set(["network", "layers", 0, "dropout"], 0), "unknown key 'dropout' in layer 1"),
     (_set(["design", "name"], "../x"), "design name"),
+    (lambda d: d["network"]["layers"][0]["weights"][0].__setitem__(0, True),
+     "layer 1 weights must hold integers, not true or false"),
+    (lambda d: d["network"]["layers"][0]["bias"].__setitem__(0, False),
+     "layer 1 bias must hold integers, not true or false"),
     (lambda d: d["network"]["layers"][0]["weights"].pop(), "rows of weights but"),
     (lambda d: d["network"]["layers"][0]["weights"][0].pop(), "rectangular table"),
 ])

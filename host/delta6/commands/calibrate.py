@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from delta6.calibration import calibrate
-from delta6.calibration.fit import check_rig_latency
+from delta6.calibration.fit import check_effects, check_rig_latency
 from delta6.calibration.report import corrected, write_report
 from delta6.commands._port import number
 from delta6.core import calibration as calibration_mod
@@ -76,6 +76,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--effect sensor_latency: the rig's latency is always fitted, never "
                         "corrected on the board; name the effects to correct (--rig-latency "
                         "states a known one)")
+    if args.effect:
+        check_effects(args.effect)                        # before the log is read
     design = load_checked(args.design)
     latency = None if args.rig_latency is None else check_rig_latency(args.rig_latency)
     name = (out.name.removesuffix(".toml")[:NAME_LIMIT] if args.name is None else args.name)

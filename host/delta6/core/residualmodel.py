@@ -161,7 +161,14 @@ def _hex32(value, what: str, source: str) -> int:
         raise ModelFileError(f"{source}: {what} {exc}") from None
 
 
+def _holds_bool(values) -> bool:
+    return isinstance(values, bool) or (isinstance(values, list)
+                                        and any(_holds_bool(v) for v in values))
+
+
 def _ints(values, dtype, what: str, source: str) -> np.ndarray:
+    if _holds_bool(values):     # numpy would read true as 1 beside integers
+        raise ModelFileError(f"{source}: {what} must hold integers, not true or false")
     try:
         array = np.asarray(values)
     except ValueError:      # ragged rows
