@@ -200,5 +200,5 @@ def short_log_notes(t) -> list[str]:
     span = float(t[-1] - t[0]) if len(t) > 1 else 0.0
     if span >= SHORT_LOG_S:
         return []
-    return [f"note: the log covers {span:.0f} s: its held-out figures rest on a few seconds of "
+    return [f"note: the log covers {span:.3g} s: its held-out figures rest on a few seconds of "
             "motion; a calibration wants minutes (200 s calibrate the twin as well as 2000 s)"]
