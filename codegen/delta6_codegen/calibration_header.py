@@ -23,7 +23,7 @@ from .solver_constants import TABLE_STEP, _coarse, f32, solver_constants
 
 #: Must equal delta6::kCalibrationConstantsVersion, kMaxPlayRadii, kMaxSignSpeeds,
 #: kTorqueShift.
-CALIBRATION_VERSION = 5
+CALIBRATION_VERSION = 6
 MAX_RADII = 4
 MAX_SPEEDS = 4
 #: The largest backlash (the whole play, rad) on a gimbal joint the board's turn of the joint
@@ -57,6 +57,7 @@ class CalibrationConstants:
     slope: tuple               # 6 rows of MAX_SPEEDS + 1
     offset: tuple              # 6 rows of MAX_SPEEDS + 1, fixed point
     speed_limit: tuple         # rad/s per joint (a calibration's 0, no limit: 1e30)
+    speed_lead: float          # s: the friction's speed led by its filtered acceleration
     table: tuple               # names of the six tables
     ed: tuple
     eh: tuple
@@ -218,6 +219,7 @@ def calibration_constants(design: Design, cal: Calibration) -> CalibrationConsta
         slope=_padded(slope, MAX_SPEEDS + 1), offset=_padded(offset, MAX_SPEEDS + 1, _q),
         speed_limit=_f(np.where(cal.friction_speed_limit_rad_s > 0,
                                 cal.friction_speed_limit_rad_s, 1e30)),
+        speed_lead=f32(cal.speed_lead_s),
         table=TABLE_NAMES, ed=_f(0.5 * cal.backlash_play_rad / half),
         eh=_f(0.5 * cal.backlash_play_rad),
         elbow=_f(cal.elbow_rad_per_nm),

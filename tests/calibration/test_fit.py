@@ -160,7 +160,7 @@ def test_the_friction_is_held_beyond_the_fastest_speed_its_log_reached(baseline,
     calibration holds it there (a slope fitted on slow motion is not extrapolated); a
     calibration without a friction sets no limit (its hash stays what it was)."""
     log = late_rig[0]
-    model = CalibratedModel(baseline, C.neutral(baseline))
+    model = CalibratedModel(baseline, C.new_settings(baseline))
     dt = sample_period(log.t)
     terms, _ = model.joint_terms(counts_from_angles(log.theta), dt,
                                  periods=periods_between(log.t, dt))
@@ -169,6 +169,8 @@ def test_the_friction_is_held_beyond_the_fastest_speed_its_log_reached(baseline,
     fit = calibrate(unit[1], baseline, effects=["stiffness_mismatch", "encoder_offset"])
     assert not np.any(fit.calibration.friction_speed_limit_rad_s)
     assert "friction_speed_limit_rad_s" not in fit.calibration.canonical()
+    assert "speed_lead_s" not in fit.calibration.canonical()
+    assert late_fit.calibration.speed_lead_s == C.DEFAULT_SPEED_LEAD_S
 
 
 def test_the_held_out_table_holds_the_friction_at_the_training_blocks_speeds(
@@ -192,7 +194,7 @@ def test_the_held_out_table_holds_the_friction_at_the_training_blocks_speeds(
     log = twin.simulate(baseline, [friction], duration_s=120, rate_hz=50, seed=4)
     fit = calibrate(log, baseline, effects=["joint_friction"])
     dt = sample_period(log.t)
-    terms, _ = CalibratedModel(baseline, C.neutral(baseline)).joint_terms(
+    terms, _ = CalibratedModel(baseline, C.new_settings(baseline)).joint_terms(
         counts_from_angles(log.theta), dt, periods=periods_between(log.t, dt))
     speed = np.abs(terms.speed)
     bounds = np.linspace(0, len(log.t), fit_module.N_BLOCKS + 1).astype(int)

@@ -23,7 +23,7 @@ def _random_cal(baseline, rng) -> C.Calibration:
         gimbal_misalignment_rad=r(-0.01, 0.01, 3), elbow_rad_per_nm=r(0, 0.2, 3),
         tilt_rad_per_nm=float(r(0, 0.1)), spring_curvature=r(-0.2, 0.2, (6, 2)),
         encoder_periodic_rad=r(-0.004, 0.004, (6, 8)),
-        friction_speed_limit_rad_s=r(0.0, 3.0, 6),
+        friction_speed_limit_rad_s=r(0.0, 3.0, 6), speed_lead_s=float(r(0.0, 0.05)),
         fit={"log": "cal.csv", "samples": 100, "heldout_before": {"p99_pct": [1.0] * 6}})
 
 
@@ -36,6 +36,7 @@ def test_round_trip_is_exact(baseline, seed):
                  "spring_curvature", "encoder_periodic_rad", "friction_speed_limit_rad_s"):
         np.testing.assert_array_equal(getattr(back, name), getattr(cal, name))
     assert back.tilt_rad_per_nm == cal.tilt_rad_per_nm
+    assert back.speed_lead_s == cal.speed_lead_s
     assert back.fit == cal.fit and back.effects == cal.effects and back.name == "unit-7"
 
 
@@ -59,6 +60,9 @@ def test_later_parameters_are_hashed_only_when_present(baseline):
         value = np.zeros(shape)
         value.flat[3] = 1e-4
         assert cal.with_(**{name: value}).hash32() != cal.hash32()
+    assert cal.with_(speed_lead_s=1e-4).hash32() != cal.hash32()
+    # A new calibration leads its friction's speed; the neutral one stays as it was.
+    assert C.new_settings(baseline, "a").speed_lead_s == C.DEFAULT_SPEED_LEAD_S > 0
 
 
 def test_wrong_design_is_refused(baseline):

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from delta6 import twin
 from delta6.commands.diagnose import summary
 from delta6.core.calibrated import CalibratedModel, periods_between, sample_period
-from delta6.core.calibration import NOT_APPLIED, neutral
+from delta6.core.calibration import NOT_APPLIED, new_settings
 from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.diagnosis import run as run_module
 from delta6.diagnosis import selection, stream
@@ -79,7 +79,7 @@ def test_the_board_speed_is_the_calibrated_models(baseline, n, seed, dt, gaps):
     for g in gaps:
         t[g % n:] += dt * (1 + g % 3)       # rows lost on the link
     step = sample_period(t)
-    model = CalibratedModel(baseline, neutral(baseline))
+    model = CalibratedModel(baseline, new_settings(baseline))
     terms, _ = model.joint_terms(counts, step, periods=periods_between(t, step))
     assert np.allclose(board_speed(counts * ENCODER_COUNT_RAD, t, step), terms.speed,
                        rtol=1e-12, atol=1e-12)

@@ -32,7 +32,9 @@ def random_calibration(design, seed: int, scale: float = 1.0) -> C.Calibration:
         # The friction held beyond a speed on most joints (0: no limit), within the speeds
         # the cross-checks' walks reach.
         friction_speed_limit_rad_s=np.where(rng.random(6) < 0.3, 0.0,
-                                            rng.uniform(0.005, 0.5, 6)))
+                                            rng.uniform(0.005, 0.5, 6)),
+        # A led friction speed on most (a new calibration's 10 ms, or any up to 30 ms).
+        speed_lead_s=float(rng.choice([0.0, C.DEFAULT_SPEED_LEAD_S, rng.uniform(0.0, 0.03)])))
 
 
 def with_curves(cal: C.Calibration, seed: int, spring: bool = True,

@@ -29,7 +29,7 @@ _TYPES = {
     "direction_half": ctypes.c_int16, "radii": ctypes.c_uint8,
     "radius": ctypes.c_int16 * MAX_RADII, "speed_tau": _F, "speeds": ctypes.c_uint8,
     "breakpoint": _F * MAX_SPEEDS, "slope": (_F * (MAX_SPEEDS + 1)) * 6,
-    "offset": (_I * (MAX_SPEEDS + 1)) * 6, "speed_limit": _F * 6,
+    "offset": (_I * (MAX_SPEEDS + 1)) * 6, "speed_limit": _F * 6, "speed_lead": _F,
     "table": _FP * 6, "ed": _F * 6, "eh": _F * 6, "elbow": _F * 3, "ux": _F * 3, "uy": _F * 3, "d": _F * 3,
     "lb_sq": _F * 3, "half_dlb_sq": _F * 3, "gimbal": _F * 3, "tilt": _F, "c": _F,
     "min_det": _F,

@@ -237,7 +237,8 @@ def neutral_like(cal: Calibration) -> Calibration:
     return Calibration(name=cal.name, design_name=cal.design_name, design_hash=cal.design_hash,
                        direction_half_counts=cal.direction_half_counts,
                        hysteresis_radii_counts=radii, hysteresis_nm=np.zeros((6, len(radii))),
-                       speed_filter_s=cal.speed_filter_s, friction_speeds_rad_s=speeds,
+                       speed_filter_s=cal.speed_filter_s, speed_lead_s=cal.speed_lead_s,
+                       friction_speeds_rad_s=speeds,
                        friction_sign_nm=np.zeros((6, len(speeds))))
 
 

@@ -56,7 +56,7 @@ from delta6.core.calibrated import (
     periods_between,
     sample_period,
 )
-from delta6.core.calibration import CORRECTED, NOT_APPLIED, Calibration, neutral
+from delta6.core.calibration import CORRECTED, NOT_APPLIED, Calibration, new_settings
 from delta6.core.design import Design
 from delta6.core.model import AXES
 from delta6.core.errors import UserError
@@ -255,9 +255,10 @@ MAX_SPEED_LIMIT_RAD_S = 100.0
 
 def with_speed_limit(cal: Calibration, reached: np.ndarray) -> Calibration:
     """``cal`` with its friction held beyond the speeds its log ``reached`` (rad/s per joint),
-    when it corrects a friction: a slope fitted on slow motion is not extrapolated to fast."""
+    when it corrects a friction: a slope fitted on slow motion is not extrapolated to fast.
+    Without a friction the speed's lead goes too (it would change nothing but the hash)."""
     if "joint_friction" not in cal.effects:
-        return cal
+        return cal.with_(speed_lead_s=0.0)
     # A joint that never moved holds its friction at rest (0 would mean no limit); the
     # file's bound caps a log's glitches.
     return cal.with_(friction_speed_limit_rad_s=np.clip(np.asarray(reached, dtype=float),
@@ -437,7 +438,7 @@ def calibrate(log, design: Design, *, effects=None, name: str | None = None,
         if effects is not None and LATENCY in effects:
             raise UserError("a stated rig latency is not fitted: drop --effect sensor_latency")
     data = GapData.from_log(log, design)
-    base = settings or neutral(design)
+    base = settings or new_settings(design)
     diagnosis = None
     notes = []
     if effects is None:

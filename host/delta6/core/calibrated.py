@@ -13,7 +13,9 @@ through a few numbers of state per joint (:class:`ModelState`), in one pass per 
    joint speed ``v``, a first-order filtered difference (time constant ``speed_filter_s``);
    the step of a sample that follows lost ones (a failed read, a lost record: ``periods``
    over 1) spans more than a period and is no speed: the speed decays for that sample as if
-   the joint stood still, as the board does after a failed read.
+   the joint stood still, as the board does after a failed read. The friction takes that
+   speed led by ``speed_lead_s`` of its filtered acceleration (``led_speed``: the filtered
+   speed lags the true one at the reversals, where the friction switches).
 2. **angle side**: theta = x * count - offset - e(x) + backlash_play / 2 * d (the link leads
    its encoder by half the play in the direction of motion; e is the encoder's periodic
    error, tabulated over x: ``delta6.core.curves``).
@@ -53,13 +55,14 @@ class ModelState:
     plays: np.ndarray        # (6, R)
     speed: np.ndarray        # (6,)
     last: np.ndarray         # (6,)
+    lead: np.ndarray         # (6,) the speed's lead (rad/s): speed_lead_s x filtered acceleration
 
     @classmethod
     def settled(cls, counts0, radii_count: int) -> "ModelState":
         """At rest at ``counts0``: every play centred on it, no speed."""
         x = np.asarray(counts0, dtype=float)
         return cls(direction2=2.0 * x, plays=np.repeat(x[:, None], radii_count, axis=1),
-                   speed=np.zeros(6), last=x.copy())
+                   speed=np.zeros(6), last=x.copy(), lead=np.zeros(6))
 
 
 @dataclass
@@ -68,7 +71,7 @@ class JointTerms:
     torque: np.ndarray       # (n, 6) joint torques, N*m
     direction: np.ndarray    # (n, 6) in [-1, 1]
     hysteresis: np.ndarray   # (n, 6, R) in [-1, 1]
-    speed: np.ndarray        # (n, 6) rad/s
+    speed: np.ndarray        # (n, 6) rad/s, the friction's (led) speed
 
 
 def counts_from_angles(theta: np.ndarray) -> np.ndarray:
@@ -113,6 +116,32 @@ def filtered_speed(counts: np.ndarray, dt: float, tau: float,
                        np.zeros(x.shape[1]) if speed0 is None else speed0)
 
 
+def lead_filter(tau: float, dt: float) -> tuple[float, float]:
+    """w_n = a w_(n-1) + k (v_n - v_(n-1)): the speed's filtered acceleration (time constant
+    twice the speed filter's, backward Euler as the speed's) per unit of lead, in rad/s per
+    rad/s of speed change and second of lead. Returns (a, k)."""
+    if dt <= 0:
+        return 1.0, 0.0
+    slow = 2.0 * tau
+    a = slow / (slow + dt)
+    return a, (1.0 - a) / dt
+
+
+def led_speed(speed: np.ndarray, dt: float, tau: float, lead: float, before=None,
+              lead0=None) -> tuple[np.ndarray, np.ndarray]:
+    """(the friction's speed, its lead) for filtered speeds ``speed`` (n, j): the speed plus
+    ``lead`` seconds of its filtered acceleration (:func:`lead_filter`), continuing from the
+    speed ``before`` and the lead ``lead0`` of the sample before (default: at rest)."""
+    v = np.asarray(speed, dtype=float)
+    zero = np.zeros(v.shape[1])
+    if lead == 0 or len(v) == 0:
+        return v, np.zeros_like(v)
+    a, k = lead_filter(tau, dt)
+    change = np.diff(v, axis=0, prepend=np.reshape(zero if before is None else before, (1, -1)))
+    w = affine_scan(np.full(v.shape, a), (lead * k) * change, zero if lead0 is None else lead0)
+    return v + w, w
+
+
 def friction_speed(speed: np.ndarray, limit) -> np.ndarray:
     """The speed the friction is evaluated at: ``speed`` (n, 6) held within +-``limit`` (6,)
     where the limit is set (> 0); beyond, the friction stays what it was at the limit."""
@@ -136,8 +165,8 @@ def speeds_beyond_calibration(cal: Calibration, t: np.ndarray, theta: np.ndarray
     if len(t) < 2 or not np.any(limit > 0):
         return []
     dt = sample_period(t)
-    speed = np.abs(filtered_speed(counts_from_angles(theta), dt, cal.speed_filter_s,
-                                  periods_between(t, dt)))
+    v = filtered_speed(counts_from_angles(theta), dt, cal.speed_filter_s, periods_between(t, dt))
+    speed = np.abs(led_speed(v, dt, cal.speed_filter_s, cal.speed_lead_s)[0])
     share = (speed > limit).mean(axis=0)
     return [f"note: joint {j + 1} turned faster than the {limit[j]:.3g} rad/s its calibration "
             f"run reached in {share[j]:.0%} of the log (up to {speed[:, j].max():.3g} rad/s): "
@@ -199,7 +228,9 @@ class CalibratedModel:
         direction = (2.0 * x - y2) / half
         yr = play(x[:, :, None], self.radii, state.plays)
         hysteresis = (x[:, :, None] - yr) / self.radii
-        speed = filtered_speed(x, dt, c.speed_filter_s, periods, state.speed, state.last)
+        filtered = filtered_speed(x, dt, c.speed_filter_s, periods, state.speed, state.last)
+        speed, lead = led_speed(filtered, dt, c.speed_filter_s, c.speed_lead_s, state.speed,
+                                state.lead)
         theta = x * ENCODER_COUNT_RAD - c.offset_rad + 0.5 * c.backlash_play_rad * direction
         # The friction is known up to the speeds its calibration run reached, and held there
         # beyond (a viscous slope fitted on slow motion does not extrapolate).
@@ -219,7 +250,7 @@ class CalibratedModel:
                 theta = theta - curves.interpolate(tables.angle, tables.knots, x) \
                     * 2.0 ** -curves.ANGLE_SHIFT
         after = ModelState(direction2=y2[-1].copy(), plays=yr[-1].copy(),
-                           speed=speed[-1].copy(), last=x[-1].copy())
+                           speed=filtered[-1].copy(), last=x[-1].copy(), lead=lead[-1].copy())
         return JointTerms(theta, torque, direction, hysteresis, speed), after
 
     def wrench_from_terms(self, theta: np.ndarray, torque: np.ndarray) -> np.ndarray:

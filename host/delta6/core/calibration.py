@@ -46,6 +46,10 @@ DEFAULT_HYSTERESIS_RADII = (16, 64, 256)
 DEFAULT_FRICTION_SPEEDS = (0.005, 0.02)
 #: Time constant of the joint-speed filter, s.
 DEFAULT_SPEED_FILTER_S = 0.02
+#: The friction's speed is led by this much of its filtered acceleration, s (new calibrations;
+#: a file without it has none): the filtered speed lags the true one at the reversals, where
+#: the friction switches (docs/calibration.md, "A led speed").
+DEFAULT_SPEED_LEAD_S = 0.01
 #: Half-width of the direction-of-motion detector (backlash, pre-sliding), in half counts:
 #: 3 = 1.5 counts, so +-1 count of encoder flicker does not flip it.
 DEFAULT_DIRECTION_HALF_COUNTS = 3
@@ -95,6 +99,8 @@ class Calibration:
     presliding_nm: np.ndarray = _zeros(6)
     # the friction is known up to the speeds its run reached: beyond, held (0: no limit)
     friction_speed_limit_rad_s: np.ndarray = _zeros(6)
+    # ... at the speed led by this much of its filtered acceleration, s (0: the speed itself)
+    speed_lead_s: float = 0.0
     # geometry, built minus nominal, per branch; the gimbal's rotation vector
     delta_a_mm: np.ndarray = _zeros(3)
     delta_b_mm: np.ndarray = _zeros(3)
@@ -152,7 +158,7 @@ _PARAMETERS = (
     ("hysteresis_radii_counts", "radii"), ("hysteresis_nm", (6, "radii")),
     ("speed_filter_s", ()), ("friction_speeds_rad_s", "speeds"),
     ("friction_sign_nm", (6, "speeds")), ("viscous_nm_s_per_rad", (6,)),
-    ("presliding_nm", (6,)), ("friction_speed_limit_rad_s", (6,)),
+    ("presliding_nm", (6,)), ("friction_speed_limit_rad_s", (6,)), ("speed_lead_s", ()),
     ("delta_a_mm", (3,)), ("delta_b_mm", (3,)), ("delta_la_mm", (3,)), ("delta_lb_mm", (3,)),
     ("delta_azimuth_rad", (3,)), ("delta_rest_angle_rad", (3,)),
     ("gimbal_misalignment_rad", (3,)), ("elbow_rad_per_nm", (3,)), ("tilt_rad_per_nm", ()),
@@ -163,7 +169,8 @@ _PARAMETERS = (
 #: to tabulate them with, so it takes them as written; a curve whose board tables round to
 #: zero is no curve for the model and the board (``curves.curve_tables``), and ``delta6
 #: calibrate`` writes it as zero, so a fitted file hashes as what the board applies.
-_HASHED_WHEN_PRESENT = ("encoder_periodic_rad", "spring_curvature", "friction_speed_limit_rad_s")
+_HASHED_WHEN_PRESENT = ("encoder_periodic_rad", "spring_curvature", "friction_speed_limit_rad_s",
+                        "speed_lead_s")
 
 #: The file's sections: section -> (key in the file, attribute).
 SECTIONS = {
@@ -178,7 +185,8 @@ SECTIONS = {
                  ("sign_nm", "friction_sign_nm"),
                  ("viscous_nm_s_per_rad", "viscous_nm_s_per_rad"),
                  ("presliding_nm", "presliding_nm"),
-                 ("speed_limit_rad_s", "friction_speed_limit_rad_s")),
+                 ("speed_limit_rad_s", "friction_speed_limit_rad_s"),
+                 ("speed_lead_s", "speed_lead_s")),
     "geometry": (("delta_a_mm", "delta_a_mm"), ("delta_b_mm", "delta_b_mm"),
                  ("delta_la_mm", "delta_la_mm"), ("delta_lb_mm", "delta_lb_mm"),
                  ("delta_azimuth_rad", "delta_azimuth_rad"),
@@ -194,7 +202,7 @@ _BOUNDS = {
     "delta_rest_angle_rad": 0.1, "gimbal_misalignment_rad": 0.1, "elbow_rad_per_nm": 1.0,
     "tilt_rad_per_nm": 1.0, "hysteresis_nm": 0.5, "friction_sign_nm": 0.5,
     "viscous_nm_s_per_rad": 1.0, "presliding_nm": 0.5, "encoder_periodic_rad": 0.1,
-    "spring_curvature": 2.0, "friction_speed_limit_rad_s": 100.0,
+    "spring_curvature": 2.0, "friction_speed_limit_rad_s": 100.0, "speed_lead_s": 0.1,
 }
 
 
@@ -202,6 +210,12 @@ def neutral(design, name: str | None = None) -> Calibration:
     """The calibration that changes nothing (the analytical model) for ``design``."""
     return Calibration(name=name or f"{design.name}-none"[:NAME_LIMIT], design_name=design.name,
                        design_hash=design.hash32())
+
+
+def new_settings(design, name: str | None = None) -> Calibration:
+    """What a new calibration of ``design`` starts from: the neutral one, with the friction's
+    speed led (``DEFAULT_SPEED_LEAD_S``)."""
+    return neutral(design, name).with_(speed_lead_s=DEFAULT_SPEED_LEAD_S)
 
 
 # -- validation ------------------------------------------------------------------------------
@@ -264,6 +278,8 @@ def validate(cal: Calibration, source: str | None = None) -> Calibration:
         changes[name_] = value if dims else float(value)
     if np.any(changes["friction_speed_limit_rad_s"] < 0):
         _fail(source, "friction.speed_limit_rad_s", "must be >= 0 rad/s (0: no limit)")
+    if changes["speed_lead_s"] < 0:
+        _fail(source, "friction.speed_lead_s", "must be >= 0 s (0: no lead)")
     ratio = changes["rate_ratio"]
     if np.any(ratio < 0.5) or np.any(ratio > 2.0):
         _fail(source, "spring.rate_ratio", "must lie in 0.5..2 (true / nominal spring rate)")
@@ -388,7 +404,7 @@ def loads(text: str, source: str | None = None) -> Calibration:
             elif attr == "friction_speeds_rad_s":
                 value = tuple(float(v) if isinstance(v, (int, float)) and not isinstance(v, bool)
                               else v for v in value) if isinstance(value, list) else value
-            elif attr in ("speed_filter_s", "tilt_rad_per_nm"):
+            elif attr in ("speed_filter_s", "tilt_rad_per_nm", "speed_lead_s"):
                 if isinstance(value, bool) or not isinstance(value, (int, float)):
                     _fail(source, f"{section}.{key}", "must be a number")
                 value = float(value)

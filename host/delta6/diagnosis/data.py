@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from delta6.core.calibrated import filtered_speed, periods_between
-from delta6.core.calibration import DEFAULT_SPEED_FILTER_S
+from delta6.core.calibrated import filtered_speed, led_speed, periods_between
+from delta6.core.calibration import DEFAULT_SPEED_FILTER_S, DEFAULT_SPEED_LEAD_S
 from delta6.core.design import Design
 from delta6.core.errors import UserError
 from delta6.core.model import AXES, ENCODER_COUNT_RAD, Params, forward_kinematics, wrench
@@ -254,10 +254,12 @@ class GapData:
 
 
 def board_speed(theta: np.ndarray, t: np.ndarray, step: float) -> np.ndarray:
-    """The joint speed a board computes from the counts, rad/s: the calibrated model's
-    filtered difference with its default time constant; no speed across lost samples."""
-    return filtered_speed(theta / ENCODER_COUNT_RAD, step, DEFAULT_SPEED_FILTER_S,
-                          periods_between(t, step))
+    """The joint speed a board's friction takes from the counts, rad/s: the calibrated
+    model's filtered difference and its lead, with a new calibration's settings; no speed
+    across lost samples."""
+    v = filtered_speed(theta / ENCODER_COUNT_RAD, step, DEFAULT_SPEED_FILTER_S,
+                       periods_between(t, step))
+    return led_speed(v, step, DEFAULT_SPEED_FILTER_S, DEFAULT_SPEED_LEAD_S)[0]
 
 
 def _stated_rate_hz(meta: dict) -> float | None:

@@ -159,6 +159,8 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
     const uint8_t speeds = flash::byte(&cc.speeds);
     const int16_t half = flash::i16(&cc.direction_half);
     const float speed_a = st.speed_a, speed_g = st.speed_g;
+    const float lead_a = st.lead_a, lead_k = st.lead_k;
+    const bool led = (fastmath::bits_of(lead_k) & 0x7FFFFFFFul) != 0;
     const bool after_gap = st.after_gap != 0;   // this sample's step is no speed
     for (uint8_t j = 0; j < 6; ++j) {
         const int16_t x = delta[j];
@@ -214,7 +216,8 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
         // A joint standing still (often, at the board's rates) costs one multiply, not three;
         // a step of a few counts, one multiply and one addition: g times the step comes from
         // the state's table (the same float product, computed when the period was set).
-        float v = speed_a * st.speed[j];
+        const float before = st.speed[j];
+        float v = speed_a * before;
         if (step != 0 && !after_gap) {
             const uint16_t size = static_cast<uint16_t>(step < 0 ? -step : step);
             const float g = size <= kSpeedSteps ? st.speed_step[size - 1]
@@ -223,6 +226,12 @@ DELTA6_NOINLINE void joint_torques(const CalibrationConstants& cc, CalibrationSt
         }
         st.speed[j] = v;
         st.last[j] = x;
+        if (led) {
+            // The friction's speed: v led by its filtered acceleration (two multiplies).
+            const float w = lead_a * st.lead[j] + lead_k * (v - before);
+            st.lead[j] = w;
+            v += w;
+        }
         // Friction: at the speed held within the calibration's limit, the segment of |v|
         // among the breakpoints; its offset joins the int32 sum, its slope takes one multiply.
         float av = absf(v);
@@ -402,11 +411,17 @@ void calibration_set_period(const CalibrationConstants& c, float period_s,
     if (!(period_s > 0.0f)) {
         s.speed_a = 1.0f;
         s.speed_g = 0.0f;
+        s.lead_a = 1.0f;
+        s.lead_k = 0.0f;
         for (uint8_t k = 0; k < kSpeedSteps; ++k) s.speed_step[k] = 0.0f;
         return;
     }
     s.speed_a = tau / (tau + period_s);
     s.speed_g = (1.0f - s.speed_a) * kCountRad / period_s;
+    // The acceleration's filter: twice the speed's time constant (delta6.core.calibrated).
+    const float slow = 2.0f * tau;
+    s.lead_a = slow / (slow + period_s);
+    s.lead_k = (1.0f - s.lead_a) * flash_float(&c.speed_lead) / period_s;
     for (uint8_t k = 0; k < kSpeedSteps; ++k) {
         s.speed_step[k] = s.speed_g * static_cast<float>(k + 1);
     }
@@ -423,6 +438,7 @@ DELTA6_NOINLINE DELTA6_FOR_SIZE void start_settled(const CalibrationConstants& c
         st.direction2[j] = static_cast<int16_t>(2 * delta[j]);
         for (uint8_t r = 0; r < kMaxPlayRadii; ++r) st.play[j][r] = delta[j];
         st.speed[j] = 0.0f;
+        st.lead[j] = 0.0f;
         st.count_sum[j] = wrapping_add(wrapping_mul(flash::i32(&cc.kx[j]), delta[j]),
                                        flash::i32(&cc.k0[j]));
     }

@@ -31,7 +31,7 @@ constexpr uint8_t kMaxSignSpeeds = 4;
 // The torque's count terms are summed in int32, in units of 2^-kTorqueShift N*m.
 constexpr uint8_t kTorqueShift = 28;
 // Bumped whenever CalibrationConstants changes shape; the generated header checks it.
-constexpr uint16_t kCalibrationConstantsVersion = 5;
+constexpr uint16_t kCalibrationConstantsVersion = 6;
 
 struct CalibrationConstants {
     // Torque of joint j, with x its count, y_r its plays and y2 its direction play (half
@@ -55,6 +55,9 @@ struct CalibrationConstants {
     // The friction is known up to the speeds its calibration run reached: |v| is held
     // within speed_limit (rad/s; 1e30 where the calibration sets none).
     float speed_limit[6];
+    // ... at the speed led by speed_lead s of its filtered acceleration (0: no lead, and no
+    // cycles spent on it): the filtered speed lags the true one where the friction switches.
+    float speed_lead;
     // The angles: the coarse tables (flash, as the solver's) hold each joint's constant
     // correction (branches: la_i and the rest angle; all: minus the encoder offset); the part
     // that varies is ed (2x - y2) (backlash), plus elbow * tau on the branches (compliance).
@@ -88,6 +91,8 @@ struct CalibrationState {
     int32_t count_sum[6];
     float speed[6];                    // rad/s
     float speed_a, speed_g;            // v = a v + g (x - last): from the sample period
+    float lead[6];                     // rad/s: speed_lead x the filtered acceleration
+    float lead_a, lead_k;              // lead = a lead + k (v - v_before); k = 0: no lead
     float speed_step[kSpeedSteps];     // g * k for k = 1..kSpeedSteps (the same products)
 };
 
