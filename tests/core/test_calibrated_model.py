@@ -34,7 +34,8 @@ def _busy(baseline) -> C.Calibration:
         delta_azimuth_rad=rng.uniform(-0.01, 0.01, 3),
         delta_rest_angle_rad=rng.uniform(-0.01, 0.01, 3),
         gimbal_misalignment_rad=rng.uniform(-0.01, 0.01, 3),
-        elbow_rad_per_nm=rng.uniform(0, 0.15, 3), tilt_rad_per_nm=0.08)
+        elbow_rad_per_nm=rng.uniform(0, 0.15, 3), tilt_rad_per_nm=0.08,
+        speed_lead_s=C.DEFAULT_SPEED_LEAD_S)
 
 
 def test_neutral_calibration_is_the_analytical_model(baseline):
@@ -57,6 +58,28 @@ def test_a_stream_fed_in_pieces_equals_the_whole_run(baseline, cuts):
             pieces.append(w)
     np.testing.assert_allclose(np.concatenate(pieces), whole, rtol=0, atol=1e-12)
     np.testing.assert_allclose(state.plays, end.plays, atol=0)
+    np.testing.assert_allclose(state.lead, end.lead, rtol=0, atol=1e-12)
+
+
+@settings(max_examples=40)
+@given(st.integers(1, 60), st.integers(0, 2**32 - 1), st.sampled_from([0.002, 0.004, 0.02]),
+       st.floats(0.0, 0.05), st.floats(0.005, 0.1))
+def test_the_led_speed_is_the_speed_plus_its_filtered_acceleration(n, seed, dt, lead, tau):
+    """Written out sample by sample: w = a w + (1 - a) / dt (v - v_before) * lead, with the
+    acceleration filtered over twice the speed's time constant; the friction's speed v + w."""
+    from delta6.core.calibrated import led_speed
+    rng = np.random.default_rng(seed)
+    v = rng.normal(0.0, 0.3, (n, 6))
+    got, w_got = led_speed(v, dt, tau, lead)
+    a = 2 * tau / (2 * tau + dt)
+    w, before = np.zeros(6), np.zeros(6)
+    for i in range(n):
+        w = a * w + (1 - a) / dt * (v[i] - before) * lead
+        before = v[i]
+        np.testing.assert_allclose(got[i], v[i] + w, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(w_got[i], w, rtol=1e-12, atol=1e-12)
+    if lead == 0:
+        assert np.array_equal(got, v)
 
 
 @given(st.integers(1, 598), st.integers(-40, 40))
@@ -164,3 +187,21 @@ def test_the_friction_is_held_beyond_its_speed_limit(baseline, steps, fraction, 
     low = cal.with_(friction_speed_limit_rad_s=np.full(6, 0.003))
     held = 0.003 * 0.003 / 0.005 + 0.003 * 0.003 / 0.02 + 0.004 * 0.003
     assert friction(low, -steps) == pytest.approx(-held, rel=1e-9)
+
+
+def test_a_led_speed_turns_before_the_filtered_one_at_a_reversal(baseline):
+    """Why the lead: a joint decelerating through a reversal (counts on a parabola); the
+    filtered speed changes sign after the true speed, the led one closer to it."""
+    dt = 0.004
+    t = np.arange(500) * dt
+    true_speed = 2.0 - 8.0 * t                              # rad/s, turns at t = 0.25 s
+    counts = np.round((2.0 * t - 4.0 * t ** 2) / ENCODER_COUNT_RAD)
+    x = np.repeat(counts[:, None], 6, axis=1)
+    turn = {}
+    for lead in (0.0, C.DEFAULT_SPEED_LEAD_S):
+        cal = C.neutral(baseline).with_(speed_lead_s=lead)
+        terms, _ = CalibratedModel(baseline, cal).joint_terms(x, dt)
+        turn[lead] = t[np.argmax(terms.speed[:, 0] < 0)]
+    assert 0.25 < turn[C.DEFAULT_SPEED_LEAD_S] < turn[0.0]
+    assert turn[0.0] - turn[C.DEFAULT_SPEED_LEAD_S] > 0.5 * C.DEFAULT_SPEED_LEAD_S
+    assert np.argmax(true_speed < 0) * dt < turn[C.DEFAULT_SPEED_LEAD_S]

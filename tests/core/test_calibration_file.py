@@ -169,3 +169,10 @@ def test_a_calibration_name_is_a_printable_label(good_text, name, ok):
         with pytest.raises(C.CalibrationError, match="name") as info:
             C.loads(text, "cal.toml")
         assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("value, why", [(-0.01, "must be >= 0"), (0.5, "at most 0.1"),
+                                        (float("nan"), "finite")])
+def test_the_speed_lead_is_a_short_time(baseline, value, why):
+    with pytest.raises(C.CalibrationError, match=f"friction.speed_lead_s.*{why}"):
+        C.validate(C.neutral(baseline).with_(speed_lead_s=value), "cal.toml")
