@@ -1,17 +1,16 @@
-"""What a led joint speed would buy the friction on the chip: the figures behind
-docs/calibration.md's "Limits of a causal correction", "A led speed".
+"""What the friction's led speed buys on the chip: the figures behind docs/calibration.md's
+"Limits of a causal correction", "A led speed".
 
     .venv/bin/python tools/study_speed_lead.py                     # ~15 min
     .venv/bin/python tools/study_speed_lead.py --leads 0,0.02 --seeds 4 --no-paper
 
 The board's joint speed is a filtered count difference (``core.calibrated.filtered_speed``):
 it lags the true speed, and a friction that switches with the sign of the true speed is
-switched late. This study replaces that speed, in the two places it is computed (the
-calibrated model and the diagnosis's causal view, so the on-chip prediction follows), by the
-same speed led by ``lead`` seconds of its filtered acceleration (time constant ``--accel-tau``),
-then calibrates each unit on 2000 s (seed s) and scores it on 600 s of the same unit (seed
-s + 1): the calibrated p99 against the diagnosis's on-chip prediction, per axis.
-The firmware does not apply a led speed: this says whether it should.
+switched late. The calibrated model leads the friction's speed by ``speed_lead_s`` of its
+filtered acceleration (``core.calibrated.led_speed``; 10 ms in a new calibration). This study
+calibrates each unit with other leads (the calibration's setting, and the diagnosis's causal
+view with it, so the on-chip prediction follows) on 2000 s (seed s) and scores it on 600 s of
+the same unit (seed s + 1): the calibrated p99 against the diagnosis's on-chip prediction.
 """
 from __future__ import annotations
 
@@ -20,41 +19,27 @@ import sys
 
 import numpy as np
 
-import delta6.core.calibrated as calibrated_mod
 import delta6.diagnosis.data as data_mod
 from delta6 import twin
 from delta6.calibration import calibrate
 from delta6.core import accuracy
-from delta6.core.operators import affine_scan
+from delta6.core.calibrated import CalibratedModel
+from delta6.core.calibration import new_settings
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.spec import full_scale
 from delta6.core.workspace import load_checked
 
-BOARD_SPEED = calibrated_mod.filtered_speed
 
-
-def use_lead(lead_s: float, accel_tau_s: float) -> None:
-    """The board's speed from now on: led by ``lead_s`` of its filtered acceleration."""
-    def led(counts, dt, tau, periods=None, speed0=None, last=None):
-        v = BOARD_SPEED(counts, dt, tau, periods, speed0, last)
-        if lead_s == 0:
-            return v
-        a = np.exp(-dt / accel_tau_s)
-        change = np.diff(v, axis=0, prepend=v[:1]) / dt
-        return v + lead_s * affine_scan(np.full(v.shape, a), (1 - a) * change,
-                                        np.zeros(v.shape[1]))
-    calibrated_mod.filtered_speed = led
-    data_mod.filtered_speed = led
-
-
-def case(design, scenario: str, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def case(design, scenario: str, seed: int, lead: float) -> tuple[np.ndarray, np.ndarray]:
     """(on-chip prediction, calibrated p99 on the unseen run), % FS per axis."""
+    # The diagnosis predicts for the lead a new calibration takes: this study's.
+    data_mod.DEFAULT_SPEED_LEAD_S = lead
     effects = twin.scenario_effects(scenario, seed=seed)
     run = twin.simulate(design, effects, duration_s=2000, rate_hz=50, seed=seed,
                         scenario=scenario)
-    fit = calibrate(run, design)
+    fit = calibrate(run, design, settings=new_settings(design).with_(speed_lead_s=lead))
     check = twin.simulate(duration_s=600, rate_hz=50, **twin.same_unit(run.truth, seed + 1))
-    model = calibrated_mod.CalibratedModel(design, fit.calibration)
+    model = CalibratedModel(design, fit.calibration)
     got = accuracy.percentiles(model.predict(check), check.wrench, full_scale(design),
                                (99,))["p99"]
     return np.asarray(fit.diagnosis["on_chip"]["heldout_p99_pct"]), np.asarray(got)
@@ -63,7 +48,6 @@ def case(design, scenario: str, seed: int) -> tuple[np.ndarray, np.ndarray]:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--leads", default="0,0.01,0.02", help="lead times, s (comma list)")
-    parser.add_argument("--accel-tau", type=float, default=0.04, metavar="S")
     parser.add_argument("--seeds", type=int, default=4, help="friction units 1..N")
     parser.add_argument("--no-paper", action="store_true", help="skip the paper unit")
     args = parser.parse_args(argv)
@@ -74,9 +58,8 @@ def main(argv=None) -> int:
     print("| unit | seed | lead, ms | on-chip prediction p99 | calibrated p99, unseen run "
           "| worst ratio |\n|---|---|---|---|---|---|")
     for lead in (float(v) for v in args.leads.split(",")):
-        use_lead(lead, args.accel_tau)
         for scenario, seed in cases:
-            predicted, got = case(design, scenario, seed)
+            predicted, got = case(design, scenario, seed, lead)
             print(f"| {scenario} | {seed} | {1e3 * lead:g} | "
                   + " ".join(f"{v:.2f}" for v in predicted) + " | "
                   + " ".join(f"{v:.2f}" for v in got) + f" | {np.max(got / predicted):.2f} |",

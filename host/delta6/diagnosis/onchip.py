@@ -4,7 +4,7 @@ features a board can compute, and only the part a board applies.
 The diagnosis explains a log offline: its friction sees the joint speed from a centred fit (two
 samples of the future) and its backlash places each reversal across the dwell before the encoder
 moved again (a look-ahead). A board has neither: it knows the speed from past counts (a filtered
-difference) and a reversal once the encoder shows it. And some effects are not applied on the
+difference, led by its filtered acceleration) and a reversal once the encoder shows it. And some effects are not applied on the
 board at all (``delta6.core.calibration.NOT_APPLIED``: the rig's latency, a thermal drift, a
 harness): they are fitted with the rest, so the others are not biased by them, and left in the
 error. The held-out p99 of that prediction, with the diagnosis's own folds, is the diagnosis's
@@ -23,8 +23,8 @@ from delta6.diagnosis.data import GapData
 
 #: The families whose features a board computes differently (the others are causal already).
 CAUSAL_FORMS = {
-    "joint_friction": "the joint speed from past counts (a filtered difference), not a "
-                      "centred fit",
+    "joint_friction": "the joint speed from past counts (a filtered difference led by its "
+                      "filtered acceleration), not a centred fit",
     "backlash": "each reversal once the encoder shows it, not spread over the dwell before",
 }
 
