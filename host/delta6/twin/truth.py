@@ -154,14 +154,14 @@ def _replay_arguments(truth: dict) -> dict:
     if not isinstance(temperature, dict):
         raise FieldError("temperature", f"takes a mapping, got {temperature!r}")
     temp = {k: v for k, v in temperature.items() if k != "recorded"}
+    record, measured = truth["design"], truth["measurement"]
     with _field("design", sep=": "):
-        record = truth["design"]
         design = validate({"name": record["name"], **record["parameters"]})
         check_solvable(design)
     with _field("measurement"):
-        measurement = Measurement.from_dict(truth["measurement"])
+        measurement = Measurement.from_dict(measured)
     scenario = truth["scenario"]
-    if scenario is not None and not isinstance(scenario, str):
+    if scenario is not None and not isinstance(scenario, str):   # a label: any text
         raise FieldError("scenario", f"takes a name or null, got {scenario!r}")
     return {
         "design": design,
