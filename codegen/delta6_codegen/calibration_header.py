@@ -18,7 +18,7 @@ from delta6.core.design import Design
 from delta6.core.errors import UserError
 from delta6.core.model import ENCODER_COUNT_RAD, NOMINAL_PHI
 
-from .design_header import _table, c_float, c_string
+from .design_header import GENERATED_MARKER, _table, c_float, c_string
 from .solver_constants import TABLE_STEP, _coarse, f32, solver_constants
 
 #: Must equal delta6::kCalibrationConstantsVersion, kMaxPlayRadii, kMaxSignSpeeds,
@@ -252,7 +252,7 @@ def render(design: Design, cal: Calibration, design_label: str, calibration_labe
     k = calibration_constants(design, cal)
     command = command or f"{COMMAND} {design_label} --calibration {calibration_label}"
     lines = [
-        "// GENERATED FILE - DO NOT EDIT.",
+        GENERATED_MARKER,
         f"// Written by `{command}`",
         f"// from the calibration file {calibration_label}. The firmware applies this unit's",
         "// calibration when this header sits next to delta6_design.h; `delta6 codegen` without",

@@ -14,6 +14,9 @@ from delta6.core.spec import full_scale
 from .solver_constants import CONSTANTS_VERSION, TABLE_STEP, SolverConstants, f32, solver_constants
 
 COMMAND = "delta6 codegen"
+#: The first line of every header delta6 codegen writes: what it may replace or remove (a
+#: header without it is someone's own, never touched).
+GENERATED_MARKER = "// GENERATED FILE - DO NOT EDIT."
 LINE_LIMIT = 100
 
 
@@ -76,7 +79,7 @@ def render(design: Design, source_label: str, constants: SolverConstants | None 
         regenerate = ["// Regenerate with that command. Values are SI units rounded to float32",
                       "// (codegen/delta6_codegen/)."]
     lines = [
-        "// GENERATED FILE - DO NOT EDIT.",
+        GENERATED_MARKER,
         f"// Written by `{command}` from the design file {source_label}.",
         *regenerate,
         "#ifndef DELTA6_GENERATED_DESIGN_H",

@@ -12,7 +12,7 @@ import numpy as np
 from delta6.core.int8net import FEATURE_KINDS, MAX_STRIDE, MAX_WIDTH
 from delta6.core.residualmodel import ResidualModel
 
-from .design_header import c_float, c_string
+from .design_header import GENERATED_MARKER, c_float, c_string
 
 COMMAND = "delta6 codegen"
 #: Must equal delta6::residual::kModelFormatVersion (the header static_asserts it).
@@ -39,7 +39,7 @@ def render_model(model: ResidualModel, design_label: str, model_label: str,
     cal = (f"0x{model.calibration_hash:08X}UL" if model.calibration_hash is not None else "0UL")
     command = command or f"{COMMAND} {design_label} --model {model_label}"
     lines = [
-        "// GENERATED FILE - DO NOT EDIT.",
+        GENERATED_MARKER,
         f"// Written by `{command}` from the model file",
         f"// {model_label}. Without --model the file is removed and the firmware has no residual.",
         "#ifndef DELTA6_GENERATED_MODEL_H",

@@ -15,7 +15,7 @@ from delta6.link import protocol as P
 from delta6.link import wirescale
 from delta6.link.layout import Layout
 
-from .design_header import c_float
+from .design_header import GENERATED_MARKER, c_float
 
 COMMAND = "delta6 codegen --wire"
 #: Where the header lives, relative to the repository root.
@@ -149,7 +149,7 @@ def render_wire() -> str:
     """The text of generated/delta6_wire.h."""
     budget = P.LINK_BUDGET
     lines = [
-        "// GENERATED FILE - DO NOT EDIT.",
+        GENERATED_MARKER,
         f"// Written by `{COMMAND}` from delta6.link.protocol and delta6.link.wirescale",
         "// (host/delta6/link/). Regenerate with that command; tests/firmware/test_codegen.py fails",
         "// when this file is out of date. docs/protocol.md explains every number.",

@@ -71,6 +71,9 @@ def test_list_needs_no_output(capsys):
     (["--seed", "x"], "--seed takes a whole number"),
     (["--duration", "0"], "fewer than 2 samples"),
     (["--rate", "nan"], "--rate must be"),
+    (["--duration", "inf"], "--duration must be a finite number, got inf"),
+    # A slower log's sample step reads as milliseconds to every reader: not written at all.
+    (["--rate", "0.7"], "--rate must be at least 1 Hz"),
     (["--random"], "give at least one --effect"),
     (["--design", "nowhere.toml"], "no such file"),
 ])
@@ -80,6 +83,23 @@ def test_bad_arguments_get_one_line_and_status_2(tmp_path, capsys, args, message
     assert len(err) == 1 and err[0].startswith("delta6 simulate: error:")
     assert message in err[0]
     assert not (tmp_path / "run.csv").exists()
+
+
+def test_an_existing_log_or_truth_is_replaced_only_with_force(tmp_path, capsys):
+    # A rig log of that name is not regenerable: refused before any work, as delta6 log does.
+    log, truth = tmp_path / "run.csv", tmp_path / "run.truth.json"
+    log.write_text("a rig's recording\n")
+    assert simulate(tmp_path) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and f"-o {log} exists" in err and "--force" in err, err
+    assert log.read_text() == "a rig's recording\n" and not truth.exists()
+    log.unlink()
+    truth.write_text("{}")
+    assert simulate(tmp_path) == 2
+    assert f"-o {truth} exists" in capsys.readouterr().err
+    assert not log.exists() and truth.read_text() == "{}"
+    assert simulate(tmp_path, "--force") == 0
+    assert len(read_log(log)) == 500 and json.loads(truth.read_text())["samples"] == 500
 
 
 def test_missing_output_and_bad_directory(tmp_path, capsys):

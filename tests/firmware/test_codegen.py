@@ -374,3 +374,61 @@ def test_calibration_and_model_names_are_labels_the_headers_hold_exactly(tmp_pat
                    check=True)
     out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
     assert out == f"{name}\n{name}\n"
+
+
+# --- what codegen replaces or removes ------------------------------------------------------
+
+@pytest.mark.parametrize("name", ["delta6_calibration.h", "delta6_model.h"])
+def test_a_design_header_named_as_a_companion_is_refused(tmp_path, capsys, name):
+    """Written there, it was then removed as a stale calibration header (exit 0, an empty
+    folder), or replaced by the calibration's or the model's header."""
+    from support.onchip import calibration_and_model
+    _, cal_path, _, model_path = calibration_and_model(load(DESIGNS / "delta6.toml"), tmp_path)
+    out = tmp_path / "out" / name
+    out.parent.mkdir()
+    for extra in ([], ["--calibration", str(cal_path), "--model", str(model_path)]):
+        capsys.readouterr()
+        assert main(["codegen", str(DESIGNS / "delta6.toml"), "-o", str(out), *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "name the design header otherwise" in err, err
+        assert list(out.parent.iterdir()) == []
+
+
+def test_headers_codegen_did_not_write_are_neither_replaced_nor_removed(tmp_path, capsys):
+    """A hand-written delta6_calibration.h or delta6_model.h next to the design header (the
+    firmware compiles it in when present) was deleted; one at -o was overwritten. Refused
+    before the first write; generated ones are replaced and removed as before."""
+    from delta6.core import calibration as calibration_mod
+    cal_path = calibration_mod.save(
+        calibration_mod.neutral(load(DESIGNS / "delta6.toml"), name="unit-7"),
+        tmp_path / "unit.toml")
+    folder = tmp_path / "generated"
+    folder.mkdir()
+    out = folder / "d.h"
+    for mine, extra in (("delta6_calibration.h", []), ("delta6_model.h", []),
+                        ("delta6_calibration.h", ["--calibration", str(cal_path)]),
+                        ("d.h", [])):
+        (folder / mine).write_text("// my own header\n#define MINE 1\n")
+        capsys.readouterr()
+        assert main(["codegen", str(DESIGNS / "delta6.toml"), "-o", str(out), *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "not a header delta6 codegen wrote" in err, err
+        assert sorted(p.name for p in folder.iterdir()) == [mine]
+        assert (folder / mine).read_text().startswith("// my own header")
+        (folder / mine).unlink()
+    assert main(["codegen", str(DESIGNS / "delta6.toml"), "--calibration", str(cal_path),
+                 "-o", str(out)]) == 0
+    assert sorted(p.name for p in folder.iterdir()) == ["d.h", "delta6_calibration.h"]
+    assert main(["codegen", str(DESIGNS / "delta6.toml"), "-o", str(out)]) == 0
+    assert "removed" in capsys.readouterr().out
+    assert sorted(p.name for p in folder.iterdir()) == ["d.h"]
+    wire = tmp_path / "wire.h"
+    wire.write_text("// mine\n")
+    assert main(["codegen", "--wire", "-o", str(wire)]) == 2
+    assert wire.read_text() == "// mine\n"
+
+
+def test_every_header_starts_with_the_generated_marker(baseline):
+    from delta6_codegen import GENERATED_MARKER
+    assert render(baseline, "designs/delta6.toml").startswith(GENERATED_MARKER + "\n")
+    assert render_wire().startswith(GENERATED_MARKER + "\n")

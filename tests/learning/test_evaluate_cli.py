@@ -95,3 +95,55 @@ def test_a_log_partly_at_another_rate_gets_a_note(tmp_path, tiny_models, unit_lo
         err = capsys.readouterr().err
         assert ("of the log's time steps are more than 25% away from its median step" in err) \
             == noted, err
+
+
+def test_outputs_that_would_be_lost_are_refused_before_the_work(tmp_path, capsys):
+    """A plot without a suffix (matplotlib wrote NAME.png, a file no check saw), --json and
+    --plot on one file (the plot replaced the table), and a --json over a file of another
+    kind (a twin's truth file); the command's own earlier table is replaced."""
+    log = tmp_path / "run.csv"
+    assert main(["simulate", "--duration", "10", "-o", str(log)]) == 0
+    truth = tmp_path / "run.truth.json"
+    kept = truth.read_bytes()
+    for argv, words in (
+            (["--plot", str(tmp_path / "noext")], "give the image format as its suffix"),
+            (["--json", str(tmp_path / "p.png"), "--plot", str(tmp_path / "p.png")],
+             "--json and --plot name the same file"),
+            (["--json", str(truth)], "exists and is not a Table V of delta6 evaluate")):
+        capsys.readouterr()
+        assert main(["evaluate", str(log), *argv]) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and words in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv", "run.truth.json"]
+    assert truth.read_bytes() == kept
+    table = tmp_path / "t.json"
+    for _ in range(2):      # a re-run over its own table
+        assert main(["evaluate", str(log), "--json", str(table)]) == 0
+    assert json.loads(table.read_text())["rows"][0]["estimator"] == "analytical"
+
+
+def test_an_interrupted_evaluate_leaves_no_file_under_the_final_names(tmp_path, monkeypatch):
+    import pathlib
+
+    from matplotlib.figure import Figure
+    log = tmp_path / "run.csv"
+    assert main(["simulate", "--duration", "10", "-o", str(log)]) == 0
+    plot, table = tmp_path / "e.png", tmp_path / "t.json"
+
+    def savefig(self, fname, **kw):
+        with open(fname, "wb") as f:
+            f.write(b"\x89PNG half")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(Figure, "savefig", savefig)
+    assert main(["evaluate", str(log), "--plot", str(plot)]) == 130
+    monkeypatch.undo()
+
+    def write_text(self, text, *a, **kw):
+        with open(self, "w") as f:
+            f.write(text[:10])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pathlib.Path, "write_text", write_text)
+    assert main(["evaluate", str(log), "--json", str(table)]) == 130
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.csv", "run.truth.json"]

@@ -194,3 +194,69 @@ def test_a_host_model_is_written_only_as_onnx(tmp_path, unit_logs, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "MODEL.onnx" in err and "epoch" not in err, err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("target", [["--model", "mlp", "-o", "m.onnx"],
+                                    ["--target", "mcu", "-o", "m.json"]])
+def test_a_seed_beyond_what_torch_takes_is_one_line(tmp_path, unit_logs, capsys, target):
+    """torch.manual_seed ended in an overflow traceback; the parser bounds the seed."""
+    argv = ["train", str(unit_logs[0]), "--seed", "99999999999999999999", "--quiet",
+            *target[:-1], str(tmp_path / target[-1])]
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err                     # a usage error is one line too
+    assert "--seed must be at most 4294967295, got 99999999999999999999" in err[0], err
+    assert "Traceback" not in "\n".join(err) and list(tmp_path.iterdir()) == []
+
+
+def test_train_replaces_only_a_model_of_its_own_kind(tmp_path, unit_logs, capsys):
+    """A twin's truth file, or any other file under -o, is refused before the work; a file
+    of the kind the target writes is replaced (a re-run)."""
+    truth = tmp_path / "run.truth.json"
+    truth.write_text('{"schema": "delta6-twin-truth/1"}\n')
+    notes = tmp_path / "notes.onnx"
+    notes.write_text("not a model\n")
+    for argv, path in ((["--target", "mcu", "-o", str(truth)], truth),
+                       (["--model", "mlp", "-o", str(notes)], notes)):
+        before = path.read_bytes()
+        capsys.readouterr()
+        assert main(["train", str(unit_logs[0]), "--epochs", "1", "--quiet", *argv]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "exists and is not" in err, err
+        assert "epoch" not in err and path.read_bytes() == before
+    assert not truth.with_suffix(".onnx").exists()
+    chip = tmp_path / "chip.json"
+    for _ in range(2):
+        assert main(["train", str(unit_logs[0]), "--target", "mcu", "--epochs", "1", "--quiet",
+                     "-o", str(chip)]) == 0
+    # An on-chip model's float network is no host model: host training does not replace it.
+    capsys.readouterr()
+    assert main(["train", str(unit_logs[0]), "--model", "mlp", "--epochs", "1", "--quiet",
+                 "-o", str(chip.with_suffix(".onnx"))]) == 2
+    assert "is not a host model" in capsys.readouterr().err
+
+
+def test_an_interrupted_on_chip_export_keeps_the_earlier_pair(tmp_path, unit_logs,
+                                                              monkeypatch):
+    """A signal after the ONNX is written, before the JSON: the earlier JSON and ONNX stay
+    as they were (no new ONNX beside an old JSON), and no temporary file is left."""
+    from delta6.core import residualmodel
+    model = tmp_path / "chip.json"
+    assert main(["train", str(unit_logs[0]), "--target", "mcu", "--epochs", "1", "--quiet",
+                 "-o", str(model)]) == 0
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert sorted(before) == ["chip.json", "chip.onnx"]
+
+    seen = []
+
+    def dumps(_model):
+        seen.extend(p.name for p in tmp_path.iterdir())
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(residualmodel, "dumps", dumps)
+    assert main(["train", str(unit_logs[0]), "--target", "mcu", "--epochs", "1", "--quiet",
+                 "--seed", "5", "-o", str(model)]) == 130
+    assert any(n.startswith("chip.onnx.") and n.endswith(".partial") for n in seen), seen
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before

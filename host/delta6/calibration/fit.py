@@ -58,8 +58,8 @@ from delta6.core.calibrated import (
 )
 from delta6.core.calibration import CORRECTED, NOT_APPLIED, Calibration, new_settings
 from delta6.core.design import Design
-from delta6.core.model import AXES
 from delta6.core.errors import UserError
+from delta6.core.model import AXES
 from delta6.diagnosis import selection
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.run import diagnose_data

@@ -9,8 +9,12 @@ from delta6.calibration.fit import effects_to_fit
 from delta6.core.calibrated import CalibratedModel
 from delta6.core.calibration import SECTIONS
 from delta6.core.model import AXES, wrench
+from delta6.core.outputs import written_together
 from delta6.core.spec import full_scale
 from delta6.diagnosis.report import pyplot
+
+#: The report's files; the Markdown names the plots.
+MARKDOWN, HELDOUT_PLOT, RESIDUAL_PLOT = "calibration.md", "heldout_p99.png", "residual.png"
 
 
 def _row(label: str, values) -> str:
@@ -37,10 +41,21 @@ def corrected(fit) -> str:
 
 
 def write_report(fit, log, design, out_dir, source: str = "") -> Path:
-    """Write ``calibration.md`` and its plots into ``out_dir``; returns the report's path."""
-    plt = pyplot()
+    """Write ``calibration.md`` and its plots into ``out_dir``; returns the report's path.
+    The files are written under temporary names and renamed together, the Markdown last (an
+    earlier one removed first): a folder with calibration.md holds its whole report, and an
+    interrupted run leaves no half-written file."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    path = out / MARKDOWN
+    with written_together(out / HELDOUT_PLOT, out / RESIDUAL_PLOT, path) as temps:
+        _write_files(fit, log, design, source, *temps)
+    return path
+
+
+def _write_files(fit, log, design, source: str, heldout_png: Path, residual_png: Path,
+                 markdown: Path) -> None:
+    plt = pyplot()
     cal = fit.calibration
     fs = full_scale(design)
     before = 100.0 * (wrench(design, log.theta) - log.wrench) / fs
@@ -53,8 +68,10 @@ def write_report(fit, log, design, out_dir, source: str = "") -> Path:
     ax.set_xticks(x, AXES)
     ax.set_ylabel("held-out p99 |error|, % FS")
     ax.legend()
-    fig.savefig(out / "heldout_p99.png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    try:
+        fig.savefig(heldout_png, dpi=110, bbox_inches="tight", format="png")
+    finally:
+        plt.close(fig)
 
     fig, axes = plt.subplots(6, 1, figsize=(8, 9), sharex=True)
     for i, ax in enumerate(axes):
@@ -63,8 +80,10 @@ def write_report(fit, log, design, out_dir, source: str = "") -> Path:
         ax.set_ylabel(f"{AXES[i]} % FS")
     axes[0].legend(loc="upper right")
     axes[-1].set_xlabel("t, s (the held-out blocks are the last fifth)")
-    fig.savefig(out / "residual.png", dpi=90, bbox_inches="tight")
-    plt.close(fig)
+    try:
+        fig.savefig(residual_png, dpi=90, bbox_inches="tight", format="png")
+    finally:
+        plt.close(fig)
 
     lines = [f"# Delta6 calibration '{cal.name}'{': ' + source if source else ''}", "",
              f"Design `{cal.design_name}` (0x{cal.design_hash:08x}); calibration hash "
@@ -84,13 +103,11 @@ def write_report(fit, log, design, out_dir, source: str = "") -> Path:
     for label, table in tables:
         for key in ("p95_pct", "p99_pct", "max_pct"):
             lines.append(_row(f"{label} {key[:-4]}", table[key]))
-    lines += ["", "![held-out p99](heldout_p99.png)", "", "## Parameters", ""]
+    lines += ["", f"![held-out p99]({HELDOUT_PLOT})", "", "## Parameters", ""]
     for section, pairs in SECTIONS.items():
         lines.append(f"- **{section}**: " + "; ".join(
             f"{key} = {np.round(np.asarray(getattr(cal, attr), dtype=float), 6).tolist()}"
             for key, attr in pairs))
     lines += ["", "## Residual over the log (fit and held-out blocks)", "",
-              "![residual](residual.png)", ""]
-    path = out / "calibration.md"
-    path.write_text("\n".join(lines))
-    return path
+              f"![residual]({RESIDUAL_PLOT})", ""]
+    markdown.write_text("\n".join(lines), encoding="utf-8")

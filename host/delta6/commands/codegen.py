@@ -15,9 +15,10 @@ from delta6.core import calibration as calibration_mod
 from delta6.core import design as design_mod
 from delta6.core import paths, residualmodel
 from delta6.core.errors import UserError
-from delta6.core.outputs import check_not_an_input
+from delta6.core.outputs import check_not_an_input, write_text_atomically
 from delta6.core.workspace import load_checked
 from delta6.link.protocol import VERSION as PROTOCOL_VERSION
+from delta6_codegen.design_header import GENERATED_MARKER
 from delta6_codegen.wire_header import HEADER_RELPATH as WIRE_HEADER_RELPATH
 
 NAME = "codegen"
@@ -52,11 +53,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--calibration", metavar="CAL.toml", type=Path,
                         help="compile a unit's calibration (delta6 calibrate) into the firmware: "
                              f"writes {CALIBRATION_HEADER} next to the design header; without "
-                             "it, a calibration header there is removed")
+                             "it, a calibration header codegen wrote there is removed (another "
+                             "file there is refused)")
     parser.add_argument("--model", metavar="MODEL.json", type=Path,
                         help="compile an on-chip residual model (delta6 train --target mcu) into "
                              f"the firmware: writes {MODEL_HEADER} next to the design header; "
-                             "without it, a model header there is removed")
+                             "without it, a model header codegen wrote there is removed")
     parser.add_argument("--check", action="store_true",
                         help="write nothing; exit 1 if the header differs from what the design "
                              "(or with --wire, the protocol) generates")
@@ -186,6 +188,8 @@ def write_headers(out: Path, headers: Headers) -> list[str]:
     compiled in). Returns one line per file, saying what was done."""
     design, cal, model = headers.design, headers.cal, headers.model
     cal_out, model_out = out.with_name(CALIBRATION_HEADER), out.with_name(MODEL_HEADER)
+    for path in (out, cal_out, model_out):      # all before the first write
+        check_generated(path)
     lines = [_write_line(out, headers.text, f"design '{design.name}' (hash 0x{design.hash32():08x})")]
     if cal is not None:
         lines.append(_write_line(cal_out, headers.cal_text,
@@ -199,6 +203,35 @@ def write_headers(out: Path, headers: Headers) -> list[str]:
     elif _remove(model_out):
         lines.append(f"removed {_rel(model_out)}: no model")
     return lines
+
+
+def check_companion_names(out: Path, option: str = "-o") -> None:
+    """Refuse a design header named as a companion: written there, the design header was
+    then removed as a stale calibration header, or replaced by the calibration's."""
+    if out.name in (CALIBRATION_HEADER, MODEL_HEADER):
+        raise UserError(f"{option} {out}: {out.name} is the name of the header written next to "
+                        f"the design header; name the design header otherwise "
+                        f"({HEADER_RELPATH.name})")
+
+
+def is_generated(path: Path) -> bool:
+    """Whether ``path`` starts with the line every header codegen writes starts with."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(len(GENERATED_MARKER.encode()))
+    except OSError:
+        return True     # cannot tell: writing or removing it says what is wrong
+    return head == GENERATED_MARKER.encode()
+
+
+def check_generated(path: Path) -> None:
+    """Refuse to replace or remove a header codegen did not write (a hand-written one): next
+    to the design header the firmware would compile it in, so it is not left alone silently
+    either."""
+    if path.is_file() and not is_generated(path):
+        raise UserError(f"{_rel(path)}: not a header delta6 codegen wrote (its first line is "
+                        f"not '{GENERATED_MARKER}'): neither replaced nor removed; move it "
+                        "away, or write the headers to another folder (-o)")
 
 
 def _write_line(path: Path, text: str, what: str) -> str:
@@ -242,6 +275,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("give a design file (delta6 codegen designs/delta6.toml) or --wire")
     if args.build or args.output is None:
         paths.checkout()    # the firmware tree the header belongs to, or one line saying so
+    if args.output is not None:
+        check_companion_names(args.output)
     extra = rerun_extra(args)
     command = codegen_command(args.design, args.calibration, args.model, *extra)
     headers = generate_headers(args.design, args.calibration, args.model, args.allow_implausible,
@@ -300,6 +335,7 @@ def run_wire(args: argparse.Namespace) -> int:
     text = render_wire()
     if args.check:
         return check(out, text, "delta6.link.protocol", COMMAND)
+    check_generated(out)
     verb = "wrote" if _write_if_changed(out, text) else "unchanged:"
     print(f"{verb} {_rel(out)} (wire protocol {'.'.join(map(str, PROTOCOL_VERSION))})")
     return 0
@@ -356,7 +392,8 @@ def _read(path: Path) -> str | None:
 
 
 def _remove(path: Path) -> bool:
-    """Remove ``path`` if it exists; returns whether it did."""
+    """Remove ``path`` if it exists (a generated header: :func:`check_generated` refused any
+    other before the first write); returns whether it did."""
     try:
         path.unlink()
     except FileNotFoundError:
@@ -404,11 +441,9 @@ def _write_if_changed(path: Path, text: str) -> bool:
         pass  # missing or unreadable: writing it says what is wrong, if anything
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".partial")
-        tmp.write_text(text, encoding="utf-8")
-        tmp.replace(path)
     except OSError as exc:
         raise UserError(f"cannot write {path}: {exc.strerror}") from None
+    write_text_atomically(path, text)
     return True
 
 

@@ -12,7 +12,13 @@ from delta6.calibration.fit import check_rig_latency
 from delta6.core import calibration as calibration_mod
 from delta6.core.calibrated import CalibratedModel, speeds_beyond_calibration
 from delta6.core.errors import UserError
-from delta6.core.outputs import check_output_file
+from delta6.core.outputs import (
+    check_output_file,
+    check_replaces_only,
+    check_same_outputs,
+    json_object,
+    write_text_atomically,
+)
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.spec import full_scale
 from delta6.core.workspace import load_checked
@@ -52,9 +58,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "calibration rig's latency (linear interpolation; 'calibration': "
                              "the latency the --calibration fitted, fit.rig_latency_s); "
                              "default: the recorded reference")
-    parser.add_argument("--json", metavar="OUT.json", help="write the table as JSON")
+    parser.add_argument("--json", metavar="OUT.json",
+                        help="write the table as JSON (an existing file only if it is such a "
+                             "table)")
     parser.add_argument("--plot", metavar="OUT.png",
-                        help="plot the error distributions of every row (needs matplotlib)")
+                        help="plot the error distributions of every row, in the image format "
+                             "the suffix names (needs matplotlib)")
+
+
+#: The keys that make a JSON file an evaluate table (delta6.evaluation.tablev.table).
+TABLE_KEYS = ("rows", "samples", "full_scale", "axes")
+
+
+def is_table_json(path: Path) -> bool:
+    """Whether ``path`` holds a table this command wrote: the one kind of file --json
+    replaces (a twin's truth file or a model under that name stays)."""
+    document = json_object(path)
+    return document is not None and all(key in document for key in TABLE_KEYS)
 
 
 def estimators(args, design, log, cal) -> list:
@@ -121,8 +141,10 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         check_output_file(args.json, "--json",
                           inputs=[args.log, args.design, args.calibration, *(args.model or [])])
+        check_replaces_only(args.json, "--json", "a Table V of delta6 evaluate", is_table_json)
     if args.plot:
         check_plot_path(args.plot)
+    check_same_outputs({"--json": args.json, "--plot": args.plot})
     design = load_checked(args.design)
     log = read_log(args.log)
     if len(log) == 0:
@@ -149,10 +171,7 @@ def run(args: argparse.Namespace) -> int:
             print(note, file=sys.stderr)
     result = tablev.table(rows, log, design, rig_latency_s=latency)
     if args.json:
-        try:
-            Path(args.json).write_text(json.dumps(result, indent=1) + "\n")
-        except OSError as exc:
-            raise UserError(f"cannot write {args.json}: {exc.strerror}") from None
+        write_text_atomically(args.json, json.dumps(result, indent=1) + "\n")
     if args.plot:
         reference, keep = tablev.advanced_reference(log, latency)
         plot_errors({r.name: r.estimate[keep] for r in rows}, reference, full_scale(design),

@@ -13,10 +13,10 @@ from delta6.core import accuracy
 from delta6.core import design as design_mod
 from delta6.core.errors import UserError
 from delta6.core.model import AXES
-from delta6.core.outputs import check_not_an_input
+from delta6.core.outputs import check_not_an_input, check_output_file
 from delta6.core.spec import full_scale
 from delta6.core.workspace import load_checked
-from delta6.diagnosis.data import MAX_FULL_SCALES
+from delta6.diagnosis.data import MAX_FULL_SCALES, MAX_SAMPLE_STEP_S
 from delta6.twin import (
     EFFECT_NAMES,
     REGISTRY,
@@ -33,6 +33,8 @@ from delta6.twin.truth import read_truth, same_unit, truth_path
 NAME = "simulate"
 HELP = "simulate a calibration run (digital twin): a log of encoder angles and reference wrench"
 DEFAULT_DESIGN = design_mod.DEFAULT_DESIGN
+#: The slowest log the readers (evaluate, diagnose, calibrate, train) accept as seconds.
+LEAST_RATE_HZ = 1.0 / MAX_SAMPLE_STEP_S
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -61,6 +63,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="simulate the same unit as a previous run (its design, effects and "
                              "parameters, the same rig) with a new trajectory, noise and "
                              "temperature history drawn from --seed")
+    parser.add_argument("--force", action="store_true",
+                        help="replace an existing OUT.csv and its truth file (refused "
+                             "otherwise: a rig log of that name is not regenerable)")
     parser.add_argument("--list", action="store_true",
                         help="list the effects (parameters, units, realistic ranges) and "
                              "scenarios, then exit")
@@ -73,7 +78,9 @@ def _number(text: str, what: str, *, low: float, integer: bool = False,
     except ValueError:
         kind = "a whole number" if integer else "a number"
         raise UserError(f"{what} takes {kind}, got {text!r}") from None
-    if not (math.isfinite(value) and low <= value <= high):
+    if not math.isfinite(value):
+        raise UserError(f"{what} must be a finite number, got {text}")
+    if not low <= value <= high:
         bounds = f">= {low:g}" if high == math.inf else f"in [{low:g}, {high:g}]"
         raise UserError(f"{what} must be {bounds}, got {text}")
     return value
@@ -88,20 +95,23 @@ def run(args: argparse.Namespace) -> int:
     seed = int(_number(args.seed, "--seed", low=0, integer=True))
     duration = _number(args.duration, "--duration", low=0.0)
     rate = _number(args.rate, "--rate", low=0.0, high=10_000.0)
+    if rate < LEAST_RATE_HZ:
+        raise UserError(f"--rate must be at least {LEAST_RATE_HZ:g} Hz, got {args.rate}: the "
+                        "log readers take a slower log's time for milliseconds")
     magnitude = (None if args.magnitude is None
                  else _number(args.magnitude, "--magnitude", low=0.0, high=1.0))
     out = Path(args.output)
-    if not out.parent.is_dir():
-        raise UserError(f"cannot write {out}: directory {out.parent} does not exist")
-    if out.is_dir():
-        raise UserError(f"cannot write {out}: it is a directory")
     # The run of the same unit again must not replace the run (or the truth) it came from.
-    check_not_an_input(out, "-o", [args.unit, args.design])
+    inputs = [args.unit, args.design]
+    check_not_an_input(out, "-o", inputs)
     try:
-        check_not_an_input(truth_path(out), "-o", [args.unit, args.design])
+        check_not_an_input(truth_path(out), "-o", inputs)
     except UserError:
         raise UserError(f"-o {out}: its truth file {truth_path(out)} would replace the --unit "
                         "file it comes from; name the new run differently") from None
+    # A log of that name may be a rig's: not regenerable, so replaced only when asked.
+    for path in (out, truth_path(out)):
+        check_output_file(path, "-o", force=args.force)
     if args.unit:
         kwargs = _unit(args, seed, magnitude)
         if args.record_temp:

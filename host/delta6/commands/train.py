@@ -12,7 +12,7 @@ from delta6.core.accuracy import format_table
 from delta6.core.design import label_problem
 from delta6.core.errors import UserError
 from delta6.core.model import AXES
-from delta6.core.outputs import check_output_file
+from delta6.core.outputs import check_output_file, check_replaces_only, json_object, written_together
 from delta6.core.paths import DEFAULT_DESIGN
 from delta6.core.residualmodel import MAX_NAME
 from delta6.core.workspace import load_checked
@@ -26,6 +26,13 @@ TRAINS_ON_A_REFERENCE = "a model learns the reference sensor's wrench (docs/lear
 HELP = ("train a learned wrench estimator on a calibration log and export it to ONNX; "
         "--target mcu: a quantized residual model the microcontroller runs (JSON, for "
         "delta6 codegen --model), with its float network as ONNX next to it")
+
+
+#: The largest seed both torch.manual_seed and numpy's generators take (a larger one ended
+#: in torch's overflow traceback).
+MAX_SEED = 2**32 - 1
+HOST_MODEL = "a host model of delta6 train (ONNX)"
+MCU_MODEL = "an on-chip model of delta6 train --target mcu (JSON)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -46,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--preset", choices=tuple(PRESETS),
                         help="'paper': the paper's Table IV sizes and recipe (slow on a CPU); "
                              "'default' (the default): small models that train in minutes")
-    parser.add_argument("--seed", type=number("--seed", int, 0), default=0,
+    parser.add_argument("--seed", type=number("--seed", int, 0, MAX_SEED), default=0,
                         help="seed of the initial weights and the batch order (default 0)")
     parser.add_argument("--epochs", type=number("--epochs", int, 1), metavar="N",
                         help="at most N epochs (default: the preset's; --target mcu: 30, with "
@@ -66,7 +73,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                        f"output file's name without .json, cut to {MAX_NAME})")
     parser.add_argument("-o", "--output", required=True, metavar="MODEL.onnx",
                         help="where to write the model (--target mcu: MODEL.json, and the "
-                             "float network to MODEL.onnx)")
+                             "float network to MODEL.onnx); an existing file is replaced only "
+                             "if it is a model of that kind")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
 
 
@@ -109,6 +117,7 @@ def run(args: argparse.Namespace) -> int:
         # ONNX bytes under another name: a MODEL.json would pass for an on-chip model file
         raise UserError("-o: a host model is an ONNX file (MODEL.onnx); the on-chip model "
                         "(JSON) is --target mcu")
+    check_replaces_only(args.output, "-o", HOST_MODEL, is_host_model)
     design = load_checked(args.design)
     log = read_log(args.log)
     require_reference_wrench(log.meta, args.log, TRAINS_ON_A_REFERENCE)
@@ -174,6 +183,19 @@ def _hidden(text: str) -> tuple[int, ...]:
     return sizes
 
 
+def is_host_model(path: Path) -> bool:
+    """An ONNX file with a model card: what host training writes (and may write again)."""
+    from delta6.learning.card import PREFIX, onnx_metadata
+    return PREFIX + "schema" in (onnx_metadata(path) or {})
+
+
+def is_mcu_model(path: Path) -> bool:
+    """A JSON file of the on-chip model's schema: what --target mcu writes (and may write
+    again)."""
+    from delta6.core.residualmodel import SCHEMA
+    return (json_object(path) or {}).get("schema") == SCHEMA
+
+
 def _check_companion(onnx_path: Path, output: Path) -> None:
     """The float network goes to MODEL.onnx: replace only an earlier on-chip export there, never
     a host model or any other file a user keeps under that name."""
@@ -218,6 +240,7 @@ def run_mcu(args: argparse.Namespace) -> int:
     inputs = [args.log, args.design, args.residual_over]
     check_output_file(output, "-o", inputs=inputs)
     check_output_file(output.with_suffix(".onnx"), "-o", inputs=inputs)
+    check_replaces_only(output, "-o", MCU_MODEL, is_mcu_model)
     _check_companion(output.with_suffix(".onnx"), output)
     design = load_checked(args.design)
     base = _mcu_base(args, design)
@@ -243,12 +266,15 @@ def run_mcu(args: argparse.Namespace) -> int:
                              f"--hidden {args.hidden}" if args.hidden else "the model")
     result = mcu.train_mcu(log, design, base, name=name, settings=settings, progress=say,
                            source=Path(args.log).name)
-    path = residualmodel.save(result.model, output)
-    onnx_path = mcu.export_onnx(result.float_net, output.with_suffix(".onnx"),
-                                {"delta6_model": name,
-                                 "delta6_model_hash": f"0x{result.model.hash32():08x}",
-                                 "delta6_design_hash": f"0x{design.hash32():08x}",
-                                 "inputs": "int8 engine feature values, see the JSON model"})
+    path, onnx_path = output, output.with_suffix(".onnx")
+    # Renamed together, the JSON last: a model JSON on disk always has its own ONNX.
+    with written_together(onnx_path, path) as (onnx_tmp, json_tmp):
+        mcu.export_onnx(result.float_net, onnx_tmp,
+                        {"delta6_model": name,
+                         "delta6_model_hash": f"0x{result.model.hash32():08x}",
+                         "delta6_design_hash": f"0x{design.hash32():08x}",
+                         "inputs": "int8 engine feature values, see the JSON model"})
+        json_tmp.write_text(residualmodel.dumps(result.model), encoding="utf-8")
     r = result.report
     print(f"wrote {path} (model '{name}' over {base.name}, hash 0x{result.model.hash32():08x}, "
           f"{r['macs']} multiply-accumulates per sample) and {onnx_path}")

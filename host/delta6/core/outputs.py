@@ -1,8 +1,13 @@
-"""Output paths checked before the work starts: a command that runs for minutes must not fail
-at its end (or leave a traceback) because its output cannot be written."""
+"""Output paths checked before the work starts (a command that runs for minutes must not fail
+at its end, or leave a traceback, because its output cannot be written), and written
+atomically: under a temporary name in the same folder, then renamed, so that a signal or an
+error never leaves a half-written file under the final name."""
 from __future__ import annotations
 
+import contextlib
+import json
 import os
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from delta6.core.errors import UserError
@@ -73,3 +78,90 @@ def _check_folder(folder: Path, option: str, text: str) -> None:
         raise UserError(f"{option} {text}: the folder {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise UserError(f"{option} {text}: cannot write in {folder} (permission denied)")
+
+
+def check_same_outputs(outputs: dict[str, str | Path | None]) -> None:
+    """Refuse two options naming one file (``{option: path}``; None skipped): the second
+    write would replace the first's output."""
+    seen: dict[Path, str] = {}
+    for option, path in outputs.items():
+        if path is None:
+            continue
+        key = Path(path).resolve()
+        if key in seen:
+            raise UserError(f"{seen[key]} and {option} name the same file {path}; give two names")
+        seen[key] = option
+
+
+def check_replaces_only(path: str | Path, option: str, kind: str,
+                        is_kind: Callable[[Path], bool]) -> None:
+    """Refuse to replace an existing file that is not ``kind``, what the command writes
+    (``is_kind`` recognises one): re-running a command over its own output is fine, writing
+    a model over a twin's truth file or a user's notes is not."""
+    path = Path(path)
+    if path.is_file() and not is_kind(path):
+        raise UserError(f"{option} {path}: exists and is not {kind}; not replaced (give "
+                        "another name, or remove it first)")
+
+
+#: Larger than any JSON file delta6 writes: a bigger file is not one of them, unread.
+MAX_OWN_JSON_BYTES = 16 << 20
+
+
+def json_object(path: str | Path) -> dict | None:
+    """The JSON object in ``path``, None if it is not one (or is too large to be ours)."""
+    try:
+        if Path(path).stat().st_size > MAX_OWN_JSON_BYTES:
+            return None
+        value = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return None
+    return value if isinstance(value, dict) else None
+
+
+def temporary_path(path: Path) -> Path:
+    """Where ``path`` is written before its rename: the same folder (a rename is atomic only
+    within one file system), a name of this process's own (two runs do not collide)."""
+    return path.with_name(f"{path.name}.{os.getpid()}{PARTIAL_SUFFIX}")
+
+
+@contextlib.contextmanager
+def written_together(*paths: str | Path) -> Iterator[list[Path]]:
+    """Yield a temporary name for each of ``paths``; the block writes them. When it ends
+    normally they replace ``paths``; the last one is removed first and renamed last, so where
+    it exists, its companions are those of the same run (a model JSON and its ONNX, a
+    report's Markdown and its plots). On any exception (KeyboardInterrupt and the CLI's
+    SIGTERM too) the temporaries are removed and the final names keep what they held. An
+    OSError is one line naming the final file."""
+    finals = [Path(p) for p in paths]
+    temps = [temporary_path(p) for p in finals]
+    current = finals[-1]
+    try:
+        try:
+            yield temps
+            current = finals[-1]
+            if len(finals) > 1:
+                finals[-1].unlink(missing_ok=True)
+            for tmp, final in zip(temps, finals):
+                current = final
+                os.replace(tmp, final)
+        except OSError as exc:
+            # the file the error is about, by its final name (a temporary's means nothing)
+            named = next((f for t, f in zip(temps, finals) if exc.filename in (t, str(t))),
+                         current)
+            raise UserError(f"cannot write {named}: {exc.strerror or exc}") from None
+    finally:
+        for tmp in temps:
+            with contextlib.suppress(OSError):
+                tmp.unlink(missing_ok=True)
+
+
+def write_atomically(path: str | Path, produce: Callable[[Path], object]) -> Path:
+    """``produce(tmp)`` writes the file, which then replaces ``path`` in one step."""
+    with written_together(path) as (tmp,):
+        produce(tmp)
+    return Path(path)
+
+
+def write_text_atomically(path: str | Path, text: str) -> Path:
+    return write_atomically(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))

@@ -10,7 +10,7 @@ import numpy as np
 from delta6.core.accuracy import error_pct_fs
 from delta6.core.errors import UserError
 from delta6.core.model import AXES
-from delta6.core.outputs import check_output_file
+from delta6.core.outputs import check_output_file, write_atomically
 
 
 def check_plot_path(path: str | Path, option: str = "--plot") -> Path:
@@ -21,11 +21,21 @@ def check_plot_path(path: str | Path, option: str = "--plot") -> Path:
 
     path = check_output_file(path, option)
     formats = FigureCanvasBase.get_supported_filetypes()
-    suffix = path.suffix.lower().lstrip(".")
-    if suffix and suffix not in formats:
+    suffix = plot_format(path)
+    # Without a suffix matplotlib wrote NAME.png, a file no check had looked at.
+    if not suffix:
+        raise UserError(f"{option} {path}: give the image format as its suffix "
+                        f"({path.name}.png, .svg or .pdf)")
+    if suffix not in formats:
         raise UserError(f"{option} {path}: '.{suffix}' is not an image format matplotlib writes"
                         f" (one of {', '.join(sorted(formats))})")
     return path
+
+
+def plot_format(path: Path) -> str:
+    """The image format, named by the suffix (the file is written under a temporary name
+    first, so matplotlib is told it rather than left to guess)."""
+    return path.suffix.lower().lstrip(".")
 
 
 def _matplotlib():
@@ -39,7 +49,8 @@ def _matplotlib():
 
 def plot_errors(estimates: dict[str, np.ndarray], reference: np.ndarray, full_scale,
                 path: str | Path, title: str = "") -> Path:
-    """``estimates``: {row name: (n, 6) wrench}; writes a PNG to ``path``."""
+    """``estimates``: {row name: (n, 6) wrench}; writes the image to ``path`` atomically, in
+    the format its suffix names."""
     path = check_plot_path(path)
     import matplotlib.pyplot as plt
 
@@ -64,9 +75,7 @@ def plot_errors(estimates: dict[str, np.ndarray], reference: np.ndarray, full_sc
     fig.suptitle(title or "Error distributions (dotted: 1 % of samples, the p99)")
     fig.tight_layout()
     try:
-        fig.savefig(path, dpi=110)
-    except OSError as exc:
-        raise UserError(f"cannot write {path}: {exc.strerror}") from None
+        return write_atomically(path, lambda tmp: fig.savefig(tmp, dpi=110,
+                                                              format=plot_format(path)))
     finally:
         plt.close(fig)
-    return path

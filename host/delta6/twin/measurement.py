@@ -7,12 +7,19 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from delta6.core import model
+from delta6.twin.fields import FieldError, flag, number, vector
 from delta6.twin.statics import rotation_from_vector
+
+#: Where each setting sits in an :meth:`Measurement.as_dict` record (a truth file's names).
+_RECORD_NAMES = {"force_noise_n": "reference_noise.force_sd_n",
+                 "moment_noise_nm": "reference_noise.moment_sd_nm",
+                 "sensor_turn_rad": "sensor_frame.turn_rad",
+                 "sensor_offset_m": "sensor_frame.p_t_m"}
 
 
 @dataclass(frozen=True)
@@ -27,10 +34,13 @@ class Measurement:
     sensor_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.03)
 
     def check(self) -> None:
-        if self.force_noise_n < 0 or self.moment_noise_nm < 0:
-            raise ValueError("noise must be >= 0")
-        if not 4 <= self.encoder_bits <= 24:
-            raise ValueError("encoder_bits must lie in 4..24")
+        """A :class:`~delta6.twin.fields.FieldError` naming the first unusable setting."""
+        flag("quantize", self.quantize)
+        number("encoder_bits", self.encoder_bits, 4, 24, integer=True)
+        number("force_noise_n", self.force_noise_n, 0.0)
+        number("moment_noise_nm", self.moment_noise_nm, 0.0)
+        vector("sensor_turn_rad", self.sensor_turn_rad, 3)
+        vector("sensor_offset_m", self.sensor_offset_m, 3)
 
     @property
     def count_rad(self) -> float:
@@ -65,9 +75,15 @@ class Measurement:
 
     @classmethod
     def from_dict(cls, record: dict) -> "Measurement":
-        """The settings an :meth:`as_dict` record describes (a truth file's ``measurement``)."""
+        """The settings an :meth:`as_dict` record describes (a truth file's ``measurement``),
+        checked: a :class:`~delta6.twin.fields.FieldError` names the record's field."""
         noise, frame = record["reference_noise"], record["sensor_frame"]
-        return cls(quantize=record["quantize"], encoder_bits=record["encoder_bits"],
-                   force_noise_n=noise["force_sd_n"], moment_noise_nm=noise["moment_sd_nm"],
-                   sensor_turn_rad=tuple(frame["turn_rad"]),
-                   sensor_offset_m=tuple(frame["p_t_m"]))
+        raw = cls(quantize=record["quantize"], encoder_bits=record["encoder_bits"],
+                  force_noise_n=noise["force_sd_n"], moment_noise_nm=noise["moment_sd_nm"],
+                  sensor_turn_rad=frame["turn_rad"], sensor_offset_m=frame["p_t_m"])
+        try:
+            raw.check()
+        except FieldError as exc:
+            raise exc.renamed(_RECORD_NAMES) from None
+        return replace(raw, sensor_turn_rad=tuple(map(float, raw.sensor_turn_rad)),
+                       sensor_offset_m=tuple(map(float, raw.sensor_offset_m)))

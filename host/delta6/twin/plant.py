@@ -20,7 +20,16 @@ from typing import Callable, Sequence
 import numpy as np
 
 from delta6.twin.effects import Effect, Signals, Stage
+from delta6.twin.fields import number
 from delta6.twin.statics import PlantGeometry, plant_wrench
+
+MAX_OVERSAMPLE = 64
+
+
+def check_oversample(oversample) -> int:
+    """Plant steps per logged sample: a whole number in 1..MAX_OVERSAMPLE."""
+    return number("oversample", oversample, 1, MAX_OVERSAMPLE, integer=True)
+
 
 #: Fine samples per statics chunk (bounds memory, paces the progress display).
 CHUNK = 50_000

@@ -10,6 +10,11 @@ import numpy as np
 
 from delta6.core.operators import first_order
 from delta6.twin.effects.base import grid_step
+from delta6.twin.fields import number
+
+ABSOLUTE_ZERO_C = -273.15
+#: At most this many set-point changes: each is an array element drawn up front.
+MAX_STEPS = 100_000
 
 
 @dataclass(frozen=True)
@@ -21,8 +26,12 @@ class TemperatureSettings:
     sensor_noise_c: float = 0.05   # thermometer noise (standard deviation)
 
     def check(self) -> None:
-        if not self.low_c <= self.high_c or self.steps < 1 or self.sensor_noise_c < 0:
-            raise ValueError("bad temperature settings")
+        """A :class:`~delta6.twin.fields.FieldError` naming the first unusable setting."""
+        number("low_c", self.low_c, ABSOLUTE_ZERO_C)
+        number("high_c", self.high_c, self.low_c, low_is="low_c")
+        number("start_c", self.start_c, ABSOLUTE_ZERO_C)
+        number("steps", self.steps, 1, MAX_STEPS, integer=True)
+        number("sensor_noise_c", self.sensor_noise_c, 0.0)
 
     def as_dict(self) -> dict:
         return asdict(self)

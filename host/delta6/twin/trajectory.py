@@ -20,6 +20,8 @@ from typing import Callable
 
 import numpy as np
 
+from delta6.twin.fields import number
+
 # Minimum-jerk profile s(u) = 10u^3 - 15u^4 + 6u^5: peak rate 1.875/T, peak acceleration
 # 5.7735/T^2 for a unit move of duration T.
 _PEAK_RATE = 1.875
@@ -46,18 +48,18 @@ class TrajectorySettings:
     scale: float = 1.0                    # multiplies the whole path (load level)
 
     def check(self) -> None:
-        if not 0 < self.coverage <= 1:
-            raise ValueError("coverage must lie in (0, 1]")
-        if not 0 < self.move_min_s <= self.move_max_s:
-            raise ValueError("need 0 < move_min <= move_max")
-        if self.accel_max_rad_s2 <= 0 or self.speed_max_rad_s <= 0:
-            raise ValueError("speed_max and accel_max must be positive")
-        if not 0 <= self.hold_probability <= 1 or self.hold_max_s < 0:
-            raise ValueError("bad hold settings")
-        if self.dither_rad < 0 or not 0 < self.dither_min_hz <= self.dither_max_hz:
-            raise ValueError("bad dither settings")
-        if not 0 < self.scale <= 1:
-            raise ValueError("scale must lie in (0, 1]")
+        """A :class:`~delta6.twin.fields.FieldError` naming the first unusable setting."""
+        number("coverage", self.coverage, 0.0, 1.0, above=True)
+        number("move_min_s", self.move_min_s, 0.0, above=True)
+        number("move_max_s", self.move_max_s, self.move_min_s, low_is="move_min_s")
+        number("speed_max_rad_s", self.speed_max_rad_s, 0.0, above=True)
+        number("accel_max_rad_s2", self.accel_max_rad_s2, 0.0, above=True)
+        number("hold_probability", self.hold_probability, 0.0, 1.0)
+        number("hold_max_s", self.hold_max_s, 0.0)
+        number("dither_rad", self.dither_rad, 0.0)
+        number("dither_min_hz", self.dither_min_hz, 0.0, above=True)
+        number("dither_max_hz", self.dither_max_hz, self.dither_min_hz, low_is="dither_min_hz")
+        number("scale", self.scale, 0.0, 1.0, above=True)
 
     def as_dict(self) -> dict:
         return asdict(self)

@@ -8,13 +8,18 @@ from __future__ import annotations
 
 import json
 import os
+from contextlib import contextmanager
+from dataclasses import fields
 from pathlib import Path
 
 from delta6 import __version__
-from delta6.core.design import validate
+from delta6.core.design import DesignError, validate
 from delta6.core.errors import UserError
+from delta6.core.workspace import check_solvable
 from delta6.twin.effects import Effect, effect_class
+from delta6.twin.fields import FieldError, flag
 from delta6.twin.measurement import Measurement
+from delta6.twin.plant import check_oversample
 from delta6.twin.temperature import TemperatureSettings
 from delta6.twin.trajectory import TrajectorySettings
 
@@ -58,7 +63,7 @@ def write_truth(path: str | Path, truth: dict) -> Path:
     tmp = path.with_name(path.name + ".partial")
     try:
         with open(tmp, "w", encoding="utf-8") as f:
-            json.dump(truth, f, indent=1)
+            json.dump(truth, f, indent=1, allow_nan=False)   # NaN is no JSON: fail loudly
             f.write("\n")
         os.replace(tmp, path)
     except OSError as exc:
@@ -80,35 +85,94 @@ def read_truth(path: str | Path) -> dict:
 
 
 def effects_from_truth(truth: dict) -> list[Effect]:
-    return [effect_class(rec["name"]).from_truth(rec) for rec in truth["effects"]]
+    """The recorded effects, each checked as ``--effect`` checks a request; a problem names
+    the record (``effects[2] backlash: play_rad must lie in ...``)."""
+    records = truth["effects"]
+    if not isinstance(records, list):
+        raise UserError(f"effects takes a list, got {records!r}")
+    effects = []
+    for i, rec in enumerate(records):
+        with _field(f"effects[{i}]", sep=" "):
+            if not isinstance(rec, dict):
+                raise FieldError("", f"takes an effect record, got {rec!r}")
+            effects.append(effect_class(rec["name"]).from_truth(rec))
+            if rec["name"] in [e.NAME for e in effects[:-1]]:
+                raise FieldError("", f"{rec['name']} is recorded twice (a run has each once)")
+    return effects
 
 
 def replay_arguments(truth: dict) -> dict:
     """Keyword arguments of ``simulate`` that reproduce the recorded run exactly (runs on the
-    random trajectory only; a custom path is not recorded). A field missing or of the wrong
-    type (a hand-edited file) is one line naming it, not a traceback."""
-    try:
+    random trajectory only; a custom path is not recorded). Every setting is checked as the
+    command line's are: a field missing, of the wrong type or out of range (a hand-edited
+    file) is one line naming it, not a traceback, a NaN in the outputs or an invalid file."""
+    with _field(""):
         return _replay_arguments(truth)
+
+
+@contextmanager
+def _field(where: str, sep: str = "."):
+    """Problems raised inside as one :class:`UserError` naming the field under ``where``."""
+    def name(field) -> str:
+        return ".".join(filter(None, (where, str(field))))
+
+    said = f"{where}{sep}" if where else ""
+    try:
+        yield
+    except FieldError as exc:
+        raise UserError(f"{name(exc.field)}: {exc.problem}") from None
     except KeyError as exc:
-        raise UserError(f"field {exc.args[0]!r} is missing (not a complete truth file)") from None
+        raise UserError(f"field {name(exc.args[0])!r} is missing (not a complete truth "
+                        "file)") from None
+    except (UserError, DesignError) as exc:   # an effect's own check, a design's, a field's
+        raise UserError(f"{said}{exc}") from None
     except (TypeError, ValueError, AttributeError) as exc:
-        raise UserError(f"a field has the wrong type or value ({exc})") from None
+        raise UserError(f"{name('') or 'a field'}: wrong type or value ({exc})") from None
+
+
+def _settings(cls, record, where: str):
+    """A settings dataclass from its truth record, checked; its own field names."""
+    if not isinstance(record, dict):
+        raise FieldError(where, f"takes a mapping, got {record!r}")
+    unknown = sorted(set(record) - {f.name for f in fields(cls)})
+    if unknown:
+        raise FieldError(f"{where}.{unknown[0]}", "unknown field")
+    settings = cls(**record)
+    try:
+        settings.check()
+    except FieldError as exc:
+        raise exc.under(where) from None
+    return settings
 
 
 def _replay_arguments(truth: dict) -> dict:
+    if not isinstance(truth.get("trajectory"), dict):
+        raise FieldError("trajectory", f"takes a mapping, got {truth['trajectory']!r}")
     if "custom" in truth["trajectory"]:
         raise UserError("the run used a custom path, which a truth file does not record")
-    temp = {k: v for k, v in truth["temperature"].items() if k != "recorded"}
-    design = validate({"name": truth["design"]["name"], **truth["design"]["parameters"]})
+    temperature = truth["temperature"]
+    if not isinstance(temperature, dict):
+        raise FieldError("temperature", f"takes a mapping, got {temperature!r}")
+    temp = {k: v for k, v in temperature.items() if k != "recorded"}
+    record, measured = truth["design"], truth["measurement"]
+    with _field("design", sep=": "):
+        design = validate({"name": record["name"], **record["parameters"]})
+        check_solvable(design)
+    with _field("measurement"):
+        measurement = Measurement.from_dict(measured)
+    scenario = truth["scenario"]
+    if scenario is not None and not isinstance(scenario, str):   # a label: any text
+        raise FieldError("scenario", f"takes a name or null, got {scenario!r}")
     return {
         "design": design,
         "effects": effects_from_truth(truth),
         "duration_s": truth["duration_s"], "rate_hz": truth["rate_hz"], "seed": truth["seed"],
-        "trajectory": TrajectorySettings(**truth["trajectory"]),
-        "temperature": TemperatureSettings(**temp),
-        "measurement": Measurement.from_dict(truth["measurement"]),
-        "record_temp": truth["temperature"]["recorded"],
-        "oversample": truth["oversample"], "scenario": truth["scenario"],
+        "trajectory": _settings(TrajectorySettings, truth["trajectory"], "trajectory"),
+        "temperature": _settings(TemperatureSettings, temp, "temperature"),
+        "measurement": measurement,
+        "record_temp": flag("temperature.recorded", temperature["recorded"]),
+        "oversample": check_oversample(truth["oversample"]),
+        "scenario": scenario,
     }
 
 

@@ -128,7 +128,7 @@ class ParamSpec:
             raise EffectError(f"{effect}: {self.name} takes one number or {want} values, "
                               f"got {values.size}")
         if not np.all(np.isfinite(values)):
-            raise EffectError(f"{effect}: {self.name} must be finite")
+            raise EffectError(f"{effect}: {self.name} must be finite, got {_fmt(values)}")
         lo, hi = self.valid
         if np.any(values < lo) or np.any(values > hi):
             raise EffectError(f"{effect}: {self.name} must lie in [{lo:g}, {hi:g}] {self.unit}, "
@@ -167,21 +167,11 @@ class Effect:
               magnitude: float | None = None, joints=None, overrides: dict | None = None,
               ) -> "Effect":
         """Draw the parameters not given in ``overrides`` for ``magnitude`` (default 0.5)."""
-        formulation = formulation or cls.FORMULATIONS[0]
-        if formulation not in cls.FORMULATIONS:
-            raise EffectError(f"{cls.NAME}: unknown formulation {formulation!r} (one of "
-                              f"{', '.join(cls.FORMULATIONS)})")
-        m = 0.5 if magnitude is None else float(magnitude)
-        if not 0.0 <= m <= 1.0:
-            raise EffectError(f"{cls.NAME}: magnitude must lie in [0, 1], got {m:g}")
+        formulation = cls._formulation(formulation or cls.FORMULATIONS[0])
+        m = cls._magnitude(0.5 if magnitude is None else magnitude)
         joints = cls._joints(joints)
         overrides = dict(overrides or {})
-        specs = {s.name: s for s in cls.specs_for(formulation)}
-        unknown = set(overrides) - set(specs)
-        if unknown:
-            known = ", ".join(specs)
-            raise EffectError(f"{cls.NAME}: unknown parameter {sorted(unknown)[0]!r} for "
-                              f"formulation {formulation} (one of {known})")
+        specs = cls._specs(formulation, overrides)
         params = {}
         # Every spec is drawn (in a fixed order) even when overridden, so that one override
         # does not change the draws of the others.
@@ -197,15 +187,48 @@ class Effect:
         return cls(formulation=formulation, params=params, magnitude=drawn_with, joints=joints)
 
     @classmethod
+    def _formulation(cls, formulation) -> str:
+        if formulation not in cls.FORMULATIONS:
+            raise EffectError(f"{cls.NAME}: unknown formulation {formulation!r} (one of "
+                              f"{', '.join(cls.FORMULATIONS)})")
+        return formulation
+
+    @classmethod
+    def _magnitude(cls, magnitude) -> float:
+        try:
+            m = float(magnitude)
+        except (TypeError, ValueError):
+            raise EffectError(f"{cls.NAME}: magnitude takes a number, got {magnitude!r}") from None
+        if not 0.0 <= m <= 1.0:   # NaN fails too
+            raise EffectError(f"{cls.NAME}: magnitude must lie in [0, 1], got {m:g}")
+        return m
+
+    @classmethod
+    def _specs(cls, formulation: str, given) -> dict[str, ParamSpec]:
+        """The formulation's parameters by name; a name in ``given`` that it lacks is refused."""
+        specs = {s.name: s for s in cls.specs_for(formulation)}
+        unknown = set(given) - set(specs)
+        if unknown:
+            known = ", ".join(specs)
+            raise EffectError(f"{cls.NAME}: unknown parameter {sorted(unknown)[0]!r} for "
+                              f"formulation {formulation} (one of {known})")
+        return specs
+
+    @classmethod
     def _joints(cls, joints) -> tuple[int, ...]:
         if joints is None:
             return tuple(range(1, JOINTS + 1))
         if not cls.PER_JOINT:
             raise EffectError(f"{cls.NAME} acts on the whole mechanism; it takes no joints=")
-        joints = tuple(sorted({int(j) for j in np.atleast_1d(joints)}))
-        if not joints or joints[0] < 1 or joints[-1] > JOINTS:
-            raise EffectError(f"{cls.NAME}: joints must be numbers 1..6")
-        return joints
+        wrong = EffectError(f"{cls.NAME}: joints must be numbers 1..6, got {joints!r}")
+        try:
+            given = [float(j) for j in np.atleast_1d(joints)]
+        except (TypeError, ValueError):
+            raise wrong from None
+        # A whole number each (no 1.5 rounded down, no NaN or infinity).
+        if not given or not all(j.is_integer() and 1 <= j <= JOINTS for j in given):
+            raise wrong
+        return tuple(sorted({int(j) for j in given}))
 
     # -- hooks, by stage (the plant calls only those of the stages in ACTS_ON); the defaults
     # -- change nothing, so a TORQUE effect implements one or both of its two hooks.
@@ -254,16 +277,30 @@ class Effect:
 
     @classmethod
     def from_truth(cls, record: dict) -> "Effect":
-        """Rebuild exactly the effect a truth record describes (no drawing)."""
-        formulation = record["formulation"]
-        specs = {s.name: s for s in cls.specs_for(formulation)}
+        """Rebuild exactly the effect a truth record describes (no drawing), checked as
+        :meth:`build` checks a request: a hand-edited value is refused, naming its parameter."""
+        formulation = cls._formulation(record["formulation"])
+        given = record["parameters"]
+        if not isinstance(given, dict):
+            raise EffectError(f"{cls.NAME}: parameters takes a mapping, got {given!r}")
+        specs = cls._specs(formulation, given)
         params = {}
         for name, spec in specs.items():
-            if name not in record["parameters"]:
+            if name not in given:
                 raise EffectError(f"{cls.NAME}: truth record lacks parameter {name!r}")
-            params[name] = np.asarray(record["parameters"][name], dtype=float).reshape(spec.dims)
-        return cls(formulation=formulation, params=params, magnitude=record.get("magnitude"),
-                   joints=tuple(record.get("joints", range(1, JOINTS + 1))))
+            try:
+                params[name] = spec.coerce(cls.NAME, given[name])
+            except (TypeError, ValueError):   # not numbers at all (a string, a nested list)
+                raise EffectError(f"{cls.NAME}: {name} takes numbers, got "
+                                  f"{given[name]!r}") from None
+        magnitude = record.get("magnitude")
+        # An effect of the whole mechanism records every joint; build() takes none for it.
+        joints = record.get("joints")
+        if not cls.PER_JOINT and joints == list(range(1, JOINTS + 1)):
+            joints = None
+        return cls(formulation=formulation, params=params,
+                   magnitude=None if magnitude is None else cls._magnitude(magnitude),
+                   joints=cls._joints(joints))
 
 
 def _jsonable(value):
