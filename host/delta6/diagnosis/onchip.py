@@ -4,14 +4,14 @@ features a board can compute, and only the part a board applies.
 The diagnosis explains a log offline: its friction sees the joint speed from a centred fit (two
 samples of the future) and its backlash places each reversal across the dwell before the encoder
 moved again (a look-ahead). A board has neither: it knows the speed from past counts (a filtered
-difference, led by its filtered acceleration) and a reversal once the encoder shows it. And
-some effects are not applied on the board at all (``delta6.core.calibration.NOT_APPLIED``: the rig's latency, a thermal drift, a
-harness): they are fitted with the rest, so the others are not biased by them, and left in the
-error. The held-out p99 of that prediction, with the diagnosis's own folds, is the diagnosis's
-model as a board would apply it: a forecast of what a calibration on the chip leaves on a run
-like this one (``delta6 calibrate`` fits the same families in the board's own forms, and may add
-a family that lowers the held-out error further; ``docs/calibration.md``, "Single-effect
-scenarios").
+difference, led by its filtered acceleration) and a reversal once the encoder shows it. And some
+effects are not applied on the board at all (``delta6.core.calibration.NOT_APPLIED``: the rig's
+latency, a thermal drift, a harness): they are fitted with the rest, so the others are not
+biased by them, and left in the error. The held-out p99 of that prediction, with the diagnosis's
+own folds, is the diagnosis's model as a board would apply it: a forecast of what a calibration
+on the chip leaves on a run like this one (``delta6 calibrate`` fits the same families in the
+board's own forms, and may add a family that lowers the held-out error further;
+``docs/calibration.md``, "Single-effect scenarios").
 """
 from __future__ import annotations
 
