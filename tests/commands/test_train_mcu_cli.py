@@ -153,3 +153,16 @@ def test_the_axes_a_model_makes_worse_are_named():
     assert worse_axes([1.0, 2.0, 0.5, 0.4, 0.3, 0.2], [1.0, 1.5, 0.6, 0.3, 0.3, 0.1]) == [
         "Fy", "Mx", "Mz"]
     assert worse_axes([0.1] * 6, [0.2] * 6) == []
+
+
+def test_a_log_at_a_rate_no_board_samples_at_is_refused(tmp_path, capsys):
+    """The model's step features count samples of its rate: trained at 37.5 Hz and labelled
+    37 Hz, it would have run at a rate it was not trained at."""
+    log = tmp_path / "odd.csv"
+    assert main(["simulate", "--duration", "20", "--rate", "37.5", "-o", str(log)]) == 0
+    capsys.readouterr()
+    assert main(["train", str(log), "--target", "mcu", "--epochs", "1", "--quiet",
+                 "-o", str(tmp_path / "m.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "sampled at 37.5 Hz, not a whole number" in err, err
+    assert not (tmp_path / "m.json").exists()

@@ -107,3 +107,12 @@ def test_only_a_file_of_the_kind_written_is_replaced(tmp_path):
     (tmp_path / "bin.json").write_bytes(b"\xff\x00")
     assert json_object(tmp_path / "list.json") is None
     assert json_object(tmp_path / "bin.json") is None
+
+
+def test_an_output_under_a_file_says_the_file_is_no_folder(tmp_path):
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(UserError) as info:
+        outputs.check_output_file(tmp_path / "afile" / "out.json", "--json")
+    assert str(info.value).endswith("afile is a file, not a folder")
+    with pytest.raises(UserError, match="does not exist"):
+        outputs.check_output_file(tmp_path / "none" / "out.json", "--json")

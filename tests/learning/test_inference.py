@@ -127,6 +127,8 @@ def bad_files(tmp_path, good):
         if content is not None:
             (tmp_path / name).write_bytes(content)
         out.append((tmp_path / name, words))
+    (tmp_path / "folder.onnx").mkdir()
+    out.append((tmp_path / "folder.onnx", "a folder, not a model file"))
     out.append((foreign_model(tmp_path / "foreign.onnx"), "not a Delta6 learned estimator"))
     out.append((foreign_model(tmp_path / "shape.onnx", props=card),
                 "does not take (batch, 25, 6) windows"))

@@ -74,6 +74,8 @@ def check_output_folder(path: str | Path, option: str) -> Path:
 
 def _check_folder(folder: Path, option: str, text: str) -> None:
     folder = folder if str(folder) else Path(".")
+    if folder.exists() and not folder.is_dir():
+        raise UserError(f"{option} {text}: {folder} is a file, not a folder")
     if not folder.is_dir():
         raise UserError(f"{option} {text}: the folder {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):

@@ -32,6 +32,8 @@ def open_session(path: str | Path, threads: int = 1):
     import onnxruntime as ort
 
     path = Path(path)
+    if path.is_dir():
+        raise ModelFileError(f"{path}: a folder, not a model file")
     if not path.is_file():
         raise ModelFileError(f"{path}: no such file")
     options = ort.SessionOptions()

@@ -43,6 +43,8 @@ CALIBRATED_HIDDEN = ()
 #: Base wrench input steps: full scale is 2^14 steps, so int16 holds +-2 full scales.
 INPUT_STEPS_PER_FS = 16384.0
 MIN_SAMPLES = 200
+#: A log's rate counts as whole within this share of it (its median step jitters).
+WHOLE_RATE_TOLERANCE = 0.01
 
 Progress = Callable[[str], None]
 
@@ -168,6 +170,10 @@ def train_mcu(log, design: Design, base, *, name: str, settings: McuSettings = M
     check_motion(log.theta, source or "the log")
     fs = full_scale(design)
     rate = nominal_rate(log.t)
+    if not (round(rate) >= 1 and abs(rate - round(rate)) <= WHOLE_RATE_TOLERANCE * rate):
+        # The model's steps are samples of its rate, which the board must sample at.
+        raise UserError(f"{source or 'the log'}: sampled at {rate:.4g} Hz, not a whole number of "
+                        "Hz a board samples at: record the calibration log at the board's rate")
     base_wrench = base.predict(log)
     scale = input_scale_for(design)
     u, counts, valid = board_inputs(log, design, base_wrench, scale)
