@@ -260,3 +260,20 @@ def test_an_interrupted_on_chip_export_keeps_the_earlier_pair(tmp_path, unit_log
                  "--seed", "5", "-o", str(model)]) == 130
     assert any(n.startswith("chip.onnx.") and n.endswith(".partial") for n in seen), seen
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
+def test_a_refused_export_keeps_the_earlier_model(tmp_path, tiny_models, unit_logs, capsys,
+                                                  monkeypatch):
+    """An export that differs from the trained network is refused: it used to replace the
+    earlier model first and then delete it; it is now checked under a temporary name."""
+    from delta6.learning import fit as fit_mod
+    host_model, _ = tiny_models["mlp"]
+    kept = tmp_path / "unit.onnx"
+    kept.write_bytes(host_model.read_bytes())
+    monkeypatch.setattr(fit_mod.export_mod, "max_difference", lambda *args: 1.0)
+    assert main(["train", str(unit_logs[0]), "--model", "mlp", "--epochs", "1", "--quiet",
+                 "-o", str(kept)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "differs from the trained one" in err, err
+    assert kept.read_bytes() == host_model.read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["unit.onnx"]

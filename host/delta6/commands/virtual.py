@@ -76,7 +76,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="board time per wall time: 1 real time (default), 0 as fast as "
                              "the emulator runs")
     parser.add_argument("--duration", type=number("--duration", low=0, low_open=True),
-                        metavar="S", help="stop after S seconds of board time")
+                        metavar="S", help="stop after S seconds of board time (its time "
+                                          "starts when a client opens the port)")
     from delta6.commands.codegen import add_allow_implausible
     add_allow_implausible(parser)
 

@@ -13,6 +13,7 @@ from delta6.core import accuracy
 from delta6.core.calibration import Calibration, check_log_meta
 from delta6.core.design import Design
 from delta6.core.errors import UserError
+from delta6.core.outputs import written_together
 from delta6.core.spec import full_scale
 from delta6.learning import dataset as dataset_mod
 from delta6.learning import export as export_mod
@@ -97,14 +98,15 @@ def fit(log: LogData, design: Design, preset: Preset, *, base: str = "none",
 
 def write(fitted: Fitted, path: str | Path) -> float:
     """Export; returns the largest |onnxruntime - torch| on the held-out windows, refused above
-    :data:`EXPORT_TOLERANCE`."""
-    path = export_mod.export(fitted.trained.module, fitted.card, path)
-    split = fitted.data.split()
-    diff = export_mod.max_difference(fitted.trained.module, path, fitted.data.inputs[split:])
-    if not diff <= EXPORT_TOLERANCE:
-        path.unlink()
-        raise UserError(f"the exported model differs from the trained one by {diff:.3g} "
-                        "(standardised units): not written")
+    :data:`EXPORT_TOLERANCE`. Checked under a temporary name: a refused export leaves the file
+    that was at ``path`` as it was."""
+    with written_together(path) as (tmp,):
+        export_mod.export(fitted.trained.module, fitted.card, tmp)
+        split = fitted.data.split()
+        diff = export_mod.max_difference(fitted.trained.module, tmp, fitted.data.inputs[split:])
+        if not diff <= EXPORT_TOLERANCE:
+            raise UserError(f"the exported model differs from the trained one by {diff:.3g} "
+                            "(standardised units): not written")
     return diff
 
 
