@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from delta6.build import compilecache
+from delta6.core.outputs import write_atomically
 from delta6.core.paths import REPO_ROOT
 
 FIRMWARE = REPO_ROOT / "firmware"
@@ -193,7 +194,7 @@ def arduino_core(board: Board = NANO) -> Path:
         jobs.append(_compile_cmd(src, obj, board.mcu, [*extra, *flags]))
         objects.append(obj)
     _compile_all(jobs, "compiling the Arduino core")
-    return compilecache.write_atomically(archive, lambda tmp: _run(
+    return write_atomically(archive, lambda tmp: _run(
         [_tool("avr-gcc-ar"), "rcs", str(tmp), *map(str, objects)], "archiving the Arduino core"))
 
 
@@ -253,12 +254,12 @@ def build_image(name: str, sources, include_dirs=(), defines=(), *, board: Board
     link = [cc, "-Os", "-g", "-flto", "-fuse-linker-plugin", "-Wl,--gc-sections",
             f"-mmcu={board.mcu}", *link_flags, *map(str, objects), *([str(core)] if core else []),
             f"-L{out}", "-lm"]
-    compilecache.write_atomically(elf, lambda tmp: _link([*link, "-o", str(tmp)], name,
+    write_atomically(elf, lambda tmp: _link([*link, "-o", str(tmp)], name,
                                                          board.mcu))
-    compilecache.write_atomically(hex_path, lambda tmp: _run(
+    write_atomically(hex_path, lambda tmp: _run(
         [_tool("avr-objcopy"), "-O", "ihex", "-R", ".eeprom", str(elf), str(tmp)],
         f"making the HEX file of {name}"))
-    compilecache.write_atomically(stamp, lambda tmp: tmp.write_text(key))
+    write_atomically(stamp, lambda tmp: tmp.write_text(key))
     return Image(elf, hex_path, elf_sizes(elf), board.mcu)
 
 

@@ -14,14 +14,14 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import os
 import shutil
 import subprocess
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from pathlib import Path
 
 from delta6.core import paths
 from delta6.core.errors import UserError
+from delta6.core.outputs import write_atomically
 
 
 class BuildError(UserError):
@@ -76,18 +76,6 @@ def run(cmd: list[str], what: str, error: type[UserError] = BuildError) -> None:
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode != 0:
         raise error(f"{what} failed:\n  {' '.join(map(str, cmd))}\n{proc.stderr.strip()}")
-
-
-def write_atomically(target: Path, produce: Callable[[Path], None]) -> Path:
-    """``produce(tmp)`` writes a file at ``tmp``, which then replaces ``target`` in one step
-    (a name of this process's own: concurrent builds do not collide)."""
-    tmp = target.with_name(f"{target.name}.{os.getpid()}.tmp")
-    try:
-        produce(tmp)
-        tmp.replace(target)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return target
 
 
 def check_sources(name: str, sources: Iterable[Path], error: type[UserError] = BuildError) -> None:
