@@ -176,3 +176,11 @@ def test_a_calibration_name_is_a_printable_label(good_text, name, ok):
 def test_the_speed_lead_is_a_short_time(baseline, value, why):
     with pytest.raises(C.CalibrationError, match=f"friction.speed_lead_s.*{why}"):
         C.validate(C.neutral(baseline).with_(speed_lead_s=value), "cal.toml")
+
+
+def test_a_ragged_table_is_named_as_such(good_text):
+    with pytest.raises(C.CalibrationError) as info:
+        C.loads(good_text.replace("curvature = [[", "curvature = [[0.1, 0.2, 0.3], [", 1),
+                "cal.toml")
+    assert str(info.value) == ("cal.toml: field 'spring.curvature': must be a table of numbers, "
+                               "its rows of one length")

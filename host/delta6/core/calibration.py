@@ -229,7 +229,9 @@ def _array(value, shape, key, source) -> np.ndarray:
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
-        _fail(source, key, f"must be numbers, got {value!r}"[:200])
+        ragged = isinstance(value, list) and any(isinstance(v, list) for v in value)
+        _fail(source, key, "must be a table of numbers, its rows of one length" if ragged
+              else f"must be numbers, got {value!r}"[:120])
     if any(isinstance(v, bool) for v in np.ravel(np.asarray(value, dtype=object))):
         _fail(source, key, "must be numbers, got a boolean")
     if arr.shape != shape:
