@@ -62,7 +62,12 @@ def test_later_parameters_are_hashed_only_when_present(baseline):
         assert cal.with_(**{name: value}).hash32() != cal.hash32()
     assert cal.with_(speed_lead_s=1e-4).hash32() != cal.hash32()
     # A new calibration leads its friction's speed; the neutral one stays as it was.
-    assert C.new_settings(baseline, "a").speed_lead_s == C.DEFAULT_SPEED_LEAD_S > 0
+    new = C.new_settings(baseline, "a")
+    assert new.speed_lead_s == C.DEFAULT_SPEED_LEAD_S > 0
+    # ... and four hysteresis plays (the board's most), its weights neutral.
+    assert new.hysteresis_radii_counts == C.NEW_HYSTERESIS_RADII and len(C.NEW_HYSTERESIS_RADII) == 4
+    assert new.hysteresis_nm.shape == (6, 4) and not new.hysteresis_nm.any()
+    assert cal.hysteresis_radii_counts == C.DEFAULT_HYSTERESIS_RADII
 
 
 def test_wrong_design_is_refused(baseline):

@@ -40,8 +40,13 @@ NOT_APPLIED = {
     "harness": "a force from outside the unit (a cable to the plate) that changes with how "
                "it is routed: reported by the diagnosis, not applied",
 }
-#: Play radii of the hysteresis operators, encoder counts (0.006, 0.025, 0.098 rad).
+#: Play radii of the hysteresis operators, encoder counts (0.006, 0.025, 0.098 rad): a file's
+#: default, and the neutral calibration's.
 DEFAULT_HYSTERESIS_RADII = (16, 64, 256)
+#: ... and a new calibration's (0.003 to 0.2 rad, all four the board holds): a loop's shape
+#: over the reversal amplitudes a run happens to make is fitted closer, so the calibration
+#: carries over to runs with other amplitudes (docs/calibration.md, "Single-effect scenarios").
+NEW_HYSTERESIS_RADII = (8, 32, 128, 512)
 #: Speeds V of the saturated Coulomb signs clamp(v / V, -1, 1), rad/s.
 DEFAULT_FRICTION_SPEEDS = (0.005, 0.02)
 #: Time constant of the joint-speed filter, s.
@@ -214,8 +219,10 @@ def neutral(design, name: str | None = None) -> Calibration:
 
 def new_settings(design, name: str | None = None) -> Calibration:
     """What a new calibration of ``design`` starts from: the neutral one, with the friction's
-    speed led (``DEFAULT_SPEED_LEAD_S``)."""
-    return neutral(design, name).with_(speed_lead_s=DEFAULT_SPEED_LEAD_S)
+    speed led (``DEFAULT_SPEED_LEAD_S``) and four hysteresis plays (``NEW_HYSTERESIS_RADII``)."""
+    return neutral(design, name).with_(
+        speed_lead_s=DEFAULT_SPEED_LEAD_S, hysteresis_radii_counts=NEW_HYSTERESIS_RADII,
+        hysteresis_nm=np.zeros((6, len(NEW_HYSTERESIS_RADII))))
 
 
 # -- validation ------------------------------------------------------------------------------
