@@ -314,11 +314,10 @@ def check_log(log: LogData, design: Design, min_samples: int = MIN_SAMPLES) -> N
     fs = full_scale(design)
     over = np.abs(log.wrench) > MAX_FULL_SCALES * fs
     if over.any():
-        row, axis = (int(v) for v in np.argwhere(over)[0])
+        row, axis, samples = _first_of(over)
         unit = "N" if axis < 3 else "N*m"
-        n = int(over.any(axis=1).sum())
         raise DiagnosisInputError(
-            f"{n} {'sample has' if n == 1 else 'samples have'} a reference wrench far outside "
+            f"{samples} a reference wrench far outside "
             f"the design's range, the first at t = {log.t[row]:g} s: {AXES[axis]} = "
             f"{log.wrench[row, axis]:.4g} {unit} (full scale {fs[axis]:.4g} {unit}; up to "
             f"{MAX_FULL_SCALES:g}x is accepted): a corrupt log, a unit error or the wrong "
@@ -333,13 +332,20 @@ def check_log(log: LogData, design: Design, min_samples: int = MIN_SAMPLES) -> N
     if outside.any():
         # A few: corrupt rows. Scored, they were wrenches where the board reports none (up to
         # 10^5 % FS); fitted, they bent a calibration. Removed, a row reads as a lost sample.
-        row, joint = (int(v) for v in np.argwhere(outside)[0])
-        n = int(outside.any(axis=1).sum())
+        row, joint, samples = _first_of(outside)
         raise DiagnosisInputError(
-            f"{n} {'sample has' if n == 1 else 'samples have'} an encoder angle far outside the "
+            f"{samples} an encoder angle far outside the "
             f"joint box, the first at t = {log.t[row]:g} s: theta_e{joint + 1} = "
             f"{log.theta[row, joint]:.4g} rad (|theta_e| up to {1.5 * limit:.2f} is accepted): "
             "corrupt rows (delete them: a missing row reads as a lost sample)")
+
+
+def _first_of(bad: np.ndarray) -> tuple[int, int, str]:
+    """(row, column) of the first True in ``bad`` (samples, columns), and how many samples
+    have one: "1 sample has", "3 samples have"."""
+    row, column = (int(v) for v in np.argwhere(bad)[0])
+    n = int(bad.any(axis=1).sum())
+    return row, column, f"{n} {'sample has' if n == 1 else 'samples have'}"
 
 
 #: A joint whose angle spreads less than this over a log was not moved (or its encoder is

@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import io
 import logging
-import os
 import warnings
 from pathlib import Path
 
@@ -21,12 +20,12 @@ OUTPUT = "wrench"
 
 
 def export(module: torch.nn.Module, card: ModelCard, path: str | Path) -> Path:
-    """Write ``path`` atomically (temporary file, then rename)."""
+    """Write ``path`` (the caller makes it atomic: ``learning.fit.write`` checks the export
+    under a temporary name before it replaces anything)."""
     path = Path(path)
     module.eval()
     example = torch.zeros(2, card.window, 6)
     batch = torch.export.Dim("batch", min=1)
-    tmp = path.with_name(path.name + ".partial")
     chatter = io.StringIO()
     try:
         # The exporter reports its graph passes on stdout; keep the console for our own lines.
@@ -42,13 +41,9 @@ def export(module: torch.nn.Module, card: ModelCard, path: str | Path) -> Path:
             entry.key, entry.value = key, value
         proto.doc_string = "Delta6 learned estimator: " + card.describe()
         onnx.checker.check_model(proto)
-        onnx.save_model(proto, str(tmp))
-        os.replace(tmp, path)
+        onnx.save_model(proto, str(path))
     except OSError as exc:
         raise UserError(f"cannot write {path}: {exc.strerror}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return path
 
 
