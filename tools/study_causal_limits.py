@@ -68,7 +68,9 @@ def speeds(run, dt):
     x = counts_from_angles(run.theta)
     theta = x * ENCODER_COUNT_RAD
     board = lowpass(np.diff(theta, axis=0, prepend=theta[:1]) / dt, 0.02, dt)
-    centred = smooth_velocity(run.theta, run.t)
+    # The diagnosis's fit until 2026-11 (a line over two samples either side): the table
+    # asks what a delay of one or two samples costs such a fit.
+    centred = smooth_velocity(run.theta, run.t, half_width=2, degree=1)
     accel = lowpass(np.diff(board, axis=0, prepend=board[:1]) / dt, 0.04, dt)
     return x, {
         "centred local fit (the diagnosis; 2 samples of the future)": centred,

@@ -147,6 +147,7 @@ def verdict_lines(result: dict) -> list[str]:
         lines.append(f"- {name} is not corrected by `delta6 calibrate`: {NOT_APPLIED[name]} "
                      "(the ladder's shrink counts it; the calibration's held-out table "
                      "does not).")
+    lines += _beyond_encoders_lines(result)
     for p in result["partial"]:
         if p.get("fragment"):
             lines.append(f"- Not named: {p['name']} explains less of the gap, alone and in "
@@ -215,6 +216,20 @@ def verdict_lines(result: dict) -> list[str]:
         lines.append("- The log does not excite " + ", ".join(unsupported) +
                      " enough to judge them.")
     return lines
+
+
+def _beyond_encoders_lines(result: dict) -> list[str]:
+    play = (result.get("beyond_encoders") or {}).get("backlash")
+    if play is None:
+        return []
+    travel = max(play["travel_rms_share_of_play"])
+    return [f"- The backlash's play: the ladder's model on the encoders reaches a held-out p99 "
+            "of " + " ".join(f"{a} {v:.2f}" for a, v in zip(AXES, play["ladder_heldout_p99_pct"]))
+            + " % FS. While an encoder stands still its link turns inside the play where no "
+            f"model on the encoders can follow it (RMS up to {100 * travel:.0f} % of the play, "
+            "seen in the reference wrench); taking the play away (a tighter magnet holder) would "
+            "reach " + " ".join(f"{a} {v:.2f}" for a, v in zip(AXES, play["heldout_p99_pct"]))
+            + " % FS."]
 
 
 def _on_chip_lines(result: dict) -> list[str]:

@@ -21,6 +21,7 @@ from delta6.core.design import Design
 from delta6.core.model import AXES, Params
 from delta6.diagnosis import blas, excitation, gap, leftover, onchip, physics, selection, stream, verdicts
 from delta6.diagnosis import ladder as ladder_mod
+from delta6.diagnosis import unseen
 from delta6.diagnosis import terms as terms_mod
 from delta6.diagnosis.data import DiagnosisInputError, GapData
 from delta6.diagnosis.terms import TERMS
@@ -469,6 +470,26 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
         return result
 
 
+def beyond_encoders(data: GapData, final_pct: np.ndarray, steps: list[dict], present,
+                    groups) -> dict | None:
+    """A named backlash (alone or in a group verdict): the held-out p99 once the play itself
+    is gone, beyond what the ladder's model on the encoders reaches (``unseen``)."""
+    named = set(present) | {m for g in groups for m in g["members"]}
+    if "backlash" not in named or not steps:
+        return None
+    fitted = steps[-1]["all_params"].get("backlash")
+    if fitted is None:
+        return None
+    play = np.asarray(fitted["play_rad"], dtype=float)
+    left, share = unseen.without_play(data, final_pct / 100.0, play)
+    p99 = ladder_mod.p99(100.0 * left)
+    return {"backlash": {
+        "heldout_p99_pct": p99.tolist(),
+        "ladder_heldout_p99_pct": steps[-1]["heldout_p99_pct"],
+        "play_rad": play.tolist(),
+        "travel_rms_share_of_play": share.tolist()}}
+
+
 def select_plausible(problem: selection.Problem, names: list[str], rng, *, min_gain: float,
                      confidence: float, min_share: float, progress=None):
     """Forward and backward selection among ``names`` (which loses the implausible ones),
@@ -686,6 +707,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     for step in steps:
         step["named"] = step["added"] in present
     present = verdicts.order_refinements(problem, present, chosen, coef_all)
+    beyond = beyond_encoders(data, final_pct, steps, present, group_verdicts)
     result = {
         "baseline_heldout_p99_pct": baseline_p99,
         "present": present,
@@ -696,6 +718,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         "groups": group_verdicts,
         "ladder": steps,
         "on_chip": on_chip,
+        "beyond_encoders": beyond,
         "candidates": candidates,
         "plausibility": named_plausibility,
         "implausible": implausible,
