@@ -9,6 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from delta6 import twin
+from delta6.commands.diagnose import summary
 from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.core.spec import full_scale
 from delta6.diagnosis.report import verdict_lines
@@ -92,6 +93,7 @@ def test_a_backlash_s_removal_predicts_the_true_shrink_the_ladder_falls_short_of
     assert (base - ladder).mean() < 0.75 * true_shrink
     assert abs((base - removed).mean() / true_shrink - 1.0) < 0.25
     assert any("taking the play away" in line for line in verdict_lines(verdict))
+    assert "without the play (hardware)" in summary(verdict)
 
 
 @pytest.mark.slow
@@ -102,3 +104,4 @@ def test_no_play_is_taken_away_without_a_named_backlash(baseline):
     assert "backlash" not in verdict["present"]
     assert verdict["beyond_encoders"] is None
     assert not any("taking the play away" in line for line in verdict_lines(verdict))
+    assert "without the play" not in summary(verdict)

@@ -159,6 +159,10 @@ def summary(result: dict) -> str:
         # The final model as a board applies it (causal features, applied families): a
         # forecast of what `delta6 calibrate` leaves on a run like this one.
         lines.append(row("on the chip (calibrate)", on_chip["heldout_p99_pct"]))
+    play = (result.get("beyond_encoders") or {}).get("backlash")
+    if play is not None:
+        # Beyond any model on the encoders: the unit with its backlash's play taken away.
+        lines.append(row("without the play (hardware)", play["heldout_p99_pct"]))
     if result["present"]:
         lines.append("Present (strongest first): " + ", ".join(result["present"]))
     elif not result["groups"]:

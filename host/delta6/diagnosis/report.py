@@ -116,7 +116,8 @@ def write_report(result: dict, data: GapData, out_dir: str | Path, source: str =
                         f"{v:.2f}" for v in result["baseline_heldout_p99_pct"]) + " |"] + [
         f"| {i + 1} | {s['added']} | {s['gain']:.3f} | " + " | ".join(
             f"{v:.2f}" for v in s["heldout_p99_pct"]) + " |"
-        for i, s in enumerate(result["ladder"])])
+        for i, s in enumerate(result["ladder"])]
+        + _without_play_row(result))
     lines += _on_chip_lines(result)
     lines += ["", "![ladder](ladder.png)", "", "### Fitted parameters (all data)", ""]
     for step in result["ladder"]:
@@ -216,6 +217,14 @@ def verdict_lines(result: dict) -> list[str]:
         lines.append("- The log does not excite " + ", ".join(unsupported) +
                      " enough to judge them.")
     return lines
+
+
+def _without_play_row(result: dict) -> list[str]:
+    play = (result.get("beyond_encoders") or {}).get("backlash")
+    if play is None:
+        return []
+    return ["| - | without the backlash's play (hardware, beyond any model on the encoders) | - | "
+            + " | ".join(f"{v:.2f}" for v in play["heldout_p99_pct"]) + " |"]
 
 
 def _beyond_encoders_lines(result: dict) -> list[str]:
