@@ -28,6 +28,21 @@ def test_smooth_velocity_of_a_ramp_is_exact():
     assert np.allclose(smooth_velocity(x, t), [0.3, -2.0])
 
 
+def test_smooth_velocity_window_follows_the_rate_and_falls_back_to_a_line_on_slow_logs():
+    x = np.random.default_rng(3).normal(size=(400, 2)).cumsum(axis=0)
+    # 50 Hz: a cubic over +-0.2 s (10 samples either side), exact on a cubic.
+    t = np.arange(400) * 0.02
+    assert np.array_equal(smooth_velocity(x, t), smooth_velocity(x, t, 10, degree=3))
+    cubic = np.stack([t**3, -t**3 + t], axis=1)
+    assert np.allclose(smooth_velocity(cubic, t)[10:-10], np.stack(
+        [3 * t**2, -3 * t**2 + 1], axis=1)[10:-10])
+    # 10 Hz: +-0.2 s is two samples, where a cubic's slope is noisier than a line's.
+    t = np.arange(400) * 0.1
+    assert np.array_equal(smooth_velocity(x, t), smooth_velocity(x, t, 2, degree=1))
+    with pytest.raises(ValueError, match="half width"):
+        smooth_velocity(x, t, 0)
+
+
 angles = arrays(float, (4, 6), elements=st.floats(-0.5, 0.5))
 
 

@@ -182,7 +182,7 @@ class GapData:
 
     @functools.cached_property
     def smooth_velocity(self) -> np.ndarray:
-        """Encoder angular velocity by a local linear fit (``signals.smooth_velocity``); in a
+        """Encoder angular velocity by a local cubic fit (``signals.smooth_velocity``); in a
         causal view, the board's filtered count difference (:func:`board_speed`)."""
         if self.causal:
             return board_speed(self.theta, self.t, self.step)

@@ -480,7 +480,9 @@ def beyond_encoders(data: GapData, final_pct: np.ndarray, steps: list[dict], pre
     fitted = steps[-1]["all_params"].get("backlash")
     if fitted is None:
         return None
-    play = np.asarray(fitted["play_rad"], dtype=float)
+    play = np.nan_to_num(np.asarray(fitted["play_rad"], dtype=float))
+    if not play.max() > 0:
+        return None         # no play fitted on any joint: nothing to take away
     left, share = unseen.without_play(data, final_pct / 100.0, play)
     p99 = ladder_mod.p99(100.0 * left)
     return {"backlash": {
