@@ -232,7 +232,7 @@ def _beyond_encoders_lines(result: dict) -> list[str]:
     if play is None:
         return []
     travel = max(play["travel_rms_share_of_play"])
-    return [f"- The backlash's play: the ladder's model on the encoders reaches a held-out p99 "
+    return ["- The backlash's play: the ladder's model on the encoders reaches a held-out p99 "
             "of " + " ".join(f"{a} {v:.2f}" for a, v in zip(AXES, play["ladder_heldout_p99_pct"]))
             + " % FS. While an encoder stands still its link turns inside the play where no "
             f"model on the encoders can follow it (RMS up to {100 * travel:.0f} % of the play, "

@@ -19,9 +19,8 @@ import numpy as np
 
 from delta6.core.design import Design
 from delta6.core.model import AXES, Params
-from delta6.diagnosis import blas, excitation, gap, leftover, onchip, physics, selection, stream, verdicts
+from delta6.diagnosis import blas, excitation, gap, leftover, onchip, physics, selection, stream, unseen, verdicts
 from delta6.diagnosis import ladder as ladder_mod
-from delta6.diagnosis import unseen
 from delta6.diagnosis import terms as terms_mod
 from delta6.diagnosis.data import DiagnosisInputError, GapData
 from delta6.diagnosis.terms import TERMS
