@@ -113,3 +113,36 @@ def test_the_clamp_offset_follows_from_the_affine_fit(clamp, mix):
     coef = f.ravel()
     assert len(coef) == HARNESS_AFFINE
     assert np.allclose(harness_clamp(coef), clamp, atol=1e-3 * (1 + np.abs(clamp).max()))
+
+
+def test_the_velocity_fits_a_log_chooses_among_follow_its_rate():
+    from delta6.diagnosis.terms import velocity_windows
+    assert velocity_windows(0.02) == [(2, 1), (5, 3), (10, 3)]        # 50 Hz
+    assert velocity_windows(0.001) == [(2, 1), (100, 3), (200, 3)]    # 1 kHz
+    assert velocity_windows(0.1) == [(2, 1)]                          # 10 Hz: the line only
+
+
+@pytest.mark.slow   # four twin runs of 240 s
+@pytest.mark.parametrize("seed", [11, 21])
+def test_a_faster_motion_makes_the_friction_choose_a_shorter_velocity_fit(baseline, seed):
+    """On the rig's slow moves and dither the cubic over +-0.2 s wins; under a dither of 1 to
+    4 Hz and moves of 0.5-3 s it bends the speed, and a shorter fit is chosen."""
+    from delta6 import twin
+    from delta6.diagnosis.data import GapData
+    from delta6.diagnosis.terms import friction_velocity_window
+    from delta6.link.logfile import LogData
+    from delta6.twin.trajectory import TrajectorySettings
+
+    def chosen(trajectory):
+        effect = twin.make_effect("joint_friction", seed=seed, formulation="stribeck",
+                                  magnitude=0.8)
+        r = twin.simulate(baseline, [effect], duration_s=240, rate_hz=50.0, seed=seed,
+                          trajectory=trajectory)
+        data = GapData.from_log(LogData(t=r.t, theta=r.theta, wrench=r.wrench, temp_c=None),
+                                baseline)
+        return friction_velocity_window(data)
+
+    assert chosen(TrajectorySettings()) == (10, 3)
+    fast = TrajectorySettings(dither_min_hz=1.0, dither_max_hz=4.0, move_min_s=0.5,
+                              move_max_s=3.0)
+    assert chosen(fast)[0] < 10

@@ -76,6 +76,9 @@ class GapData:
     #: The features a board can compute (``causal_view``): the joint speed by the board's
     #: filtered difference, reversals where the counts show them (no look-ahead).
     causal: bool = False
+    #: The velocity's local fit, (half width in samples, degree), chosen once for the whole
+    #: log (``terms.friction_velocity_window``); None: ``signals.smooth_velocity``'s default.
+    velocity_window: tuple[int, int] | None = None
 
     def __post_init__(self):
         if not self.step:
@@ -114,7 +117,7 @@ class GapData:
                        temp_c=None if self.temp_c is None else self.temp_c[sl], fs=self.fs,
                        ref_temp_c=self.ref_temp_c, step=self.step, carry=dict(carry or {}),
                        handoff=None if handoff is None else handoff - start,
-                       causal=self.causal)
+                       causal=self.causal, velocity_window=self.velocity_window)
 
     def _by_piece(self, fn) -> np.ndarray:
         if len(self) <= PIECE:
@@ -182,11 +185,15 @@ class GapData:
 
     @functools.cached_property
     def smooth_velocity(self) -> np.ndarray:
-        """Encoder angular velocity by a local cubic fit (``signals.smooth_velocity``); in a
-        causal view, the board's filtered count difference (:func:`board_speed`)."""
+        """Encoder angular velocity by a local fit (``signals.smooth_velocity``, over
+        ``velocity_window`` when chosen); in a causal view, the board's filtered count
+        difference (:func:`board_speed`)."""
         if self.causal:
             return board_speed(self.theta, self.t, self.step)
-        return smooth_velocity(self.theta, self.t, step=self.step)
+        if self.velocity_window is None:
+            return smooth_velocity(self.theta, self.t, step=self.step)
+        half, degree = self.velocity_window
+        return smooth_velocity(self.theta, self.t, half, step=self.step, degree=degree)
 
     def causal_view(self) -> "GapData":
         """The same log with the features a board computes from past samples only (the

@@ -408,6 +408,10 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
     # later caller gets it again on demand).
     for name in ("residual_pct", "model"):
         data.__dict__.pop(name, None)
+    # The velocity's fit, chosen once on the whole log (its pieces keep it).
+    if data.velocity_window is None:
+        data.velocity_window = terms_mod.friction_velocity_window(data)
+        data.__dict__.pop("smooth_velocity", None)
 
     # Sized for the design at hand (the shipped design's terms are returned as they are).
     vocabulary = terms_mod.for_design(TERMS if terms is None else tuple(terms), data.design)
@@ -742,7 +746,11 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
                      "run_blocks": selection.RUN_BLOCKS,
                      "buffer_blocks": selection.BUFFER_BLOCKS, "min_gain": min_gain,
                      "confidence": confidence, "min_share": min_share,
-                     "bootstrap": selection.N_BOOT, "seed": seed},
+                     "bootstrap": selection.N_BOOT, "seed": seed,
+                     # The friction's velocity fit (half width in samples and s, degree).
+                     "velocity_fit": {"half_width": data.velocity_window[0],
+                                      "half_width_s": data.velocity_window[0] * data.step,
+                                      "degree": data.velocity_window[1]}},
         "design": {"name": design.name, "hash": f"0x{design.hash32():08x}"},
         "seconds": time.perf_counter() - started,
     }

@@ -47,6 +47,7 @@ from delta6.core import curves
 from delta6.core.model import ENCODER_COUNT_RAD, base_force, forward_kinematics, link_tension, rotation
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.sensitivity import GEOMETRY_NAMES
+from delta6.diagnosis.signals import VELOCITY_MIN_CUBIC_HALF, smooth_velocity
 
 #: Widths (radius, rad) of the hysteresis play operators, doubling from 16 encoder counts
 #: to a fifth of the joint range: enough to follow an exponential (Dahl, Bouc-Wen) approach
@@ -197,6 +198,56 @@ def _geometry(data: GapData) -> np.ndarray:
 def _hysteresis(data: GapData) -> np.ndarray:
     # Torque per N*m of loop half-height, for each play width.
     return _torque_columns(data, data.play_state(HYSTERESIS_RADII))
+
+
+#: The velocity fits the friction family chooses among, per log: a line over two samples
+#: either side, and cubics over these half-widths, s (those holding at least
+#: ``signals.VELOCITY_MIN_CUBIC_HALF`` samples either side at the log's rate).
+VELOCITY_CUBIC_HALF_S = (0.1, 0.2)
+#: Samples the choice is made on (the log's first), and its contiguous blocks (alternate
+#: blocks fit and score, then the other way round).
+VELOCITY_CHOICE_SAMPLES = 100_000
+VELOCITY_CHOICE_BLOCKS = 10
+
+
+def velocity_windows(step: float) -> list[tuple[int, int]]:
+    """The candidate (half width in samples, degree) of the velocity's fit at this step."""
+    out = [(2, 1)]
+    for half_s in VELOCITY_CUBIC_HALF_S:
+        half = int(round(half_s / step)) if step > 0 else 0
+        if half >= VELOCITY_MIN_CUBIC_HALF and (half, 3) not in out:
+            out.append((half, 3))
+    return out
+
+
+def friction_velocity_window(data: GapData) -> tuple[int, int]:
+    """The velocity fit with which the friction family's speed features explain the
+    residual's joint torques best on held-out blocks. A longer window averages the counts'
+    quantization away but bends the speed of a fast motion: which wins depends on the log's
+    motion (a rig's slow moves and dither, or a faster excitation), so the log decides. Per
+    joint, least squares on the family's smooth signs and viscous term plus a constant,
+    fitted on alternate contiguous blocks and scored on the others, both ways round."""
+    candidates = velocity_windows(data.step)
+    n = min(len(data), VELOCITY_CHOICE_SAMPLES)
+    if len(candidates) == 1 or n < 4 * VELOCITY_CHOICE_BLOCKS:
+        return candidates[0]
+    rows = slice(0, n)
+    tau = data.joint_torque_of(data.residual[rows], rows)
+    scores = []
+    block = np.arange(n) * VELOCITY_CHOICE_BLOCKS // n
+    for half, degree in candidates:
+        vel = smooth_velocity(data.theta[rows], data.t[rows], half, step=data.step,
+                              degree=degree)
+        sse = 0.0
+        for j in range(6):
+            feats = np.stack([np.tanh(vel[:, j] / v) for v in FRICTION_VELOCITIES_RAD_S]
+                             + [vel[:, j], np.ones(n)], axis=1)
+            for parity in (0, 1):
+                fit = block % 2 == parity
+                coef, *_ = np.linalg.lstsq(feats[fit], tau[fit, j], rcond=None)
+                sse += float(np.sum((tau[~fit, j] - feats[~fit] @ coef) ** 2))
+        scores.append(sse)
+    return candidates[int(np.argmin(scores))]
 
 
 def _friction(data: GapData) -> np.ndarray:
