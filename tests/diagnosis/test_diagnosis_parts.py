@@ -118,7 +118,7 @@ def test_the_clamp_offset_follows_from_the_affine_fit(clamp, mix):
 def test_the_velocity_fits_a_log_chooses_among_follow_its_rate():
     from delta6.diagnosis.terms import velocity_windows
     assert velocity_windows(0.02) == [(2, 1), (5, 3), (10, 3)]        # 50 Hz
-    assert velocity_windows(0.001) == [(2, 1), (100, 3), (200, 3)]    # 1 kHz
+    assert velocity_windows(0.001) == [(2, 1), (50, 3), (100, 3), (200, 3)]    # 1 kHz
     assert velocity_windows(0.1) == [(2, 1)]                          # 10 Hz: the line only
 
 

@@ -203,7 +203,7 @@ def _hysteresis(data: GapData) -> np.ndarray:
 #: The velocity fits the friction family chooses among, per log: a line over two samples
 #: either side, and cubics over these half-widths, s (those holding at least
 #: ``signals.VELOCITY_MIN_CUBIC_HALF`` samples either side at the log's rate).
-VELOCITY_CUBIC_HALF_S = (0.1, 0.2)
+VELOCITY_CUBIC_HALF_S = (0.05, 0.1, 0.2)
 #: Samples the choice is made on (the log's first), and its contiguous blocks (alternate
 #: blocks fit and score, then the other way round).
 VELOCITY_CHOICE_SAMPLES = 100_000
