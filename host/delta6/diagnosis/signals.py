@@ -31,11 +31,12 @@ def lagged(x: np.ndarray, t: np.ndarray, tau: float, *, step: float | None = Non
     return first_order(x, np.exp(-step / tau), y0)
 
 
-#: Half-width of the window of the velocity's local fit, s. Over +-0.2 s a joint's motion
-#: (robot moves and dither of a few tenths of a hertz to about a hertz) is a cubic to well
-#: within a count, and the fit's slope averages the 14-bit quantization of 21 samples at 50 Hz:
-#: about 0.7 mrad/s of error against 1.8 with a linear fit over +-2 samples, which is what
-#: a friction's smooth sign (a few mrad/s wide) needs around each reversal.
+#: Half-width of the window of the velocity's default local fit, s (the diagnosis lets each
+#: log choose its own, ``terms.friction_velocity_window``). On a calibration rig's motion
+#: (moves of seconds, dither of a few tenths of a hertz to about a hertz) the slope of a cubic
+#: over +-0.2 s averages the 14-bit quantization of 21 samples at 50 Hz: about 0.7 mrad/s of
+#: error against 1.8 with a line over +-2 samples, which a friction's smooth sign (a few
+#: mrad/s wide) needs around each reversal; a faster motion needs a shorter window.
 VELOCITY_HALF_WINDOW_S = 0.2
 #: Degree of that local fit (a cubic: a symmetric window's slope is then exact up to the
 #: fourth power of time).
