@@ -98,18 +98,26 @@ def test_bad_inputs_are_one_line_errors(trained, tmp_path, capsys):
         assert len(err.splitlines()) == 1 and needle in err, (argv, err)
 
 
+def _refused_mcu_training(log, tmp_path, capsys) -> str:
+    """``delta6 train LOG --target mcu`` refused: exit 2, one line on stderr (returned), and
+    no model file."""
+    capsys.readouterr()
+    assert main(["train", str(log), "--target", "mcu", "--epochs", "1", "--quiet",
+                 "-o", str(tmp_path / "m.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert not (tmp_path / "m.json").exists()
+    return err
+
+
 def test_a_log_of_another_design_is_refused_before_training(tmp_path, capsys):
     # The board runs the model on one design: training it on another design's log would
     # write a model that silently corrects the wrong mechanism.
     log = tmp_path / "stiff.csv"
     assert main(["simulate", "--design", "designs/stiff.toml", "--duration", "20",
                  "-o", str(log)]) == 0
-    capsys.readouterr()
-    assert main(["train", str(log), "--target", "mcu", "--epochs", "1", "--quiet",
-                 "-o", str(tmp_path / "m.json")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "recorded with design stiff" in err, err
-    assert not (tmp_path / "m.json").exists()
+    err = _refused_mcu_training(log, tmp_path, capsys)
+    assert "recorded with design stiff" in err, err
 
 
 def test_an_output_that_cannot_be_written_is_refused_before_training(tmp_path, capsys):
@@ -140,12 +148,8 @@ def test_a_network_the_quantizer_refuses_is_one_line(tmp_path, capsys, monkeypat
     monkeypatch.setattr(int8quant, "quantize", refuse)
     log = tmp_path / "cal.csv"
     assert main(["simulate", "--duration", "40", "-o", str(log)]) == 0
-    capsys.readouterr()
-    assert main(["train", str(log), "--target", "mcu", "--epochs", "1", "--quiet",
-                 "-o", str(tmp_path / "m.json")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "cannot be quantized" in err, err
-    assert "output_step: out of range" in err and not (tmp_path / "m.json").exists()
+    err = _refused_mcu_training(log, tmp_path, capsys)
+    assert "cannot be quantized" in err and "output_step: out of range" in err, err
 
 
 def test_the_axes_a_model_makes_worse_are_named():
@@ -160,9 +164,5 @@ def test_a_log_at_a_rate_no_board_samples_at_is_refused(tmp_path, capsys):
     37 Hz, it would have run at a rate it was not trained at."""
     log = tmp_path / "odd.csv"
     assert main(["simulate", "--duration", "20", "--rate", "37.5", "-o", str(log)]) == 0
-    capsys.readouterr()
-    assert main(["train", str(log), "--target", "mcu", "--epochs", "1", "--quiet",
-                 "-o", str(tmp_path / "m.json")]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "sampled at 37.5 Hz, not a whole number" in err, err
-    assert not (tmp_path / "m.json").exists()
+    err = _refused_mcu_training(log, tmp_path, capsys)
+    assert "sampled at 37.5 Hz, not a whole number" in err, err

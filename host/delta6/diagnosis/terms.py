@@ -210,6 +210,12 @@ VELOCITY_CHOICE_SAMPLES = 100_000
 VELOCITY_CHOICE_BLOCKS = 10
 
 
+def speed_features(vel: np.ndarray) -> np.ndarray:
+    """The friction family's functions of the joint speed, on a new last axis: its smooth signs
+    at each of ``FRICTION_VELOCITIES_RAD_S`` and the speed itself (viscous)."""
+    return np.stack([np.tanh(vel / v) for v in FRICTION_VELOCITIES_RAD_S] + [vel], axis=-1)
+
+
 def velocity_windows(step: float) -> list[tuple[int, int]]:
     """The candidate (half width in samples, degree) of the velocity's fit at this step."""
     out = [(2, 1)]
@@ -240,8 +246,7 @@ def friction_velocity_window(data: GapData) -> tuple[int, int]:
                               degree=degree)
         sse = 0.0
         for j in range(6):
-            feats = np.stack([np.tanh(vel[:, j] / v) for v in FRICTION_VELOCITIES_RAD_S]
-                             + [vel[:, j], np.ones(n)], axis=1)
+            feats = np.column_stack([speed_features(vel[:, j]), np.ones(n)])
             for parity in (0, 1):
                 fit = block % 2 == parity
                 coef, *_ = np.linalg.lstsq(feats[fit], tau[fit, j], rcond=None)
@@ -253,10 +258,8 @@ def friction_velocity_window(data: GapData) -> tuple[int, int]:
 def _friction(data: GapData) -> np.ndarray:
     # Any odd function of the joint speed that saturates (Coulomb, Stribeck) or grows
     # (viscous), plus the pre-sliding memory that holds the last direction's friction at rest.
-    vel = data.smooth_velocity
     memory = data.play_state([BACKLASH_SWITCH_RAD])[:, :, 0]
-    feats = np.stack([np.tanh(vel / v) for v in FRICTION_VELOCITIES_RAD_S]
-                     + [vel, memory], axis=-1)
+    feats = np.concatenate([speed_features(data.smooth_velocity), memory[..., None]], axis=-1)
     return _torque_columns(data, feats)
 
 
@@ -314,9 +317,8 @@ def friction_curve(coef: np.ndarray, speed: np.ndarray) -> np.ndarray:
     (6, len(speed)), from fitted coefficients (the memory term is +1 while sliding)."""
     c = np.asarray(coef, dtype=float).reshape(6, -1)
     speed = np.asarray(speed, dtype=float)
-    feats = np.stack([np.tanh(speed / v) for v in FRICTION_VELOCITIES_RAD_S]
-                     + [speed, np.ones_like(speed)], axis=0)
-    return c @ feats
+    feats = np.concatenate([speed_features(speed), np.ones_like(speed)[..., None]], axis=-1)
+    return c @ feats.T
 
 
 def _friction_summary(coef: np.ndarray) -> dict:
