@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from delta6 import twin
-from delta6.diagnosis import blas, ladder, selection, verdicts
+from delta6.diagnosis import blas, ladder, selection, terms, verdicts
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.run import diagnose
 from delta6.diagnosis.terms import TERMS
@@ -187,6 +187,38 @@ def test_group_members_carry_what_their_group_carries_for_the_partial_rule(basel
     assert np.isclose(carried["stiffness_mismatch"], own["stiffness_mismatch"])
 
 
+def _along_motion(coef, cov=None):
+    friction = TERM_BY_NAME["joint_friction"]
+    (check,) = friction.sign_checks(coef, cov)
+    assert check["quantity"] == "torque_along_motion_nm"
+    return check["ratio"]
+
+
+@given(coulomb=st.floats(5e-4, 8e-3), excess=st.floats(0.0, 1.0),
+       stribeck=st.floats(0.005, 0.05), viscous=st.floats(0.0, 5e-3))
+def test_a_friction_that_opposes_the_motion_is_plausible(coulomb, excess, stribeck, viscous):
+    # The twin's Stribeck curve, fitted on the family's features: whatever its shape (falling
+    # from breakaway, so its slope over 0.05..0.5 rad/s may be negative), it never pushes.
+    speeds = np.geomspace(1e-3, 1.0, 200)
+    curve = coulomb * (1 + excess * np.exp(-(speeds / stribeck) ** 2)) * np.tanh(
+        speeds / 0.005) + viscous * speeds
+    feats = np.concatenate([terms.speed_features(speeds), np.ones((200, 1))], axis=1)
+    per_joint, *_ = np.linalg.lstsq(feats, curve, rcond=None)
+    assert _along_motion(np.tile(per_joint, 6)) == 0.0
+
+
+def test_a_friction_that_pushes_the_joint_along_is_not_friction():
+    # A reference 30 ms late makes a viscous term of -k x 30 ms on every joint: at 0.5 rad/s
+    # it pushes by 10 mN*m, ten times the tolerance; undetermined, it is not out of bounds.
+    width = len(TERM_BY_NAME["joint_friction"].param_names) // 6
+    coef = np.zeros(6 * width)
+    coef[3::width] = -0.02
+    assert _along_motion(coef) == pytest.approx(10.0)
+    assert _along_motion(coef, np.eye(6 * width) * 0.02 ** 2) == 0.0
+    coef[1] = 0.02                                  # joint 1: a real Coulomb friction too
+    assert _along_motion(coef) == pytest.approx(10.0)
+
+
 def test_plausibility_flags_fits_out_of_bounds_beyond_their_uncertainty():
     geometry = TERM_BY_NAME["geometry_error"]
     coef = np.zeros(len(geometry.param_names))
@@ -196,7 +228,7 @@ def test_plausibility_flags_fits_out_of_bounds_beyond_their_uncertainty():
     assert checks["angle_error_rad"]["ratio"] == 0
     # Undetermined (a standard error of 2 mm): not out of bounds beyond three of them.
     se = np.full(len(coef), 2.0)
-    assert geometry.plausibility(coef, se)[0]["ratio"] == 0
+    assert geometry.plausibility(coef, np.diag(se ** 2))[0]["ratio"] == 0
     hysteresis = TERM_BY_NAME["spring_hysteresis"]
     loop = np.zeros(len(hysteresis.param_names))
     loop[:5] = 0.02                                  # joint 1: a 0.1 N*m half-width

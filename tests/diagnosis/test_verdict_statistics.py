@@ -23,7 +23,8 @@ def problem_of(x: np.ndarray, y: np.ndarray, widths: dict, blocks: int = 4,
         slices[name] = slice(at, at + width)
         at += width
         terms[name] = SimpleNamespace(param_names=[f"p{k}" for k in range(width)],
-                                      plausibility=plausibility)
+                                      plausibility=plausibility,
+                                      sign_checks=lambda coef, cov: [])
     return selection.Problem(y=y, x=x, slices=slices, terms=terms, bounds=bounds, gram=gram,
                              xty=xty, yty=yty)
 
@@ -82,16 +83,18 @@ def test_a_family_is_plausible_up_to_its_limit_inclusive(ratio, plausible):
     x, y = regression(3, np.array([0.1, 0.2]))
     seen = []
 
-    def checks(coef, se):
-        seen.append((coef.copy(), se.copy()))
+    def checks(coef, cov):
+        seen.append((coef.copy(), cov.copy()))
         return [{"quantity": "q", "ratio": 0.2}, {"quantity": "r", "ratio": ratio}]
 
     problem = problem_of(x, y, {"a": 1, "b": 1}, plausibility=checks)
     coef = selection.fit(problem, ["a", "b"])
     out = verdicts.plausibility(problem, ["a", "b"], coef)
     assert out["a"]["plausible"] is plausible and out["b"]["plausible"] is plausible
-    # Each family is judged on its own coefficients and standard errors.
+    # Each family is judged on its own coefficients and their block of the covariance.
+    cov = verdicts.covariance(problem, ["a", "b"], coef)
     se = verdicts.standard_errors(problem, ["a", "b"], coef)
-    for k, (c, s) in enumerate(seen):
+    for k, (c, block) in enumerate(seen):
         np.testing.assert_array_equal(c, coef[k:k + 1])
-        np.testing.assert_array_equal(s, se[k:k + 1])
+        np.testing.assert_array_equal(block, cov[k:k + 1, k:k + 1])
+        np.testing.assert_allclose(np.sqrt(np.diag(block)), se[k:k + 1])

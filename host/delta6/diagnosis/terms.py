@@ -105,6 +105,10 @@ class Term:
     #: values, or one per value): set by :func:`for_design` for a design whose springs or
     #: links make the shipped design's sizes too tight (empty: the limits as written).
     limit_scale: tuple[tuple[str, tuple[float, ...]], ...] = ()
+    #: What physics keeps at or above zero: () -> [(quantity, maps, tolerance)], each map
+    #: (6, k, width) taking the coefficients to k values per joint (a friction's torque against
+    #: the motion at k speeds): see :meth:`sign_checks`.
+    one_sided: Callable[[], list] | None = None
 
     def summarize(self, coef: np.ndarray) -> dict:
         out = {name: float(v) for name, v in zip(self.param_names, coef)}
@@ -112,16 +116,35 @@ class Term:
             out.update(self.summary(np.asarray(coef, dtype=float)))
         return out
 
-    def plausibility(self, coef: np.ndarray, se: np.ndarray | None = None) -> list[dict]:
-        """Every physical quantity of a fit against its plausible limit. With the standard
-        errors ``se`` of the coefficients, a parameter counts only by how far it is
-        out of bounds beyond three standard errors (a combination the log cannot separate,
-        two lengths that cancel, is undetermined, not implausible)."""
+    def plausibility(self, coef: np.ndarray, cov: np.ndarray | None = None) -> list[dict]:
+        """Every physical quantity of a fit against its plausible limit. With the covariance
+        ``cov`` of the coefficients, a parameter counts only by how far it is out of bounds
+        beyond three standard errors (a combination the log cannot separate, two lengths
+        that cancel, is undetermined, not implausible)."""
         coef = np.asarray(coef, dtype=float)
-        if se is not None:
-            se = np.asarray(se, dtype=float)
-            coef = np.sign(coef) * np.maximum(np.abs(coef) - 3.0 * se, 0.0)
-        checks = (self.plausible(coef) if self.plausible is not None else [])
+        shrunk = coef
+        if cov is not None:
+            se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+            shrunk = np.sign(coef) * np.maximum(np.abs(coef) - 3.0 * se, 0.0)
+        return self._judge(self.plausible(shrunk) if self.plausible is not None else [])
+
+    def sign_checks(self, coef: np.ndarray, cov: np.ndarray | None = None) -> list[dict]:
+        """What physics keeps at or above zero (``one_sided``), as :meth:`plausibility`'s
+        checks: per joint, how far its values go below zero beyond three of their standard
+        errors (from the covariance ``cov``), against the tolerance. The diagnosis judges a
+        fit's signs this way; the calibration imposes them in its fit instead."""
+        coef = np.asarray(coef, dtype=float)
+        checks = []
+        for quantity, maps, tolerance in (self.one_sided() if self.one_sided else []):
+            values = maps @ coef                                         # (6, k)
+            sd = (np.sqrt(np.maximum(np.einsum("jkw,wv,jkv->jk", maps, cov, maps), 0.0))
+                  if cov is not None else 0.0)
+            checks.append((quantity, np.maximum(-values - 3.0 * sd, 0.0).max(axis=1),
+                           tolerance))
+        return self._judge(checks)
+
+    def _judge(self, checks) -> list[dict]:
+        """[(quantity, values, limit)] -> each quantity's worst value against its limit."""
         scales = dict(self.limit_scale)
         out = []
         for quantity, values, limit in checks:
@@ -319,6 +342,25 @@ def friction_curve(coef: np.ndarray, speed: np.ndarray) -> np.ndarray:
     speed = np.asarray(speed, dtype=float)
     feats = np.concatenate([speed_features(speed), np.ones_like(speed)[..., None]], axis=-1)
     return c @ feats.T
+
+
+#: Speeds at which a fitted friction must oppose the motion (rad/s), and by how much it may
+#: push along it (N*m; the smallest real friction is about this size) before the fit counts
+#: as something else, such as a late reference (whose error is a negative viscous term).
+DISSIPATION_SPEEDS_RAD_S = np.geomspace(0.01, 0.5, 8)
+DISSIPATION_TOLERANCE_NM = 1e-3
+
+
+def _friction_dissipates():
+    # Per joint, the steady-state curve at each speed is a fixed row on that joint's
+    # coefficients (friction_curve's features).
+    speeds = DISSIPATION_SPEEDS_RAD_S
+    feats = np.concatenate([speed_features(speeds), np.ones_like(speeds)[:, None]], axis=-1)
+    width = feats.shape[1]
+    maps = np.zeros((6, len(speeds), 6 * width))
+    for j in range(6):
+        maps[j, :, j * width:(j + 1) * width] = feats
+    return [("torque_along_motion_nm", maps, DISSIPATION_TOLERANCE_NM)]
 
 
 def _friction_summary(coef: np.ndarray) -> dict:
@@ -818,7 +860,8 @@ TERMS: tuple[Term, ...] = (
                + ("viscous_nms_per_rad", "presliding_nm")),
          "N*m, N*m*s/rad", _friction, summary=_friction_summary,
          prior_sd=_per_joint(_TORQUE, len(FRICTION_VELOCITIES_RAD_S) + 2),
-         plausible=_friction_plausible, group=DIRECTION_DEPENDENT),
+         plausible=_friction_plausible, one_sided=_friction_dissipates,
+         group=DIRECTION_DEPENDENT),
     Term("backlash", "angle",
          tuple(f"{kind}_{j}_rad" for j in JOINTS
                for kind in ("play_dwell", *(f"pickup_r{r:g}_play" for r in BACKLASH_PICKUP_RAD))),
@@ -871,7 +914,8 @@ SMOOTH_IN_ANGLE_FAMILIES = tuple(t.name for t in TERMS if t.group == SMOOTH_IN_A
 #: The families whose sizes are torques at the joints (their parameters joint-major, every one
 #: in N*m or N*m per speed), and the quantities of their plausibility checks that are.
 TORQUE_FAMILIES = {"spring_hysteresis": ("loop_half_width_nm",),
-                   "joint_friction": ("coulomb_equiv_nm", "viscous_equiv_nm_s_per_rad")}
+                   "joint_friction": ("coulomb_equiv_nm", "viscous_equiv_nm_s_per_rad",
+                                      "torque_along_motion_nm")}
 #: The link compliance's parameters and quantities in rad per N*m (a bend at the elbow and
 #: the plate's tilt), which grow as the links get shorter.
 COMPLIANCE_PARAMS = slice(3, 7)

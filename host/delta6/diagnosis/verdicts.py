@@ -100,9 +100,9 @@ def fold_small_members(problem: selection.Problem, present: list[str], chosen: l
     return present, out
 
 
-def standard_errors(problem: selection.Problem, names, coef: np.ndarray) -> np.ndarray:
-    """Standard errors of a fit on all blocks: the residual variance of the fit (not just the
-    noise: a family that misfits is less certain) times the diagonal of the regularised
+def covariance(problem: selection.Problem, names, coef: np.ndarray) -> np.ndarray:
+    """Covariance of a fit's coefficients on all blocks: the residual variance of the fit
+    (not just the noise: a family that misfits is less certain) times the regularised
     inverse Gram matrix."""
     cols = problem.cols(names)
     gram = problem.gram[:, cols][:, :, cols].sum(axis=0)
@@ -113,7 +113,12 @@ def standard_errors(problem: selection.Problem, names, coef: np.ndarray) -> np.n
     reg = gram + np.diag(problem.penalty[cols]) if problem.penalty is not None else gram
     scale = np.sqrt(np.maximum(np.diag(reg), 1e-300))
     inv = np.linalg.pinv(reg / np.outer(scale, scale)) / np.outer(scale, scale)
-    return np.sqrt(np.maximum(np.diag(inv), 0.0) * var)
+    return inv * var
+
+
+def standard_errors(problem: selection.Problem, names, coef: np.ndarray) -> np.ndarray:
+    """Standard errors of a fit's coefficients (:func:`covariance`)."""
+    return np.sqrt(np.maximum(np.diag(covariance(problem, names, coef)), 0.0))
 
 
 def plausibility(problem: selection.Problem, names, coef: np.ndarray) -> dict:
@@ -121,11 +126,13 @@ def plausibility(problem: selection.Problem, names, coef: np.ndarray) -> dict:
     quantity against its limit, and whether the fit stays within all of them."""
     out = {}
     at = 0
-    se = standard_errors(problem, names, coef)
+    cov = covariance(problem, names, coef)
     for name in names:
         term = problem.terms[name]
         width = len(term.param_names)
-        checks = term.plausibility(coef[at:at + width], se[at:at + width])
+        block = slice(at, at + width)
+        checks = (term.plausibility(coef[block], cov[block, block])
+                  + term.sign_checks(coef[block], cov[block, block]))
         at += width
         out[name] = {"plausible": all(c["ratio"] <= 1.0 for c in checks), "checks": checks}
     return out
