@@ -16,6 +16,7 @@ from delta6.evaluation.gap_benchmark import (
     Case,
     add_bends,
     beyond_line,
+    carried_sizes,
     joint_bends,
     leftover_joints,
     on_joint,
@@ -54,6 +55,18 @@ def test_a_negative_share_does_not_make_a_group_weak():
     r = verdict(["a"], {"a": -0.5, "b": 0.2}, groups=[("a", "b")])
     assert weak_names(r) == 1                      # a, named alone
     assert weak_names(r, per_member=True) == 1
+
+
+def test_an_effect_cancelling_another_carries_its_own_error_in_the_second_count():
+    # A stiffening spring against a soft rate error: removing it raises the gap (share
+    # -0.1) though its own error is a quarter of it; an absent name stays weak either way.
+    r = verdict(["rate", "spring", "ghost"], {"rate": 0.8, "spring": -0.1})
+    r["own_shares"] = {"rate": 0.9, "spring": 0.25}
+    assert carried_sizes(r) == {"rate": 0.9, "spring": 0.25}
+    assert weak_names(r) == 2
+    assert weak_names(r, shares=carried_sizes(r)) == 1
+    del r["own_shares"]                           # older records: the removal share
+    assert carried_sizes(r) == r["shares"]
 
 
 def test_a_member_named_alone_is_not_counted_again_through_its_group():

@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 
-from delta6.core import accuracy
 from delta6.core.design import Design, load
 from delta6.core.model import Params
 from delta6.core.spec import full_scale
@@ -227,11 +226,16 @@ def leftover_joints(acting: list[int], bend_rms: np.ndarray) -> list[int]:
     return [j for j in acting if top > 0 and bend_rms[j - 1] >= np.sqrt(JOINT_SHARE) * top]
 
 
+def _error(design: Design, result, fs) -> np.ndarray:
+    """The analytical model's signed error on a twin run, FS-normalised, (n, 6)."""
+    return (result.model_wrench() - result.wrench) / np.asarray(fs)
+
+
 def _gap(design: Design, result, fs) -> tuple[np.ndarray, float]:
     """The analytical model's error on a twin run: p99 per axis (% FS) and the squared error
     (FS-normalised) summed over the run."""
-    err = accuracy.error_pct_fs(result.model_wrench(), result.wrench, fs)
-    return np.percentile(err, 99, axis=0), float(((err / 100.0) ** 2).sum())
+    err = _error(design, result, fs)
+    return 100.0 * np.percentile(np.abs(err), 99, axis=0), float((err ** 2).sum())
 
 
 def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> dict:
@@ -266,18 +270,21 @@ def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> d
     seconds = time.perf_counter() - started
 
     truth = json.loads(hidden.read_text())
-    _, full_sse = _gap(design, result, fs)
+    full_err = _error(design, result, fs)
+    full_sse = float((full_err ** 2).sum())
     names = [e["name"] for e in truth["effects"]]
     # The same run (trajectory, noise) without some effects: the true shrink and the shares.
     clean = simulate([]) if names else result
     clean_p99, clean_sse = _gap(design, clean, fs)
-    shares = {}
-    if len(names) > 1:
-        for name in names:
-            _, sse_wo = _gap(design, simulate([e for e in effects if e.NAME != name]), fs)
-            shares[name] = (full_sse - sse_wo) / full_sse
-    elif names:
-        shares[names[0]] = (full_sse - clean_sse) / full_sse
+    shares, own_shares = {}, {}
+    for name in names:
+        without = (simulate([e for e in effects if e.NAME != name]) if len(names) > 1
+                   else clean)
+        err_wo = _error(design, without, fs)
+        shares[name] = (full_sse - float((err_wo ** 2).sum())) / full_sse
+        # The size of the effect's own error (an effect partly cancelling another carries a
+        # removal share below it).
+        own_shares[name] = float(((full_err - err_wo) ** 2).sum()) / full_sse
     truth_rows = [{"name": e["name"], "formulation": e["formulation"],
                    "magnitude": e["magnitude"], "joints": e["joints"], "summary": e["summary"]}
                   for e in truth["effects"]]
@@ -297,6 +304,7 @@ def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> d
         "case": asdict(case), "label": case.label, "kind": case.kind, "path": case.path,
         "truth": truth_rows,
         "shares": shares,
+        "own_shares": own_shares,
         "present": verdict["present"],
         "groups": [{"members": g["members"], "share_of_gap": g["share_of_gap"],
                     "text": g["text"], "folded": g.get("folded", [])}
@@ -413,13 +421,23 @@ def _named(r: dict) -> set:
     return set(r["present"]) | {m for g in r.get("groups", []) for m in g["members"]}
 
 
-def weak_names(r: dict, per_member: bool = False) -> int:
+def carried_sizes(r: dict) -> dict:
+    """Per effect of a run, the larger of its removal share and its own error's size
+    (``own_shares``): an effect partly cancelling another (a stiffening spring against a soft
+    rate error) removes less than its own error makes. Records from before the own size was
+    measured: the removal share."""
+    own = r.get("own_shares") or {}
+    return {n: max(v, own.get(n, v)) for n, v in r["shares"].items()}
+
+
+def weak_names(r: dict, per_member: bool = False, shares: dict | None = None) -> int:
     """Names in a run's verdict that carry under ``FALSE_NAME_SHARE`` of the gap. A group
     verdict ("backlash and/or hysteresis, together N % of the gap") is one name, true when any
     member is there: weak when its members' positive shares (a member named alone included:
     the statement is about all of them) sum to under the share; ``per_member``: each member
-    not named alone counts as a name of its own (the stricter count, also reported)."""
-    shares = r["shares"]
+    not named alone counts as a name of its own (the stricter count, also reported).
+    ``shares``: what each effect carries (default: its removal share)."""
+    shares = r["shares"] if shares is None else shares
     weak = sum(1 for n in r["present"] if shares.get(n, 0.0) < FALSE_NAME_SHARE)
     for g in r.get("groups", []):
         added = [m for m in g["members"] if m not in r["present"]]
@@ -476,6 +494,7 @@ def score_extended(results: list[dict]) -> dict:
                 named += name in names
     false_names = [weak_names(r) for r in mixes]
     false_members = [weak_names(r, per_member=True) for r in mixes]
+    false_own = [weak_names(r, shares=carried_sizes(r)) for r in mixes]
     shrink_runs = [r for r in results if r["kind"] in ("single", "mix", "axis")
                    and r["true_shrink"] > 0.05]
     ratios = [r["predicted_shrink"] / r["true_shrink"] for r in shrink_runs]
@@ -501,6 +520,8 @@ def score_extended(results: list[dict]) -> dict:
         "mix_false_names_max": max(false_names) if false_names else 0,
         "mix_runs_at_most_one_false": float(np.mean([f <= 1 for f in false_names]))
         if false_names else float("nan"),
+        "mix_runs_at_most_one_false_own": float(np.mean([f <= 1 for f in false_own]))
+        if false_own else float("nan"),
         "mix_false_members_max": max(false_members) if false_members else 0,
         "mix_runs_at_most_one_false_member": float(np.mean([f <= 1 for f in false_members]))
         if false_members else float("nan"),
@@ -611,6 +632,9 @@ def format_extended(summary: dict, results: list[dict]) -> str:
         f"| the same, each member of a group verdict a name | "
         f"{pct(summary['mix_runs_at_most_one_false_member'])} (most in one run: "
         f"{summary['mix_false_members_max']}) | - |",
+        f"| the same, a name weak only when its effect's own error is under "
+        f"{FALSE_NAME_SHARE:.0%} of the gap too (cancelling effects) | "
+        f"{pct(summary.get('mix_runs_at_most_one_false_own', float('nan')))} | - |",
         f"| predicted shrink within 25 % of the true one (single, mixed and axis runs) | "
         f"{pct(summary['shrink_within_25pct_all'])} of {summary['shrink_runs']} (median ratio "
         f"{summary['shrink_ratio_median_all']:.2f}) | >= 90 % |",
