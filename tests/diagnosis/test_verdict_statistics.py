@@ -24,7 +24,8 @@ def problem_of(x: np.ndarray, y: np.ndarray, widths: dict, blocks: int = 4,
         at += width
         terms[name] = SimpleNamespace(param_names=[f"p{k}" for k in range(width)],
                                       plausibility=plausibility,
-                                      sign_checks=lambda coef, cov: [])
+                                      sign_checks=lambda coef, cov: [], group=None,
+                                      refines=None)
     return selection.Problem(y=y, x=x, slices=slices, terms=terms, bounds=bounds, gram=gram,
                              xty=xty, yty=yty)
 
@@ -98,3 +99,27 @@ def test_a_family_is_plausible_up_to_its_limit_inclusive(ratio, plausible):
         np.testing.assert_array_equal(c, coef[k:k + 1])
         np.testing.assert_array_equal(block, cov[k:k + 1, k:k + 1])
         np.testing.assert_allclose(np.sqrt(np.diag(block)), se[k:k + 1])
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_family_another_fits_as_well_has_that_one_as_a_stand_in(seed):
+    # "b" is "a"'s column with a little noise of its own: the log cannot tell them apart;
+    # "c" is unrelated and fits nothing.
+    rng = np.random.default_rng(seed)
+    n = 3000
+    a = rng.normal(size=(n, 6, 1))
+    x = np.concatenate([a, a + 0.01 * rng.normal(size=(n, 6, 1)),
+                        rng.normal(size=(n, 6, 1))], axis=2)
+    y = a[..., 0] + rng.normal(size=(n, 6))
+    problem = problem_of(x, y, {"a": 1, "b": 1, "c": 1}, blocks=12,
+                         plausibility=lambda coef, cov: [])
+    problem.folds = selection.make_folds(12, n_folds=3, run=1)
+    problem.noise_var = 1.0
+    assert verdicts.stand_ins(problem, ["a"], ["a"], ["b", "c"]) == {"a": ["b"]}
+    # Without a noise floor to judge against, no swap is within it.
+    problem.noise_var = 0.0
+    assert verdicts.stand_ins(problem, ["a"], ["a"], ["b", "c"]) == {}
+    # One of a declared group is left to the group verdicts.
+    problem.noise_var = 1.0
+    problem.terms["a"].group = problem.terms["b"].group = "same"
+    assert verdicts.stand_ins(problem, ["a"], ["a"], ["b", "c"]) == {}

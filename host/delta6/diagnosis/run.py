@@ -709,9 +709,28 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     present, group_verdicts = verdicts.fold_small_members(
         problem, present, chosen, {s["added"]: s["share_of_gap"] for s in steps},
         group_verdicts, SMALL_SHARE, spared=confirmed)
+    present = verdicts.order_refinements(problem, present, chosen, coef_all)
+    # Beside a structured leftover (something the model misses), a small name (under
+    # PARTIAL_SHARE of the gap) that another family could take the place of, as well, says
+    # no more than that family: it may be soaking up part of what is missing. It becomes a
+    # verdict naming both ("could be"), unless its own signature confirms it. With a white
+    # leftover the model explains the gap, and a large name explains most of it.
+    own = {s["added"]: s["share_of_gap"] for s in steps}
+    small = [n for n in present if n not in confirmed and own[n] < PARTIAL_SHARE]
+    found = verdicts.stand_ins(
+        problem, chosen, small if missing > 0 else [],
+        [n for n in names if n not in chosen and n not in implausible])
+    for name, others in found.items():
+        present.remove(name)
+        members = [name, *others]
+        group_verdicts.append({
+            "group": "could be", "members": members, "named_alone": [],
+            "share_of_gap": own[name],
+            "text": f"could be: {' or '.join(members)}, {100 * own[name]:.0f} % of the gap"})
+    if progress and found:
+        progress("told apart from none of their stand-ins: " + ", ".join(found))
     for step in steps:
         step["named"] = step["added"] in present
-    present = verdicts.order_refinements(problem, present, chosen, coef_all)
     beyond = beyond_encoders(data, final_pct, steps, present, group_verdicts)
     result = {
         "baseline_heldout_p99_pct": baseline_p99,

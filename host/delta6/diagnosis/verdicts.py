@@ -233,6 +233,32 @@ def order_refinements(problem: selection.Problem, present: list[str], chosen: li
     return out
 
 
+def stand_ins(problem: selection.Problem, chosen: list[str], named: list[str],
+              others: list[str]) -> dict:
+    """Per family of ``named``, the families of ``others`` (not in the final model
+    ``chosen``) that could take its place: the final model with one of them instead fits
+    plausibly and leaves a held-out squared error within the noise criterion of the final
+    model's (:func:`above_noise`). Families of one declared group, or one refining the other,
+    are left to the group verdicts and the refinement rules."""
+    full = selection.heldout_block_sse(problem, chosen).sum()
+    floor = noise_floor_sse(problem)
+    out = {}
+    for name in named:
+        term = problem.terms[name]
+        rest = [n for n in chosen if n != name]
+        for other in others:
+            o = problem.terms[other]
+            if other in chosen or (term.group is not None and o.group == term.group) \
+                    or o.refines == name or term.refines == other:
+                continue
+            trial = rest + [other]
+            if above_noise(selection.heldout_block_sse(problem, trial).sum() - full, floor):
+                continue
+            if plausibility(problem, trial, selection.fit(problem, trial))[other]["plausible"]:
+                out.setdefault(name, []).append(other)
+    return out
+
+
 def straight_parts(problem: selection.Problem, chosen: list[str],
                    named: list[str]) -> list[dict]:
     """Refined families of ``named`` that are nothing but the straight-line part of a named
