@@ -252,6 +252,25 @@ def test_an_unknown_effect_leaves_a_structured_leftover_in_the_right_place(basel
     never_worse(verdict)
 
 
+def test_a_small_name_another_family_fits_as_well_is_a_could_be_verdict(baseline):
+    # An encoder error on joints 1 and 6 the vocabulary lacks (a development case): a thermal
+    # drift fitted a quarter of the gap, and an encoder offset fits it as well in its place.
+    from delta6.evaluation.gap_benchmark import Case, _effects
+    case = Case(kind="unknown", effects=["encoder_periodic_error"], seed=25040052,
+                magnitudes=[0.8313764233722027], joints=[[1, 6]])
+    newest = ("nonlinear_spring", "encoder_periodic_error", "harness")
+    terms = [t for t in TERMS if t.name not in newest]
+    _, verdict = run(baseline, _effects(case), case.seed, terms=terms, duration=400.0)
+    assert verdict["unexplained"]["verdict"]["structured"]
+    could = [g for g in verdict["groups"] if g["group"] == "could be"]
+    assert could and "thermal_drift" in could[0]["members"] and len(could[0]["members"]) > 1
+    assert could[0]["named_alone"] == [] and not set(could[0]["members"]) & set(
+        verdict["present"])
+    assert "could be: thermal_drift or" in could[0]["text"]
+    shares = {s["added"]: s["share_of_gap"] for s in verdict["ladder"]}
+    assert all(shares[n] >= 0.3 for n in verdict["present"])
+
+
 def test_a_clean_log_leaves_a_white_leftover(baseline):
     _, verdict = run(baseline, [], 46, duration=120.0)
     left = verdict["unexplained"]["verdict"]
