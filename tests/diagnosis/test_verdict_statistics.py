@@ -119,7 +119,37 @@ def test_a_family_another_fits_as_well_has_that_one_as_a_stand_in(seed):
     # Without a noise floor to judge against, no swap is within it.
     problem.noise_var = 0.0
     assert verdicts.stand_ins(problem, ["a"], ["a"], ["b", "c"]) == {}
-    # One of a declared group is left to the group verdicts.
+    # One of a declared group is left to the group verdicts, one refining it to those rules.
     problem.noise_var = 1.0
     problem.terms["a"].group = problem.terms["b"].group = "same"
     assert verdicts.stand_ins(problem, ["a"], ["a"], ["b", "c"]) == {}
+    problem.terms["b"].group = None
+    problem.terms["b"].refines = "a"
+    assert verdicts.stand_ins(problem, ["a"], ["a"], ["b", "c"]) == {}
+    problem.terms["b"].refines = None
+    assert verdicts.stand_ins(problem, ["a"], [], ["b", "c"]) == {}
+    # A stand-in that fits only out of bounds is none.
+    problem.terms["b"].plausibility = lambda coef, cov: [{"quantity": "q", "ratio": 2.0}]
+    assert verdicts.stand_ins(problem, ["a"], ["a"], ["b", "c"]) == {}
+
+
+def test_a_loose_look_alike_is_no_stand_in():
+    # "b" shares 60 % of "a"'s column: near the noise floor its swap stays within the noise
+    # criterion, but it wins back well under half of what taking "a" out costs.
+    rng = np.random.default_rng(5)
+    n = 3000
+    a = rng.normal(size=(n, 6, 1))
+    b = 0.6 * a + 0.8 * rng.normal(size=(n, 6, 1))
+    x = np.concatenate([a, b], axis=2)
+    y = 0.57 * a[..., 0] + rng.normal(size=(n, 6))
+    problem = problem_of(x, y, {"a": 1, "b": 1}, blocks=12,
+                         plausibility=lambda coef, cov: [])
+    problem.folds = selection.make_folds(12, n_folds=3, run=1)
+    problem.noise_var = 1.0
+    full = selection.heldout_block_sse(problem, ["a"]).sum()
+    cost = selection.heldout_block_sse(problem, []).sum() - full
+    swap = selection.heldout_block_sse(problem, ["b"]).sum() - full
+    floor = verdicts.noise_floor_sse(problem)
+    assert verdicts.above_noise(cost, floor) and not verdicts.above_noise(swap, floor)
+    assert cost - swap < verdicts.STAND_IN_SHARE * cost
+    assert verdicts.stand_ins(problem, ["a"], ["a"], ["b"]) == {}

@@ -159,6 +159,10 @@ def verdict_lines(result: dict) -> list[str]:
         lines.append(f"- Not named: {p['name']} carries only {100 * p['share_of_gap']:.0f} % "
                      "of the gap while a structured leftover remains: it may be absorbing part "
                      "of an effect the vocabulary lacks.")
+    for p in result.get("stand_ins", []):
+        lines.append(f"- Not named: {p['name']} carries {100 * p['share_of_gap']:.0f} % of the "
+                     f"gap, and {' or '.join(p['stand_ins'])} fits as well in its place beside "
+                     "a structured leftover: the log cannot tell which, if either, is there.")
     for m in result.get("minor", []):
         share = m.get("share_with_traded", m["share_of_gap"])
         alone = m.get("share_alone")

@@ -712,23 +712,21 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     present = verdicts.order_refinements(problem, present, chosen, coef_all)
     # Beside a structured leftover (something the model misses), a small name (under
     # PARTIAL_SHARE of the gap) that another family could take the place of, as well, says
-    # no more than that family: it may be soaking up part of what is missing. It becomes a
-    # verdict naming both ("could be"), unless its own signature confirms it. With a white
-    # leftover the model explains the gap, and a large name explains most of it.
+    # no more than that family, and it may be soaking up part of what is missing: neither
+    # is named (``stand_ins``), unless its own signature confirms it. With a white leftover
+    # the model explains the gap. A member of a group verdict is the group's to judge.
     own = {s["added"]: s["share_of_gap"] for s in steps}
-    small = [n for n in present if n not in confirmed and own[n] < PARTIAL_SHARE]
+    grouped = {m for g in group_verdicts for m in g["members"]}
+    small = [n for n in present if n not in confirmed and n not in grouped
+             and own[n] < PARTIAL_SHARE]
     found = verdicts.stand_ins(
         problem, chosen, small if missing > 0 else [],
         [n for n in names if n not in chosen and n not in implausible])
-    for name, others in found.items():
-        present.remove(name)
-        members = [name, *others]
-        group_verdicts.append({
-            "group": "could be", "members": members, "named_alone": [],
-            "share_of_gap": own[name],
-            "text": f"could be: {' or '.join(members)}, {100 * own[name]:.0f} % of the gap"})
+    stand_ins = [{"name": name, "share_of_gap": own[name], "stand_ins": others}
+                 for name, others in found.items()]
+    present = [n for n in present if n not in found]
     if progress and found:
-        progress("told apart from none of their stand-ins: " + ", ".join(found))
+        progress("not named, another family fits as well: " + ", ".join(found))
     for step in steps:
         step["named"] = step["added"] in present
     beyond = beyond_encoders(data, final_pct, steps, present, group_verdicts)
@@ -736,6 +734,7 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         "baseline_heldout_p99_pct": baseline_p99,
         "present": present,
         "partial": partial,
+        "stand_ins": stand_ins,
         "minor": minor,
         "straight_part": straight,
         "below_noise": faint,

@@ -236,27 +236,36 @@ def order_refinements(problem: selection.Problem, present: list[str], chosen: li
 def stand_ins(problem: selection.Problem, chosen: list[str], named: list[str],
               others: list[str]) -> dict:
     """Per family of ``named``, the families of ``others`` (not in the final model
-    ``chosen``) that could take its place: the final model with one of them instead fits
-    plausibly and leaves a held-out squared error within the noise criterion of the final
-    model's (:func:`above_noise`). Families of one declared group, or one refining the other,
-    are left to the group verdicts and the refinement rules."""
+    ``chosen``) that could take its place: with one of them instead, the model fits
+    plausibly (every family of it), leaves a held-out squared error within the noise
+    criterion of the final model's (:func:`above_noise`), and the stand-in wins back at
+    least half of what taking the named family out costs (near the noise floor a loose
+    look-alike would pass the first test alone). Families of one declared group, or one
+    refining the other, are left to the group verdicts and the refinement rules."""
     full = selection.heldout_block_sse(problem, chosen).sum()
     floor = noise_floor_sse(problem)
     out = {}
     for name in named:
         term = problem.terms[name]
         rest = [n for n in chosen if n != name]
+        cost = selection.heldout_block_sse(problem, rest).sum() - full
         for other in others:
             o = problem.terms[other]
             if other in chosen or (term.group is not None and o.group == term.group) \
                     or o.refines == name or term.refines == other:
                 continue
             trial = rest + [other]
-            if above_noise(selection.heldout_block_sse(problem, trial).sum() - full, floor):
+            sse = selection.heldout_block_sse(problem, trial).sum()
+            if above_noise(sse - full, floor) or full + cost - sse < STAND_IN_SHARE * cost:
                 continue
-            if plausibility(problem, trial, selection.fit(problem, trial))[other]["plausible"]:
+            checks = plausibility(problem, trial, selection.fit(problem, trial))
+            if all(c["plausible"] for c in checks.values()):
                 out.setdefault(name, []).append(other)
     return out
+
+
+#: A stand-in wins back at least this share of what taking the named family out costs.
+STAND_IN_SHARE = 0.5
 
 
 def straight_parts(problem: selection.Problem, chosen: list[str],

@@ -226,7 +226,7 @@ def leftover_joints(acting: list[int], bend_rms: np.ndarray) -> list[int]:
     return [j for j in acting if top > 0 and bend_rms[j - 1] >= np.sqrt(JOINT_SHARE) * top]
 
 
-def _error(design: Design, result, fs) -> np.ndarray:
+def _error(result, fs) -> np.ndarray:
     """The analytical model's signed error on a twin run, FS-normalised, (n, 6)."""
     return (result.model_wrench() - result.wrench) / np.asarray(fs)
 
@@ -234,7 +234,7 @@ def _error(design: Design, result, fs) -> np.ndarray:
 def _gap(design: Design, result, fs) -> tuple[np.ndarray, float]:
     """The analytical model's error on a twin run: p99 per axis (% FS) and the squared error
     (FS-normalised) summed over the run."""
-    err = _error(design, result, fs)
+    err = _error(result, fs)
     return 100.0 * np.percentile(np.abs(err), 99, axis=0), float((err ** 2).sum())
 
 
@@ -270,7 +270,7 @@ def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> d
     seconds = time.perf_counter() - started
 
     truth = json.loads(hidden.read_text())
-    full_err = _error(design, result, fs)
+    full_err = _error(result, fs)
     full_sse = float((full_err ** 2).sum())
     names = [e["name"] for e in truth["effects"]]
     # The same run (trajectory, noise) without some effects: the true shrink and the shares.
@@ -280,7 +280,7 @@ def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> d
     for name in names:
         without = (simulate([e for e in effects if e.NAME != name]) if len(names) > 1
                    else clean)
-        err_wo = _error(design, without, fs)
+        err_wo = _error(without, fs)
         shares[name] = (full_sse - float((err_wo ** 2).sum())) / full_sse
         # The size of the effect's own error (an effect partly cancelling another carries a
         # removal share below it).
@@ -306,10 +306,12 @@ def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> d
         "shares": shares,
         "own_shares": own_shares,
         "present": verdict["present"],
-        "groups": [{"members": g["members"], "share_of_gap": g["share_of_gap"],
+        "groups": [{"group": g["group"], "members": g["members"],
+                    "share_of_gap": g["share_of_gap"],
                     "text": g["text"], "folded": g.get("folded", [])}
                    for g in verdict["groups"]],
         "partial": verdict["partial"],
+        "stand_ins": verdict.get("stand_ins", []),
         "minor": verdict["minor"],
         "straight_part": verdict.get("straight_part", []),
         "implausible": sorted(verdict["implausible"]),
@@ -673,6 +675,8 @@ def format_extended(summary: dict, results: list[dict]) -> str:
         verdict = ", ".join(r["present"]) or "nothing"
         extra = "".join(f"; group {g['members']}" for g in r["groups"])
         extra += "".join(f"; partial {p['name']}" for p in r["partial"])
+        extra += "".join(f"; {p['name']} not named ({' or '.join(p['stand_ins'])} as well)"
+                         for p in r.get("stand_ins", []))
         extra += "".join(f"; minor {m['name']}" for m in r.get("minor", []))
         extra += "".join(f"; straight part {m['name']}" for m in r.get("straight_part", []))
         extra += f"; not plausible {r['implausible']}" if r["implausible"] else ""
