@@ -706,16 +706,15 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
                       if not set(g["named_alone"]) & {m["name"] for m in minor}]
     present = [n for n in chosen if n in kept and n not in unnamed]
     # Members of a group named beside a larger one with little of their own say "and/or".
+    own = {s["added"]: s["share_of_gap"] for s in steps}
     present, group_verdicts = verdicts.fold_small_members(
-        problem, present, chosen, {s["added"]: s["share_of_gap"] for s in steps},
-        group_verdicts, SMALL_SHARE, spared=confirmed)
+        problem, present, chosen, own, group_verdicts, SMALL_SHARE, spared=confirmed)
     present = verdicts.order_refinements(problem, present, chosen, coef_all)
     # Beside a structured leftover (something the model misses), a small name (under
     # PARTIAL_SHARE of the gap) that another family could take the place of, as well, says
     # no more than that family, and it may be soaking up part of what is missing: neither
     # is named (``stand_ins``), unless its own signature confirms it. With a white leftover
     # the model explains the gap. A member of a group verdict is the group's to judge.
-    own = {s["added"]: s["share_of_gap"] for s in steps}
     grouped = {m for g in group_verdicts for m in g["members"]}
     small = [n for n in present if n not in confirmed and n not in grouped
              and own[n] < PARTIAL_SHARE]

@@ -339,9 +339,14 @@ def friction_curve(coef: np.ndarray, speed: np.ndarray) -> np.ndarray:
     """Steady-state friction torque (N*m) of each joint at the given positive speeds,
     (6, len(speed)), from fitted coefficients (the memory term is +1 while sliding)."""
     c = np.asarray(coef, dtype=float).reshape(6, -1)
+    return c @ _sliding_features(speed).T
+
+
+def _sliding_features(speed) -> np.ndarray:
+    """The friction family's features of each joint while sliding at ``speed`` (the memory
+    term at +1), (len(speed), width)."""
     speed = np.asarray(speed, dtype=float)
-    feats = np.concatenate([speed_features(speed), np.ones_like(speed)[..., None]], axis=-1)
-    return c @ feats.T
+    return np.concatenate([speed_features(speed), np.ones_like(speed)[..., None]], axis=-1)
 
 
 #: Speeds at which a fitted friction must oppose the motion (rad/s), and by how much it may
@@ -351,15 +356,16 @@ DISSIPATION_SPEEDS_RAD_S = np.geomspace(0.01, 0.5, 8)
 DISSIPATION_TOLERANCE_NM = 1e-3
 
 
+@functools.lru_cache(maxsize=1)
 def _friction_dissipates():
     # Per joint, the steady-state curve at each speed is a fixed row on that joint's
-    # coefficients (friction_curve's features).
-    speeds = DISSIPATION_SPEEDS_RAD_S
-    feats = np.concatenate([speed_features(speeds), np.ones_like(speeds)[:, None]], axis=-1)
+    # coefficients (friction_curve's features). Built once: plausibility runs often.
+    feats = _sliding_features(DISSIPATION_SPEEDS_RAD_S)
     width = feats.shape[1]
-    maps = np.zeros((6, len(speeds), 6 * width))
+    maps = np.zeros((6, len(feats), 6 * width))
     for j in range(6):
         maps[j, :, j * width:(j + 1) * width] = feats
+    maps.setflags(write=False)          # shared by every call (cached)
     return [("torque_along_motion_nm", maps, DISSIPATION_TOLERANCE_NM)]
 
 
