@@ -146,3 +146,25 @@ def test_a_faster_motion_makes_the_friction_choose_a_shorter_velocity_fit(baseli
     fast = TrajectorySettings(dither_min_hz=1.0, dither_max_hz=4.0, move_min_s=0.5,
                               move_max_s=3.0)
     assert chosen(fast)[0] < 10
+
+
+def test_backlash_signature_is_the_reversal_dwells_not_encoders_that_never_turn(baseline):
+    """Under one-axis pushes most joints hardly turn: their encoders flicker by a count and
+    their direction never leaves the switch's dead band. Only the stretch a reversal's switch
+    is spread over is backlash's own signature, not every sample of such a log."""
+    from delta6.diagnosis.terms import ENCODER_COUNT_RAD
+    from delta6.link.logfile import LogData
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 40.0, 0.02)
+    up = np.clip(t / 15.0, 0.0, 1.0) * 0.2                          # 15 s up, then a hold
+    down = np.clip((t - 25.0) / 15.0, 0.0, 1.0) * 0.2               # from 25 s back down
+    theta = np.full((len(t), 6), 0.01) + rng.uniform(-0.45, 0.45, (len(t), 6)) * ENCODER_COUNT_RAD
+    theta[:, 0] = up - down
+    theta = np.round(theta / ENCODER_COUNT_RAD) * ENCODER_COUNT_RAD
+    wrench = model.wrench(model.Params.from_design(baseline), theta)
+    data = GapData.from_log(LogData(t=t, theta=theta, wrench=wrench, temp_c=None), baseline)
+    backlash = next(term for term in TERMS if term.name == "backlash")
+    mask = backlash.signature(data)
+    assert 0 < mask.sum() <= 1.0 / 0.02                  # the one dwell: at most a second
+    assert mask[(t > 24.0) & (t < 25.1)].any()           # just before the link turns back
+    assert not mask[(t < 14.0) | (t > 26.0)].any()

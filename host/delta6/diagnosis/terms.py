@@ -742,10 +742,12 @@ def cable_clamp_search(data: GapData, direction, target=None
 def _dwell_samples(data: GapData) -> np.ndarray:
     # Backlash's own signature: some encoder stands still across a reversal while its link
     # turns through the play (and the reference wrench moves). Hysteresis and friction
-    # features of an encoder that does not move stay put there.
+    # features of an encoder that does not move stay put there. Only the stretches a reversal
+    # was spread over count: an encoder that never left its switch's dead band (a joint a
+    # one-axis push hardly turns) has a direction short of +-1 all along, but no dwell.
     ramp = data.dwell_ramp(BACKLASH_SWITCH_RAD, BACKLASH_MAX_DWELL_S, 0.5 * ENCODER_COUNT_RAD,
                            power=2.0)
-    return (np.abs(ramp) < 1.0).any(axis=1)
+    return (ramp != data.play_state((BACKLASH_SWITCH_RAD,))[:, :, 0]).any(axis=1)
 
 
 def _each(limit_by_param) -> Callable[[np.ndarray], list]:
