@@ -83,3 +83,19 @@ def test_a_named_effect_no_calibration_corrects_says_so():
     assert [x.split()[1] for x in lines] == ["harness", "thermal_drift"]
     assert not [x for x in verdict_lines(_result(None, present=("backlash",)))
                 if "not corrected" in x]
+
+
+def test_a_play_beside_the_hysteresis_is_said_with_its_size_per_joint():
+    result = _result(None, present=["spring_hysteresis"])
+    group = {"group": "direction-dependent joint torque",
+             "members": ["spring_hysteresis", "backlash"], "named_alone": ["spring_hysteresis"],
+             "share_of_gap": 0.6,
+             "text": "direction-dependent joint torque: spring_hysteresis and/or backlash, "
+                     "together 60 % of the gap"}
+    result["groups"] = [group]
+    assert not any("play fitted" in x for x in verdict_lines(result))
+    group["play_beside"] = {"play_rad": [0.0071, 0.0002, 0.0093, 0.0064, 0.0, 0.0],
+                            "joints": [1, 3, 4]}
+    (line,) = [x for x in verdict_lines(result) if "play fitted" in x]
+    assert "7.1 mrad on joint 1, 9.3 mrad on joint 3, 6.4 mrad on joint 4" in line
+    assert "spring_hysteresis and/or backlash" in line

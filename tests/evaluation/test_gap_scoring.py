@@ -96,6 +96,18 @@ def test_the_mix_figures_use_both_counts():
     assert s["mix_false_members_max"] == 2
 
 
+def test_one_axis_top1_is_also_given_on_effects_carrying_enough_as_on_random_runs():
+    def axis_single(name, share, present):
+        return {**verdict(present, {name: share}), "kind": "axis",
+                "truth": [{"name": name}]}
+    runs = [axis_single("backlash", 0.9, ["backlash"]),
+            axis_single("link_compliance", 0.08, []),            # too small: named nothing
+            axis_single("thermal_drift", 0.4, ["stiffness_mismatch"])]
+    s = score_extended(runs)
+    assert s["axis_singles"] == 3 and s["axis_top1"] == pytest.approx(1 / 3)
+    assert s["axis_singles_detectable"] == 2 and s["axis_top1_detectable"] == 0.5
+
+
 # -- unknown effects: which joints a per-joint effect leaves a leftover on --------------------
 
 def unknown_run(acting, found, leftover=None, shape="even polynomial"):

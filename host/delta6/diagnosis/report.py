@@ -141,7 +141,13 @@ def verdict_lines(result: dict) -> list[str]:
                      + (f" Named only in the group, each with under {100 * SMALL_SHARE:g} % of "
                         f"the gap of its own "
                         f"beside {', '.join(g['named_alone'])}: {', '.join(g['folded'])}."
-                        if g.get("folded") else ""))
+                        if g.get("folded") else "")
+                     + (" Backlash is in it as a play fitted beside the hysteresis: "
+                        + ", ".join(f"{1e3 * g['play_beside']['play_rad'][j - 1]:.1f} mrad on "
+                                    f"joint {j}" for j in g["play_beside"]["joints"])
+                        + "; the loop takes up its switch, so the held-out error gains little"
+                        " from it and the ladder leaves it out."
+                        if g.get("play_beside") else ""))
     named = set(result.get("present", [])) | {m for g in result["groups"] for m in g["members"]}
     for name in sorted(named & set(NOT_APPLIED)):
         # The shrink the ladder predicts includes it: say what a calibration leaves of it.

@@ -726,6 +726,15 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
     present = [n for n in present if n not in found]
     if progress and found:
         progress("not named, another family fits as well: " + ", ".join(found))
+    # A play of several counts that fits beside a named hysteresis: the log cannot tell it
+    # from the loop, which took up its switch (the group verdict says "and/or").
+    named_now = set(present) | {m for g in group_verdicts for m in g["members"]}
+    beside = verdicts.play_beside(problem, chosen, named_now) \
+        if "backlash" not in implausible else None
+    if beside is not None:
+        group_verdicts = verdicts.join_play(problem, chosen, present, group_verdicts, beside)
+        if progress:
+            progress("a play fits beside the hysteresis: " + group_verdicts[-1]["text"])
     for step in steps:
         step["named"] = step["added"] in present
     beyond = beyond_encoders(data, final_pct, steps, present, group_verdicts)

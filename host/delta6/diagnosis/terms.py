@@ -741,13 +741,30 @@ def cable_clamp_search(data: GapData, direction, target=None
 
 def _dwell_samples(data: GapData) -> np.ndarray:
     # Backlash's own signature: some encoder stands still across a reversal while its link
-    # turns through the play (and the reference wrench moves). Hysteresis and friction
-    # features of an encoder that does not move stay put there. Only the stretches a reversal
-    # was spread over count: an encoder that never left its switch's dead band (a joint a
-    # one-axis push hardly turns) has a direction short of +-1 all along, but no dwell.
+    # turns through the play (and the reference wrench moves), then takes up the play the
+    # other way. Hysteresis and friction features of an encoder that does not move stay put
+    # there. The stretches a reversal was spread over count, with the approach and the pick-up
+    # around them, and so does an encoder short of its switch's ends (inside the play, if
+    # there is one) near a time it pushed one of them. An encoder that never pushes them (a
+    # joint a one-axis push hardly turns, flickering by a count) is no dwell: under long
+    # holds it had put the whole log in the signature.
     ramp = data.dwell_ramp(BACKLASH_SWITCH_RAD, BACKLASH_MAX_DWELL_S, 0.5 * ENCODER_COUNT_RAD,
                            power=2.0)
-    return (ramp != data.play_state((BACKLASH_SWITCH_RAD,))[:, :, 0]).any(axis=1)
+    state = data.play_state((BACKLASH_SWITCH_RAD,))[:, :, 0]
+    near = int(round(BACKLASH_MAX_DWELL_S / data.step))
+    end = 1.0 - 1e-6            # a state is at an end up to rounding (it is a difference)
+    around = _within(ramp != state, near)
+    inside = (np.abs(ramp) < end) & _within(np.abs(state) >= end, near)
+    return (around | inside).any(axis=1)
+
+
+def _within(flags: np.ndarray, half: int) -> np.ndarray:
+    """(n, k) bool: whether ``flags`` holds anywhere within ``half`` samples either side."""
+    n = len(flags)
+    count = np.concatenate([np.zeros((1,) + flags.shape[1:]), np.cumsum(flags, axis=0)])
+    i = np.arange(n)
+    lo, hi = np.clip(i - half, 0, n), np.clip(i + half + 1, 0, n)
+    return count[hi] - count[lo] > 0
 
 
 def _each(limit_by_param) -> Callable[[np.ndarray], list]:

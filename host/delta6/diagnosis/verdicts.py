@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.diagnosis import selection
 
 #: A member the backward test dropped joins a group verdict only if, when forward selection
@@ -98,6 +99,62 @@ def fold_small_members(problem: selection.Problem, present: list[str], chosen: l
                   "folded": small}
         out = [g for g in out if g["group"] != label] + [folded]
     return present, out
+
+
+#: A play fitted beside a named hysteresis counts on a joint from this size (a few encoder
+#: counts: a hysteresis loop alone leaves a play of a count or two at most) ...
+PLAY_BESIDE_RAD = 5 * ENCODER_COUNT_RAD
+#: ... beyond three standard errors, and on at least this many joints (a single joint's
+#: play is as likely a loop's misfit there).
+PLAY_BESIDE_JOINTS = 3
+
+
+def play_beside(problem: selection.Problem, chosen: list[str], named) -> dict | None:
+    """A backlash the final model ``chosen`` leaves out beside a named hysteresis (in
+    ``named``): fitted with the model on the whole log, a play of several counts on several
+    joints. A hysteresis loop takes up most of a play's switch (it
+    is a direction-dependent torque too), so the held-out error gains little from the play
+    and the selection leaves it out; but the loop alone does not need one. The play must be
+    plausible and leave every family that was plausible so. Returns the play per joint (rad)
+    and the joints that show it, or None."""
+    term = problem.terms.get("backlash")
+    if term is None or "backlash" in chosen or "spring_hysteresis" not in named:
+        return None
+    names = list(chosen) + ["backlash"]
+    coef = selection.fit(problem, names)
+    width = len(term.param_names)
+    cov = covariance(problem, names, coef)[-width:, -width:]
+    per_joint = np.kron(np.eye(6), np.ones((1, width // 6)))     # the play: a joint's sum
+    play = per_joint @ coef[-width:]
+    se = np.sqrt(np.maximum(np.diag(per_joint @ cov @ per_joint.T), 0.0))
+    joints = [j + 1 for j in range(6) if play[j] >= PLAY_BESIDE_RAD and play[j] > 3 * se[j]]
+    if len(joints) < PLAY_BESIDE_JOINTS:
+        return None
+    # The play must be believable, and must not push a neighbour out of bounds.
+    before = plausibility(problem, chosen, selection.fit(problem, chosen)) if chosen else {}
+    after = plausibility(problem, names, coef)
+    if not after["backlash"]["plausible"] or any(
+            before[n]["plausible"] and not after[n]["plausible"] for n in chosen):
+        return None
+    return {"play_rad": play.tolist(), "joints": joints}
+
+
+def join_play(problem: selection.Problem, chosen: list[str], present: list[str],
+              groups_found: list[dict], beside: dict) -> list[dict]:
+    """The group verdicts with backlash in the direction-dependent one (made from the
+    members named alone when there is none): the log cannot tell the play from the loop."""
+    label = problem.terms["backlash"].group
+    base = selection.heldout_block_sse(problem, []).sum()
+    verdict = next((g for g in groups_found if g["group"] == label), None)
+    members = list(verdict["members"]) if verdict else [
+        n for n in present if problem.terms[n].group == label]
+    members.append("backlash")
+    share = selection.removal_share(problem, list(chosen) + ["backlash"], members, base) \
+        if base > 0 else 0.0
+    joined = {**(verdict or {"group": label}), "members": members,
+              "named_alone": [m for m in members if m in present], "share_of_gap": share,
+              "text": group_text(label, members, share), "play_beside": beside}
+    return [g for g in groups_found if g["group"] != label] + [joined]
 
 
 def covariance(problem: selection.Problem, names, coef: np.ndarray) -> np.ndarray:
