@@ -309,7 +309,8 @@ def run_case(case: Case, design_path: str, duration_s: float, workdir: str) -> d
         "present": verdict["present"],
         "groups": [{"group": g["group"], "members": g["members"],
                     "share_of_gap": g["share_of_gap"],
-                    "text": g["text"], "folded": g.get("folded", [])}
+                    "text": g["text"], "folded": g.get("folded", []),
+                    "play_beside": g.get("play_beside")}
                    for g in verdict["groups"]],
         "partial": verdict["partial"],
         "stand_ins": verdict.get("stand_ins", []),
