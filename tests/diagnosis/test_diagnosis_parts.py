@@ -165,8 +165,8 @@ def test_backlash_signature_is_the_reversal_dwells_not_encoders_that_never_turn(
     data = GapData.from_log(LogData(t=t, theta=theta, wrench=wrench, temp_c=None), baseline)
     backlash = next(term for term in TERMS if term.name == "backlash")
     mask = backlash.signature(data)
-    # The one dwell, just before the link turns back, with its approach and pick-up (and the
-    # log's first steps, where the switch starts inside its dead band): nothing else.
-    assert mask[(t > 24.0) & (t < 25.1)].all()
-    assert not mask[((t > 1.0) & (t < 23.0)) | (t > 26.0)].any()
-    assert mask.sum() <= 3.0 / 0.02
+    # The one dwell, just before the link turns back (and the log's first steps, where the
+    # switch starts inside its dead band): nothing else.
+    assert mask[(t > 24.5) & (t < 25.0)].all()
+    assert not mask[((t > 1.0) & (t < 24.0)) | (t > 26.0)].any()
+    assert mask.sum() <= 2.0 / 0.02

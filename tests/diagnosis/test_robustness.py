@@ -165,6 +165,11 @@ def test_a_play_the_hysteresis_took_up_is_named_with_it_in_the_group_verdict(bas
     assert len(beside["joints"]) >= verdicts.PLAY_BESIDE_JOINTS
     assert all(beside["play_rad"][j - 1] >= verdicts.PLAY_BESIDE_RAD for j in beside["joints"])
     assert all(p < 0.05 for p in beside["play_rad"])
+    # The shrink is predicted with that play taken away, on the joints that show it.
+    gone = verdict["beyond_encoders"]["backlash"]
+    expected = [beside["play_rad"][j] if j + 1 in beside["joints"] else 0.0 for j in range(6)]
+    assert gone["play_rad"] == pytest.approx(expected)
+    assert np.mean(gone["heldout_p99_pct"]) < np.mean(verdict["ladder"][-1]["heldout_p99_pct"])
     never_worse(verdict)
 
 

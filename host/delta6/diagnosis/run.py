@@ -476,14 +476,22 @@ def _diagnose(data: GapData, *, seed: int = 0, progress=None,
 def beyond_encoders(data: GapData, final_pct: np.ndarray, steps: list[dict], present,
                     groups) -> dict | None:
     """A named backlash (alone or in a group verdict): the held-out p99 once the play itself
-    is gone, beyond what the ladder's model on the encoders reaches (``unseen``)."""
+    is gone, beyond what the ladder's model on the encoders reaches (``unseen``). The play
+    is the ladder's, or, for a play the verdict names beside a hysteresis (the ladder leaves
+    it out), the one fitted there on its joints."""
     named = set(present) | {m for g in groups for m in g["members"]}
     if "backlash" not in named or not steps:
         return None
     fitted = steps[-1]["all_params"].get("backlash")
-    if fitted is None:
+    beside = next((g["play_beside"] for g in groups if g.get("play_beside")), None)
+    if fitted is None and beside is None:
         return None
-    play = np.nan_to_num(np.asarray(fitted["play_rad"], dtype=float))
+    if fitted is not None:
+        play = np.nan_to_num(np.asarray(fitted["play_rad"], dtype=float))
+    else:
+        play = np.zeros(6)
+        on = np.asarray(beside["joints"]) - 1
+        play[on] = np.asarray(beside["play_rad"], dtype=float)[on]
     if not play.max() > 0:
         return None         # no play fitted on any joint: nothing to take away
     left, share = unseen.without_play(data, final_pct / 100.0, play)

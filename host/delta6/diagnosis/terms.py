@@ -741,21 +741,19 @@ def cable_clamp_search(data: GapData, direction, target=None
 
 def _dwell_samples(data: GapData) -> np.ndarray:
     # Backlash's own signature: some encoder stands still across a reversal while its link
-    # turns through the play (and the reference wrench moves), then takes up the play the
-    # other way. Hysteresis and friction features of an encoder that does not move stay put
-    # there. The stretches a reversal was spread over count, with the approach and the pick-up
-    # around them, and so does an encoder short of its switch's ends (inside the play, if
-    # there is one) near a time it pushed one of them. An encoder that never pushes them (a
+    # turns through the play (and the reference wrench moves). Hysteresis and friction
+    # features of an encoder that does not move stay put there. The stretches a reversal was
+    # spread over count, and so does an encoder short of its switch's ends (inside the play,
+    # if there is one) near a time it pushed one of them. An encoder that never pushes them (a
     # joint a one-axis push hardly turns, flickering by a count) is no dwell: under long
-    # holds it had put the whole log in the signature.
+    # holds it had put the whole log in the signature. (The approach and the pick-up around
+    # a dwell are no part of it: there a LuGre friction's pre-sliding looks like a play.)
     ramp = data.dwell_ramp(BACKLASH_SWITCH_RAD, BACKLASH_MAX_DWELL_S, 0.5 * ENCODER_COUNT_RAD,
                            power=2.0)
     state = data.play_state((BACKLASH_SWITCH_RAD,))[:, :, 0]
-    near = int(round(BACKLASH_MAX_DWELL_S / data.step))
     end = 1.0 - 1e-6            # a state is at an end up to rounding (it is a difference)
-    around = _within(ramp != state, near)
-    inside = (np.abs(ramp) < end) & _within(np.abs(state) >= end, near)
-    return (around | inside).any(axis=1)
+    pushed = _within(np.abs(state) >= end, int(round(BACKLASH_MAX_DWELL_S / data.step)))
+    return ((ramp != state) | ((np.abs(ramp) < end) & pushed)).any(axis=1)
 
 
 def _within(flags: np.ndarray, half: int) -> np.ndarray:
