@@ -102,21 +102,21 @@ def fold_small_members(problem: selection.Problem, present: list[str], chosen: l
 
 
 #: A play fitted beside a named hysteresis counts on a joint from this size (a few encoder
-#: counts: a hysteresis loop alone leaves a play of a count or two at most) ...
+#: counts: beside a loop alone, development runs left less on all joints but one) ...
 PLAY_BESIDE_RAD = 5 * ENCODER_COUNT_RAD
-#: ... beyond three standard errors, and on at least this many joints (a single joint's
-#: play is as likely a loop's misfit there).
+#: ... beyond three standard errors, and on at least this many joints (one or two joints'
+#: play is as likely the loop's misfit there).
 PLAY_BESIDE_JOINTS = 3
 
 
 def play_beside(problem: selection.Problem, chosen: list[str], named) -> dict | None:
     """A backlash the final model ``chosen`` leaves out beside a named hysteresis (in
     ``named``): fitted with the model on the whole log, a play of several counts on several
-    joints. A hysteresis loop takes up most of a play's switch (it
-    is a direction-dependent torque too), so the held-out error gains little from the play
-    and the selection leaves it out; but the loop alone does not need one. The play must be
-    plausible and leave every family that was plausible so. Returns the play per joint (rad)
-    and the joints that show it, or None."""
+    joints. A hysteresis loop takes up most of a play's switch (it is a direction-dependent
+    torque too), so the held-out error gains little from the play and the selection leaves
+    it out; but the loop alone does not need one. The play must be plausible and leave every
+    family that was plausible so. Returns the play per joint (rad) and the joints that show
+    it, or None."""
     term = problem.terms.get("backlash")
     if term is None or "backlash" in chosen or "spring_hysteresis" not in named:
         return None
