@@ -159,24 +159,31 @@ def test_a_device_restart_while_streaming_is_reported(capsys, monkeypatch, annou
     says so on stderr, once per restart, and counts it in its summary, as log does."""
     import threading
 
+    from serial import PortNotOpenError
+
     from delta6.commands import stream
     from delta6.link import protocol as P
 
     from support.scripted import Scripted
 
     stop = threading.Event()
+    writers = []
 
     def records():      # 30 records, then the counters begin again until the end
         i = 0
         while not stop.wait(0.002):
             n = i if i < 30 else i - 30
             boot = P.encode_event(P.EventCode.BOOT, 0) if announced and i == 30 else b""
-            device.loop_write(boot + P.encode_wrench(n, 1000 + 4000 * n, 0, (0,) * 6))
+            try:
+                device.loop_write(boot + P.encode_wrench(n, 1000 + 4000 * n, 0, (0,) * 6))
+            except PortNotOpenError:
+                return          # the command closed the port: its stream is over
             i += 1
 
     def answer(device, command, request_id):
         if command == P.Command.START:
-            threading.Thread(target=records, daemon=True).start()
+            writers.append(threading.Thread(target=records, daemon=True))
+            writers[-1].start()
         return device.normal(command, request_id)
 
     device = Scripted(answer)
@@ -185,6 +192,8 @@ def test_a_device_restart_while_streaming_is_reported(capsys, monkeypatch, annou
         assert main(["stream", "--port", "scripted", "--duration", "0.5", "--format", "csv"]) == 0
     finally:
         stop.set()
+        for writer in writers:
+            writer.join(timeout=2.0)
     captured = capsys.readouterr()
     assert len(captured.out.strip().splitlines()) > 1 + 30
     # Counters that began again without a BOOT event may also be a host that fell behind:
