@@ -173,6 +173,32 @@ def test_a_play_the_hysteresis_took_up_is_named_with_it_in_the_group_verdict(bas
     never_worse(verdict)
 
 
+def test_a_play_beside_the_hysteresis_joins_its_group_or_makes_one_with_the_loop(baseline):
+    r = twin.simulate(baseline, [twin.make_effect("spring_hysteresis", seed=44, magnitude=0.9)],
+                      duration_s=120, seed=44)
+    data = GapData.from_log(LogData(t=r.t, theta=r.theta, wrench=r.wrench), baseline)
+    names = ["spring_hysteresis", "joint_friction", "backlash"]
+    problem = selection.build_problem(data, [TERM_BY_NAME[n] for n in names])
+    beside = {"play_rad": [0.004] * 6, "joints": [1, 2, 3]}
+    chosen = ["spring_hysteresis", "joint_friction"]
+    # No verdict yet: the loop and the play, not the friction the selection told apart.
+    (made,) = verdicts.join_play(problem, chosen, chosen, [], beside)
+    assert made["members"] == ["spring_hysteresis", "backlash"]
+    assert made["named_alone"] == ["spring_hysteresis"]
+    assert made["play_beside"] is beside and "and/or backlash" in made["text"]
+    assert 0.0 < made["share_of_gap"] <= 1.5
+    # A verdict there already: the play joins it, and what it said stays.
+    other = {"group": "smooth", "members": ["x", "y"]}
+    found = {"group": made["group"], "members": ["spring_hysteresis", "joint_friction"],
+             "named_alone": ["spring_hysteresis"], "folded": ["joint_friction"],
+             "share_of_gap": 0.5, "text": "..."}
+    joined = verdicts.join_play(problem, chosen, ["spring_hysteresis"], [found, other], beside)
+    assert joined[0] is other
+    assert joined[1]["members"] == ["spring_hysteresis", "joint_friction", "backlash"]
+    assert joined[1]["folded"] == ["joint_friction"]
+    assert joined[1]["named_alone"] == ["spring_hysteresis"]
+
+
 def test_group_verdict_names_effects_the_log_cannot_tell_apart(baseline):
     r = twin.simulate(baseline, [twin.make_effect("spring_hysteresis", seed=44, magnitude=0.9)],
                       duration_s=120, seed=44)

@@ -743,17 +743,21 @@ def _dwell_samples(data: GapData) -> np.ndarray:
     # Backlash's own signature: some encoder stands still across a reversal while its link
     # turns through the play (and the reference wrench moves). Hysteresis and friction
     # features of an encoder that does not move stay put there. The stretches a reversal was
-    # spread over count, and so does an encoder short of its switch's ends (inside the play,
-    # if there is one) near a time it pushed one of them. An encoder that never pushes them (a
-    # joint a one-axis push hardly turns, flickering by a count) is no dwell: under long
-    # holds it had put the whole log in the signature. (The approach and the pick-up around
-    # a dwell are no part of it: there a LuGre friction's pre-sliding looks like a play.)
+    # spread over count, and so does an encoder inside its switch's dead band (inside the
+    # play, if there is one) within 0.6 s of a time it moved the switch. An encoder that never
+    # moves it (a joint a one-axis push hardly turns, or one held still on a count's edge,
+    # flickering by a count) is no dwell: under long holds it had put the whole log in the
+    # signature. (The approach and the pick-up around a dwell are no part of it: there a
+    # LuGre friction's pre-sliding looks like a play.)
     ramp = data.dwell_ramp(BACKLASH_SWITCH_RAD, BACKLASH_MAX_DWELL_S, 0.5 * ENCODER_COUNT_RAD,
                            power=2.0)
     state = data.play_state((BACKLASH_SWITCH_RAD,))[:, :, 0]
-    end = 1.0 - 1e-6            # a state is at an end up to rounding (it is a difference)
-    pushed = _within(np.abs(state) >= end, int(round(BACKLASH_MAX_DWELL_S / data.step)))
-    return ((ramp != state) | ((np.abs(ramp) < end) & pushed)).any(axis=1)
+    switch = data.theta - BACKLASH_SWITCH_RAD * state          # the play's output
+    moved = np.zeros(state.shape, dtype=bool)
+    moved[1:] = np.abs(np.diff(switch, axis=0)) > 1e-3 * ENCODER_COUNT_RAD
+    inside = np.abs(ramp) < 1.0 - 1e-6          # up to rounding (a state is a difference)
+    near = _within(moved, int(round(BACKLASH_MAX_DWELL_S / data.step)))
+    return ((ramp != state) | (inside & near)).any(axis=1)
 
 
 def _within(flags: np.ndarray, half: int) -> np.ndarray:

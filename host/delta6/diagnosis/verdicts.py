@@ -141,13 +141,14 @@ def play_beside(problem: selection.Problem, chosen: list[str], named) -> dict | 
 
 def join_play(problem: selection.Problem, chosen: list[str], present: list[str],
               groups_found: list[dict], beside: dict) -> list[dict]:
-    """The group verdicts with backlash in the direction-dependent one (made from the
-    members named alone when there is none): the log cannot tell the play from the loop."""
+    """The group verdicts with backlash in the direction-dependent one (made of the hysteresis
+    and the play when there is none): the log cannot tell the play from the loop."""
     label = problem.terms["backlash"].group
     base = selection.heldout_block_sse(problem, []).sum()
     verdict = next((g for g in groups_found if g["group"] == label), None)
-    members = list(verdict["members"]) if verdict else [
-        n for n in present if problem.terms[n].group == label]
+    # Without a verdict, the loop and the play: a friction named alone beside them was told
+    # apart from the loop by the selection.
+    members = list(verdict["members"]) if verdict else ["spring_hysteresis"]
     members.append("backlash")
     share = selection.removal_share(problem, list(chosen) + ["backlash"], members, base) \
         if base > 0 else 0.0
