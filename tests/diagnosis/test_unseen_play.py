@@ -14,7 +14,8 @@ from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.core.spec import full_scale
 from delta6.diagnosis.report import verdict_lines
 from delta6.diagnosis.run import diagnose
-from delta6.diagnosis.unseen import moving_average, standing, travel_in_play
+from delta6.diagnosis.signals import moving_average
+from delta6.diagnosis.unseen import standing, travel_in_play
 from delta6.link.logfile import LogData
 
 

@@ -736,9 +736,8 @@ def _decide(data, problem, terms, skipped, where, baseline_p99, cache, started, 
         progress("not named, another family fits as well: " + ", ".join(found))
     # A play of several counts that fits beside a named hysteresis: the log cannot tell it
     # from the loop, which took up its switch (the group verdict says "and/or").
-    named_now = set(present) | {m for g in group_verdicts for m in g["members"]}
     # (Not a play the noise test struck: that says the log shows nothing of it.)
-    beside = verdicts.play_beside(problem, chosen, named_now) \
+    beside = verdicts.play_beside(problem, chosen, set(present) | grouped, named_plausibility) \
         if "backlash" not in implausible and "backlash" not in {f["name"] for f in faint} \
         else None
     if beside is not None:

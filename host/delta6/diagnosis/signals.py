@@ -120,3 +120,13 @@ def dwell_ramps(x: np.ndarray, state: np.ndarray, t: np.ndarray, max_dwell_s: fl
             d[start:end + 1] = -new + 2.0 * new * frac
             d[end + 1:s] = new
     return out
+
+
+def moving_average(x: np.ndarray, half: int) -> np.ndarray:
+    """Centred mean of each column of ``x`` (n, j) over 2*half+1 samples (fewer at the ends)."""
+    n = len(x)
+    total = np.zeros((n + 1,) + x.shape[1:])
+    np.cumsum(x, axis=0, out=total[1:])
+    idx = np.arange(n)
+    lo, hi = np.maximum(idx - half, 0), np.minimum(idx + half + 1, n)
+    return (total[hi] - total[lo]) / (hi - lo).reshape((n,) + (1,) * (x.ndim - 1))

@@ -47,7 +47,7 @@ from delta6.core import curves
 from delta6.core.model import ENCODER_COUNT_RAD, base_force, forward_kinematics, link_tension, rotation
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.sensitivity import GEOMETRY_NAMES
-from delta6.diagnosis.signals import VELOCITY_MIN_CUBIC_HALF, smooth_velocity
+from delta6.diagnosis.signals import VELOCITY_MIN_CUBIC_HALF, moving_average, smooth_velocity
 
 #: Widths (radius, rad) of the hysteresis play operators, doubling from 16 encoder counts
 #: to a fifth of the joint range: enough to follow an exponential (Dahl, Bouc-Wen) approach
@@ -756,17 +756,9 @@ def _dwell_samples(data: GapData) -> np.ndarray:
     moved = np.zeros(state.shape, dtype=bool)
     moved[1:] = np.abs(np.diff(switch, axis=0)) > 1e-3 * ENCODER_COUNT_RAD
     inside = np.abs(ramp) < 1.0 - 1e-6          # up to rounding (a state is a difference)
-    near = _within(moved, int(round(BACKLASH_MAX_DWELL_S / data.step)))
+    # Moved within 0.6 s either side: a window's share of moves above zero.
+    near = moving_average(moved.astype(float), int(round(BACKLASH_MAX_DWELL_S / data.step))) > 0
     return ((ramp != state) | (inside & near)).any(axis=1)
-
-
-def _within(flags: np.ndarray, half: int) -> np.ndarray:
-    """(n, k) bool: whether ``flags`` holds anywhere within ``half`` samples either side."""
-    n = len(flags)
-    count = np.concatenate([np.zeros((1,) + flags.shape[1:]), np.cumsum(flags, axis=0)])
-    i = np.arange(n)
-    lo, hi = np.clip(i - half, 0, n), np.clip(i + half + 1, 0, n)
-    return count[hi] - count[lo] > 0
 
 
 def _each(limit_by_param) -> Callable[[np.ndarray], list]:

@@ -20,6 +20,7 @@ import numpy as np
 from delta6.core.model import ENCODER_COUNT_RAD, wrench
 from delta6.diagnosis import sensitivity
 from delta6.diagnosis.data import PIECE, GapData
+from delta6.diagnosis.signals import moving_average
 
 #: A joint stands still when its encoder moved less than half a count since the sample before.
 STILL_RAD = 0.5 * ENCODER_COUNT_RAD
@@ -60,16 +61,6 @@ def travel_in_play(jac: np.ndarray, leftover: np.ndarray, still: np.ndarray,
             rest -= col * (new - old)[:, None]
             travel[:, j] = new
     return travel
-
-
-def moving_average(x: np.ndarray, half: int) -> np.ndarray:
-    """Centred mean of each column of ``x`` (n, j) over 2*half+1 samples (fewer at the ends)."""
-    n = len(x)
-    total = np.zeros((n + 1,) + x.shape[1:])
-    np.cumsum(x, axis=0, out=total[1:])
-    idx = np.arange(n)
-    lo, hi = np.maximum(idx - half, 0), np.minimum(idx + half + 1, n)
-    return (total[hi] - total[lo]) / (hi - lo).reshape((n,) + (1,) * (x.ndim - 1))
 
 
 def without_play(data: GapData, leftover_fs: np.ndarray, play_rad) -> tuple[np.ndarray,

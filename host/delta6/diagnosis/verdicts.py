@@ -109,14 +109,15 @@ PLAY_BESIDE_RAD = 5 * ENCODER_COUNT_RAD
 PLAY_BESIDE_JOINTS = 3
 
 
-def play_beside(problem: selection.Problem, chosen: list[str], named) -> dict | None:
+def play_beside(problem: selection.Problem, chosen: list[str], named,
+                plausible_now: dict) -> dict | None:
     """A backlash the final model ``chosen`` leaves out beside a named hysteresis (in
     ``named``): fitted with the model on the whole log, a play of several counts on several
     joints. A hysteresis loop takes up most of a play's switch (it is a direction-dependent
     torque too), so the held-out error gains little from the play and the selection leaves
     it out; but the loop alone does not need one. The play must be plausible and leave every
-    family that was plausible so. Returns the play per joint (rad) and the joints that show
-    it, or None."""
+    family that was plausible in the model (``plausible_now``: :func:`plausibility` of its
+    fit) so. Returns the play per joint (rad) and the joints that show it, or None."""
     term = problem.terms.get("backlash")
     if term is None or "backlash" in chosen or "spring_hysteresis" not in named:
         return None
@@ -131,10 +132,9 @@ def play_beside(problem: selection.Problem, chosen: list[str], named) -> dict | 
     if len(joints) < PLAY_BESIDE_JOINTS:
         return None
     # The play must be believable, and must not push a neighbour out of bounds.
-    before = plausibility(problem, chosen, selection.fit(problem, chosen)) if chosen else {}
     after = plausibility(problem, names, coef)
     if not after["backlash"]["plausible"] or any(
-            before[n]["plausible"] and not after[n]["plausible"] for n in chosen):
+            plausible_now[n]["plausible"] and not after[n]["plausible"] for n in chosen):
         return None
     return {"play_rad": play.tolist(), "joints": joints}
 
