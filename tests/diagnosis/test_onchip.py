@@ -121,14 +121,37 @@ def test_a_streamed_log_gives_the_same_prediction(baseline, friction_run, monkey
                        kept["on_chip"]["heldout_p99_pct"], rtol=1e-6)
 
 
+def forecast_p99(data: GapData, fitted: list[str], applied: list[str]) -> np.ndarray:
+    """The forecast recomputed fold by fold: ``fitted`` fitted together on each fold's
+    training blocks of ``data``, the held-out prediction made with ``applied``'s columns."""
+    terms = [next(t for t in TERMS if t.name == n) for n in fitted]
+    problem = selection.build_problem(data, terms, keep_columns=True)
+    on_board = np.isin(problem.cols(fitted), problem.cols(applied))
+    pred = np.zeros_like(problem.y)
+    for fold in problem.folds:
+        coef = selection.fit(problem, fitted, selection.train_blocks(problem, fold))
+        for b in fold:
+            rows = slice(problem.bounds[b], problem.bounds[b + 1])
+            pred[rows] = problem.x[rows][:, :, problem.cols(fitted)[on_board]] @ coef[on_board]
+    return np.percentile(np.abs(100 * (problem.y - pred)), 99, axis=0)
+
+
 def test_a_causal_family_is_predicted_as_offline(baseline):
-    """An encoder offset needs no look-ahead: the on-chip prediction is the offline refit's,
-    the same features on the same folds (to the ladder's float32 predictions)."""
+    """An encoder offset needs no look-ahead: the on-chip prediction is the offline one, the
+    same features on the same folds, fitted as ``delta6 calibrate`` fits it (with the rig's
+    latency beside it, not applied)."""
     r = simulated(baseline, ("encoder_offset",), seed=42)
     verdict = diagnose(log_of(r), baseline, seed=0)
+    assert [s["added"] for s in verdict["ladder"]] == ["encoder_offset"]
     assert verdict["on_chip"]["causal_forms"] == []
+    offline = GapData.from_log(log_of(r), baseline)
+    np.testing.assert_allclose(
+        verdict["on_chip"]["heldout_p99_pct"],
+        forecast_p99(offline, ["encoder_offset", "sensor_latency"], ["encoder_offset"]),
+        rtol=1e-9)
+    # A latency the log does not show changes the offset's refit by next to nothing.
     assert np.allclose(verdict["on_chip"]["heldout_p99_pct"],
-                       verdict["ladder"][-1]["refit_heldout_p99_pct"], rtol=1e-6)
+                       verdict["ladder"][-1]["refit_heldout_p99_pct"], rtol=1e-3)
 
 
 def test_a_late_reference_alone_leaves_the_analytical_error_on_the_chip(baseline):
@@ -156,20 +179,30 @@ def test_what_a_board_does_not_apply_is_fitted_and_left_in_the_error(baseline):
     assert "sensor_latency" in chosen and on_chip["not_applied"] == ["sensor_latency"]
     assert {"joint_friction", "encoder_offset"} <= set(on_chip["families"])
     view = GapData.from_log(log, baseline).causal_view()
-    terms = sorted((t for t in TERMS if t.name in chosen), key=lambda t: chosen.index(t.name))
-    problem = selection.build_problem(view, terms, keep_columns=True)
-    applied = np.isin(problem.cols(chosen), problem.cols(on_chip["families"]))
-    pred = np.zeros_like(problem.y)
-    for fold in problem.folds:
-        coef = selection.fit(problem, chosen, selection.train_blocks(problem, fold))
-        for b in fold:
-            rows = slice(problem.bounds[b], problem.bounds[b + 1])
-            pred[rows] = problem.x[rows][:, :, problem.cols(chosen)[applied]] @ coef[applied]
-    expected = np.percentile(np.abs(100 * (problem.y - pred)), 99, axis=0)
+    expected = forecast_p99(view, on_chip["families"] + ["sensor_latency"],
+                            on_chip["families"])
     np.testing.assert_allclose(on_chip["heldout_p99_pct"], expected, rtol=1e-9)
     # Applied, the latency's columns would take the rig's delay off the reference: on a
     # board it stays.
     assert np.all(expected > np.array(verdict["ladder"][-1]["refit_heldout_p99_pct"]))
+
+
+def test_a_drift_a_calibration_cannot_follow_is_not_fitted_beside_the_others(baseline):
+    """A thermal drift is named but a calibration neither applies nor fits it (it cannot
+    follow it): the forecast fits the applied families and the rig's latency without it, as
+    ``delta6 calibrate`` does, so they take what they can of the drift as on the board."""
+    log = log_of(simulated(baseline, ("encoder_offset", "thermal_drift"), seed=8))
+    verdict = diagnose(log, baseline, seed=0)
+    chosen = [s["added"] for s in verdict["ladder"]]
+    on_chip = verdict["on_chip"]
+    assert "thermal_drift" in chosen and on_chip["not_applied"] == ["thermal_drift"]
+    assert on_chip["families"] == [n for n in chosen if n != "thermal_drift"]
+    view = GapData.from_log(log, baseline).causal_view()
+    applied = on_chip["families"]
+    expected = forecast_p99(view, applied + ["sensor_latency"], applied)
+    np.testing.assert_allclose(on_chip["heldout_p99_pct"], expected, rtol=1e-9)
+    beside = forecast_p99(view, applied + ["sensor_latency", "thermal_drift"], applied)
+    assert not np.allclose(expected, beside, rtol=1e-3)
 
 
 def test_every_cached_feature_is_either_shared_with_the_causal_view_or_rebuilt(baseline,

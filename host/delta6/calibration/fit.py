@@ -56,7 +56,7 @@ from delta6.core.calibrated import (
     periods_between,
     sample_period,
 )
-from delta6.core.calibration import CORRECTED, NOT_APPLIED, Calibration, new_settings
+from delta6.core.calibration import CORRECTED, LATENCY, NOT_APPLIED, Calibration, new_settings
 from delta6.core.design import Design
 from delta6.core.errors import UserError
 from delta6.core.model import AXES
@@ -67,7 +67,6 @@ from delta6.diagnosis.terms import TERMS, Term
 
 TERMS_BY_NAME = {t.name: t for t in TERMS}
 
-LATENCY = "sensor_latency"
 N_BLOCKS = 40
 HELDOUT_BLOCKS = 8
 HELDOUT_RUNS = 4

@@ -31,6 +31,8 @@ SCHEMA = "delta6-calibration/1"
 CORRECTED = ("encoder_offset", "backlash", "stiffness_mismatch", "spring_hysteresis",
              "joint_friction", "geometry_error", "link_compliance", "nonlinear_spring",
              "encoder_periodic_error")
+#: The rig's latency: a calibration fits it (unless the rig's is stated) and never applies it.
+LATENCY = "sensor_latency"
 #: Effects the fit accounts for but the device does not apply, and why.
 NOT_APPLIED = {
     "sensor_latency": "a property of the calibration rig (the reference sensor is late), "
@@ -453,8 +455,8 @@ def load(path: str | Path) -> Calibration:
     return loads(text, str(path))
 
 
-__all__ = ["Calibration", "CalibrationError", "CORRECTED", "NOT_APPLIED", "SCHEMA", "dumps",
-           "loads", "load", "save", "neutral", "validate"]
+__all__ = ["Calibration", "CalibrationError", "CORRECTED", "LATENCY", "NOT_APPLIED", "SCHEMA",
+           "dumps", "loads", "load", "save", "neutral", "validate"]
 
 
 def check_log_meta(meta: dict, design, calibration: Calibration | None = None,
