@@ -21,7 +21,7 @@ from delta6.diagnosis.data import GapData, board_speed
 from delta6.diagnosis.onchip import CAUSAL_FORMS
 from delta6.diagnosis.report import _on_chip_lines
 from delta6.diagnosis.run import diagnose
-from delta6.diagnosis.terms import TERMS
+from delta6.diagnosis.terms import TERMS, first_order_latency
 from delta6.link.logfile import LogData
 
 DURATION_S = 240.0
@@ -123,8 +123,10 @@ def test_a_streamed_log_gives_the_same_prediction(baseline, friction_run, monkey
 
 def forecast_p99(data: GapData, fitted: list[str], applied: list[str]) -> np.ndarray:
     """The forecast recomputed fold by fold: ``fitted`` fitted together on each fold's
-    training blocks of ``data``, the held-out prediction made with ``applied``'s columns."""
-    terms = [next(t for t in TERMS if t.name == n) for n in fitted]
+    training blocks of ``data`` (the rig's latency in the calibration's first-order form), the
+    held-out prediction made with ``applied``'s columns."""
+    terms = [first_order_latency() if n == "sensor_latency"
+             else next(t for t in TERMS if t.name == n) for n in fitted]
     problem = selection.build_problem(data, terms, keep_columns=True)
     on_board = np.isin(problem.cols(fitted), problem.cols(applied))
     pred = np.zeros_like(problem.y)

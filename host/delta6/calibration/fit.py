@@ -63,7 +63,7 @@ from delta6.core.model import AXES
 from delta6.diagnosis import selection
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.run import diagnose_data
-from delta6.diagnosis.terms import TERMS, Term
+from delta6.diagnosis.terms import TERMS, Term, first_order_latency
 
 TERMS_BY_NAME = {t.name: t for t in TERMS}
 
@@ -101,13 +101,6 @@ class CalibrationFit:
     chosen_by: str = "diagnosis"
     seconds: float = 0.0
     notes: list = field(default_factory=list)
-
-
-def _latency_term(data: GapData) -> Term:
-    def build(d):
-        return -np.gradient(d.model, d.t, axis=0)[:, :, None]
-    prior = TERMS_BY_NAME[LATENCY].prior_sd[:1]         # the diagnosis's, first order
-    return Term(LATENCY, "time", ("latency_s",), "s", build, prior_sd=prior)
 
 
 def _terms(ctx: Context, fams: dict) -> list[Term]:
@@ -153,7 +146,7 @@ class _Fitter:
         self.speed = terms.speed
         self.families = families(settings, data.design)
         ctx = Context(data, terms, settings)
-        all_terms = _terms(ctx, self.families) + [_latency_term(data)]
+        all_terms = _terms(ctx, self.families) + [first_order_latency()]
         # The families' columns come from the calibrated model run over the whole log (its
         # history state included), so the log is one piece.
         self.problem = selection.build_problem(data, all_terms, n_blocks=N_BLOCKS,

@@ -7,7 +7,8 @@ moved again (a look-ahead). A board has neither: it knows the speed from past co
 difference, led by its filtered acceleration) and a reversal once the encoder shows it. And some
 effects are not applied on the board at all (``delta6.core.calibration.NOT_APPLIED``), and
 the refit treats them as ``delta6 calibrate`` does: the rig's latency is fitted with the rest
-(whether or not the ladder has it), so the others are not biased by it, and left in the error;
+(whether or not the ladder has it, in the calibration's first-order form), so the others are
+not biased by it, and left in the error;
 a thermal drift or a harness is not fitted at all (a calibration cannot follow it), so the
 applied families take what they can of it, as on the board. (Fitted beside them and then
 left out, a harness the applied families partly cancelled made a development run's forecast
@@ -26,6 +27,7 @@ import numpy as np
 
 from delta6.core.calibration import LATENCY, NOT_APPLIED
 from delta6.diagnosis import ladder, selection, stream
+from delta6.diagnosis import terms as terms_mod
 from delta6.diagnosis.data import GapData
 
 #: The families whose features a board computes differently (the others are causal already).
@@ -36,13 +38,13 @@ CAUSAL_FORMS = {
 }
 
 
-def fitted_families(problem: selection.Problem, chosen: list[str]) -> list[str]:
+def fitted_families(chosen: list[str]) -> list[str]:
     """The families the refit takes, as ``delta6 calibrate`` fits them: those a board
-    applies, and the rig's latency (fitted whether or not the ladder has it, and not
-    applied). A thermal drift or a harness is not fitted at all: a calibration cannot follow
-    it, so the applied families take what they can of it, on the board as here."""
-    applied = [n for n in chosen if n not in NOT_APPLIED]
-    return applied + ([LATENCY] if LATENCY in problem.terms else [])
+    applies, and the rig's latency (fitted whether or not the ladder has it, unless the user
+    states the rig's, which a log does not tell, and never applied). A thermal drift or a
+    harness is not fitted at all: a calibration cannot follow it, so the applied families
+    take what they can of it, on the board as here."""
+    return [n for n in chosen if n not in NOT_APPLIED] + [LATENCY]
 
 
 def prediction(data: GapData, problem: selection.Problem, chosen: list[str], *,
@@ -60,8 +62,11 @@ def prediction(data: GapData, problem: selection.Problem, chosen: list[str], *,
     if progress:
         progress("on the chip: the final model with causal features")
     view = data.causal_view()
-    fitted = fitted_families(problem, chosen)
-    terms = [problem.terms[n] for n in fitted]
+    fitted = fitted_families(chosen)
+    # The latency in the calibration's form (its first-order column; the calibration also
+    # bounds it to a rig's range, which a linear fit cannot).
+    terms = [terms_mod.first_order_latency() if n == LATENCY else problem.terms[n]
+             for n in fitted]
     keep = problem.x is not None
     causal = selection.build_problem(view, terms, keep_columns=keep)
     coefs = selection.fold_coefficients(causal, fitted)

@@ -964,6 +964,20 @@ def design_scales(design) -> tuple[np.ndarray, float]:
     return np.where(torque > 1.0 + 1e-9, torque, 1.0), bend if bend > 1.0 + 1e-9 else 1.0
 
 
+def _first_order_latency(data: GapData) -> np.ndarray:
+    return -np.gradient(data.model, data.t, axis=0)[:, :, None]
+
+
+def first_order_latency() -> Term:
+    """The rig's latency as ``delta6 calibrate`` fits it: the first-order column alone (a
+    reference late by tau reads the wrench minus tau dW/dt), with the family's prior on it
+    (the second-order column is free enough to pass for another effect beside a fit the
+    calibration bounds)."""
+    family = next(t for t in TERMS if t.name == "sensor_latency")
+    return Term(family.name, family.acts_on, family.param_names[:1], "s",
+                _first_order_latency, prior_sd=family.prior_sd[:1])
+
+
 def for_design(terms, design) -> tuple[Term, ...]:
     """``terms`` with their prior scales and plausibility limits sized for ``design``: the
     torque families' by each joint's spring span, the link compliance's by the link lengths
