@@ -18,10 +18,10 @@ from delta6.core.model import ENCODER_COUNT_RAD
 from delta6.diagnosis import run as run_module
 from delta6.diagnosis import selection, stream
 from delta6.diagnosis.data import GapData, board_speed
-from delta6.diagnosis.onchip import CAUSAL_FORMS
+from delta6.diagnosis.onchip import CAUSAL_FORMS, bounded_latency
 from delta6.diagnosis.report import _on_chip_lines
 from delta6.diagnosis.run import diagnose
-from delta6.diagnosis.terms import TERMS, first_order_latency
+from delta6.diagnosis.terms import LATENCY_LIMIT_S, TERMS, first_order_latency
 from delta6.link.logfile import LogData
 
 DURATION_S = 240.0
@@ -131,11 +131,51 @@ def forecast_p99(data: GapData, fitted: list[str], applied: list[str]) -> np.nda
     on_board = np.isin(problem.cols(fitted), problem.cols(applied))
     pred = np.zeros_like(problem.y)
     for fold in problem.folds:
-        coef = selection.fit(problem, fitted, selection.train_blocks(problem, fold))
+        train = selection.train_blocks(problem, fold)
+        coef = selection.fit(problem, fitted, train)
+        if fitted[-1] == "sensor_latency" and coef[-1] < 0:
+            # The calibration keeps the rig's latency at or above zero.
+            coef = np.append(selection.fit(problem, fitted[:-1], train), 0.0)
         for b in fold:
             rows = slice(problem.bounds[b], problem.bounds[b + 1])
             pred[rows] = problem.x[rows][:, :, problem.cols(fitted)[on_board]] @ coef[on_board]
     return np.percentile(np.abs(100 * (problem.y - pred)), 99, axis=0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(-0.5, 0.5))
+def test_the_forecasts_latency_is_kept_where_the_calibration_keeps_it(seed, late):
+    """Per fold, a latency fitted outside [0, the limit] is held at the bound it crossed, and
+    no latency in the range (the others refitted with it) fits the training blocks better."""
+    rng = np.random.default_rng(seed)
+    n_blocks, width = 30, 4
+    x = rng.normal(size=(n_blocks, 50, width))
+    x[:, :, -1] *= rng.uniform(0.1, 10.0)
+    truth = np.append(rng.normal(size=width - 1), late)
+    y = x @ truth + 0.1 * rng.normal(size=(n_blocks, 50))
+    fitted = ["a", "sensor_latency"]
+    problem = selection.Problem(
+        y=None, x=None, slices={"a": slice(0, width - 1), "sensor_latency": slice(width - 1,
+                                                                                  width)},
+        terms={}, bounds=np.arange(n_blocks + 1), gram=np.einsum("bni,bnj->bij", x, x),
+        xty=np.einsum("bni,bn->bi", x, y), yty=np.einsum("bn,bn->b", y, y),
+        folds=selection.make_folds(n_blocks, 5))
+    free = selection.fold_coefficients(problem, fitted)
+    kept = bounded_latency(problem, fitted, free)
+    assert np.all((kept[:, -1] >= 0.0) & (kept[:, -1] <= LATENCY_LIMIT_S))
+    for k, fold in enumerate(problem.folds):
+        train = selection.train_blocks(problem, fold)
+        gram = problem.gram[train].sum(axis=0)
+        xty = problem.xty[train].sum(axis=0)
+
+        def cost(coef):
+            return coef @ gram @ coef - 2 * coef @ xty
+
+        inside = 0.0 <= free[k, -1] <= LATENCY_LIMIT_S
+        assert np.array_equal(kept[k], free[k]) == inside
+        for lat in np.linspace(0.0, LATENCY_LIMIT_S, 9):
+            rest = np.linalg.solve(gram[:-1, :-1], xty[:-1] - lat * gram[:-1, -1])
+            assert cost(kept[k]) <= cost(np.append(rest, lat)) + 1e-9 * abs(cost(kept[k]))
 
 
 def test_a_causal_family_is_predicted_as_offline(baseline):

@@ -63,9 +63,7 @@ from delta6.core.model import AXES
 from delta6.diagnosis import selection
 from delta6.diagnosis.data import GapData
 from delta6.diagnosis.run import diagnose_data
-from delta6.diagnosis.terms import TERMS, Term, first_order_latency
-
-TERMS_BY_NAME = {t.name: t for t in TERMS}
+from delta6.diagnosis.terms import LATENCY_LIMIT_S, TERMS, Term, first_order_latency
 
 N_BLOCKS = 40
 HELDOUT_BLOCKS = 8
@@ -76,16 +74,10 @@ ITERATIONS = 3
 FINAL_ITERATIONS = 2
 
 
-def _latency_limit() -> float:
-    """The diagnosis's plausible limit of a reference latency (``Term.plausibility``)."""
-    checks = TERMS_BY_NAME[LATENCY].plausibility(np.zeros(2))
-    return next(c["limit"] for c in checks if c["quantity"] == "latency_s")
-
-
 #: The largest rig latency the fit accepts: the diagnosis's plausible limit (0.2 s, ten
 #: samples of the rig's 50 Hz; a reference that late is not paired with the encoders at all,
 #: and the first-order term the fit uses, W - L dW/dt, no longer describes it).
-MAX_RIG_LATENCY_S = _latency_limit()
+MAX_RIG_LATENCY_S = LATENCY_LIMIT_S
 
 
 @dataclass

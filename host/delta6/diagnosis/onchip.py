@@ -47,6 +47,32 @@ def fitted_families(chosen: list[str]) -> list[str]:
     return [n for n in chosen if n not in NOT_APPLIED] + [LATENCY]
 
 
+def bounded_latency(problem: selection.Problem, fitted: list[str], coefs: np.ndarray
+                    ) -> np.ndarray:
+    """The fold coefficients ``coefs`` (K, c) of ``fitted`` (the latency last) with the
+    latency kept in [0, ``terms.LATENCY_LIMIT_S``] as the calibration keeps it: in a fold whose
+    fit puts it outside, it is held at the bound it crossed and the others are refitted (a
+    quadratic fit with one bounded parameter whose free optimum lies outside has its
+    optimum on that bound)."""
+    out = np.array(coefs, dtype=float, copy=True)
+    others = problem.cols(fitted[:-1])
+    lat = problem.cols([LATENCY])
+    assert fitted[-1] == LATENCY and len(lat) == 1, fitted
+    high = terms_mod.LATENCY_LIMIT_S
+    for k, fold in enumerate(problem.folds):
+        bound = 0.0 if out[k, -1] < 0.0 else high if out[k, -1] > high else None
+        if bound is None:
+            continue
+        train = selection.train_blocks(problem, fold)
+        gram = problem.gram[train].sum(axis=0)
+        xty = problem.xty[train].sum(axis=0)
+        pen = None if problem.penalty is None else problem.penalty[others]
+        out[k, :-1] = selection.solve(gram[np.ix_(others, others)],
+                                      xty[others] - bound * gram[others, lat[0]], pen)
+        out[k, -1] = bound
+    return out
+
+
 def prediction(data: GapData, problem: selection.Problem, chosen: list[str], *,
                progress=None) -> dict:
     """The held-out p99 (% FS per axis) of the final model ``chosen`` refitted on ``data``'s
@@ -69,7 +95,7 @@ def prediction(data: GapData, problem: selection.Problem, chosen: list[str], *,
              for n in fitted]
     keep = problem.x is not None
     causal = selection.build_problem(view, terms, keep_columns=keep)
-    coefs = selection.fold_coefficients(causal, fitted)
+    coefs = bounded_latency(causal, fitted, selection.fold_coefficients(causal, fitted))
     # The fold coefficients are in the order of ``fitted``'s columns.
     order = causal.cols(fitted)
     on_board = np.isin(order, causal.cols(applied))

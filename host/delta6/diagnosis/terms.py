@@ -777,6 +777,9 @@ def _per_joint(value: float, width: int = 1) -> tuple[float, ...]:
 #: +-40 % of nominal; torques from rubbing parts of a few mN*m, at most 50 mN*m (15 % of a
 #: joint's torque span); play at most 0.05 rad (3 degrees); latency at most 0.2 s.
 _MM, _MM_LIMIT, _RAD, _RAD_LIMIT = 0.5, 2.0, 0.01, 0.05
+#: A reference later than this (ten samples of a 50 Hz rig) is not paired with the encoders
+#: at all, and W - L dW/dt no longer describes it, s.
+LATENCY_LIMIT_S = 0.2
 _TORQUE, _TORQUE_LIMIT = 0.01, 0.05
 
 
@@ -896,8 +899,8 @@ TERMS: tuple[Term, ...] = (
                           ("tilt_rad_per_nm", slice(6, 7), 0.5)])),
     Term("sensor_latency", "time", ("latency_s", "latency_sq_s2"), "s, s^2", _latency,
          prior_sd=(0.05, 0.0025),
-         plausible=_each([("latency_s", slice(0, 1), 0.2), ("latency_sq_s2", slice(1, 2),
-                                                            0.04)])),
+         plausible=_each([("latency_s", slice(0, 1), LATENCY_LIMIT_S),
+                          ("latency_sq_s2", slice(1, 2), 0.04)])),
     Term("thermal_drift", "angle, k",
          tuple(f"{kind}_{lag}_{j}" for lag in ("now", *(f"lag{s:g}s" for s in THERMAL_LAGS_S))
                for kind in ("k_ratio_per_degc", "offset_rad_per_degc") for j in JOINTS),
@@ -975,7 +978,8 @@ def first_order_latency() -> Term:
     calibration bounds)."""
     family = next(t for t in TERMS if t.name == "sensor_latency")
     return Term(family.name, family.acts_on, family.param_names[:1], "s",
-                _first_order_latency, prior_sd=family.prior_sd[:1])
+                _first_order_latency, prior_sd=family.prior_sd[:1],
+                plausible=_each([("latency_s", slice(0, 1), LATENCY_LIMIT_S)]))
 
 
 def for_design(terms, design) -> tuple[Term, ...]:
