@@ -7,8 +7,8 @@ moved again (a look-ahead). A board has neither: it knows the speed from past co
 difference, led by its filtered acceleration) and a reversal once the encoder shows it. And some
 effects are not applied on the board at all (``delta6.core.calibration.NOT_APPLIED``), and
 the refit treats them as ``delta6 calibrate`` does: the rig's latency is fitted with the rest
-(whether or not the ladder has it, in the calibration's first-order form), so the others are
-not biased by it, and left in the error;
+(whether or not the ladder has it, in the calibration's first-order form, kept in [0, 0.2 s]
+on each fold), so the others are not biased by it, and left in the error;
 a thermal drift or a harness is not fitted at all (a calibration cannot follow it), so the
 applied families take what they can of it, as on the board. (Fitted beside them and then
 left out, a harness the applied families partly cancelled made a development run's forecast
@@ -89,8 +89,7 @@ def prediction(data: GapData, problem: selection.Problem, chosen: list[str], *,
         progress("on the chip: the final model with causal features")
     view = data.causal_view()
     fitted = fitted_families(chosen)
-    # The latency in the calibration's form (its first-order column; the calibration also
-    # bounds it to a rig's range, which a linear fit cannot).
+    # The latency in the calibration's form: its first-order column, kept in the rig's range.
     terms = [terms_mod.first_order_latency() if n == LATENCY else problem.terms[n]
              for n in fitted]
     keep = problem.x is not None
