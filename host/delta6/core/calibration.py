@@ -35,8 +35,8 @@ CORRECTED = ("encoder_offset", "backlash", "stiffness_mismatch", "spring_hystere
 LATENCY = "sensor_latency"
 #: Effects the fit accounts for but the device does not apply, and why.
 NOT_APPLIED = {
-    LATENCY: "a property of the calibration rig (the reference sensor is late), "
-                      "not of the unit: fitted, reported, not applied",
+    LATENCY: "a property of the calibration rig (the reference sensor is late), not of the "
+             "unit: fitted, reported, not applied",
     "thermal_drift": "needs the unit's temperature; no gain shown with the chip's sensor: "
                      "left out",
     "harness": "a force from outside the unit (a cable to the plate) that changes with how "

@@ -5,16 +5,16 @@ The diagnosis explains a log offline: its friction sees the joint speed from a c
 samples of the future) and its backlash places each reversal across the dwell before the encoder
 moved again (a look-ahead). A board has neither: it knows the speed from past counts (a filtered
 difference, led by its filtered acceleration) and a reversal once the encoder shows it. And some
-effects are not applied on the board at all (``delta6.core.calibration.NOT_APPLIED``), and
-the refit treats them as ``delta6 calibrate`` does: the rig's latency is fitted with the rest
-(whether or not the ladder has it, in the calibration's first-order form, kept in [0, 0.2 s]
-on each fold), so the others are not biased by it, and left in the error;
-a thermal drift or a harness is not fitted at all (a calibration cannot follow it), so the
-applied families take what they can of it, as on the board. (Fitted beside them and then
-left out, a harness the applied families partly cancelled made a development run's forecast
-25 % FS on Fx against the analytical model's 9 %; fitted as the calibration fits, 13 %. The
-calibration itself, which also left out families that fitted only implausibly and took others
-in their place, left 5 % on its own held-out blocks, where the analytical model had 6 %.)
+effects are not applied on the board at all (``delta6.core.calibration.NOT_APPLIED``), and the
+refit treats them as ``delta6 calibrate`` does: the rig's latency is fitted with the rest
+(whether or not the ladder has it, in the calibration's first-order form, kept in [0, 0.2 s] on
+each fold), so the others are not biased by it, and left in the error; a thermal drift or a
+harness is not fitted at all (a calibration cannot follow it), so the applied families take
+what they can of it, as on the board. (Fitted beside them and then left out, a harness the
+applied families partly cancelled made a development run's forecast 25 % FS on Fx against the
+analytical model's 9 %; fitted as the calibration fits, 13 %. The calibration itself, which
+also left out families that fitted only implausibly and took others in their place, left 5 % on
+its own held-out blocks, where the analytical model had 6 %.)
 The held-out p99 of that prediction, with the diagnosis's own folds, is the diagnosis's model
 as a board would apply it: a forecast of what a calibration on the chip leaves on a run like
 this one (``delta6 calibrate`` fits the same families in the board's own forms, and may add a
