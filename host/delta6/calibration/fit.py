@@ -74,9 +74,7 @@ ITERATIONS = 3
 FINAL_ITERATIONS = 2
 
 
-#: The largest rig latency the fit accepts: the diagnosis's plausible limit (0.2 s, ten
-#: samples of the rig's 50 Hz; a reference that late is not paired with the encoders at all,
-#: and the first-order term the fit uses, W - L dW/dt, no longer describes it).
+#: The largest rig latency the fit accepts: the diagnosis's plausible limit.
 MAX_RIG_LATENCY_S = LATENCY_LIMIT_S
 
 

@@ -38,15 +38,6 @@ CAUSAL_FORMS = {
 }
 
 
-def fitted_families(chosen: list[str]) -> list[str]:
-    """The families the refit takes, as ``delta6 calibrate`` fits them: those a board
-    applies, and the rig's latency (fitted whether or not the ladder has it, unless the user
-    states the rig's, which a log does not tell, and never applied). A thermal drift or a
-    harness is not fitted at all: a calibration cannot follow it, so the applied families
-    take what they can of it, on the board as here."""
-    return [n for n in chosen if n not in NOT_APPLIED] + [LATENCY]
-
-
 def bounded_latency(problem: selection.Problem, fitted: list[str], coefs: np.ndarray
                     ) -> np.ndarray:
     """The fold coefficients ``coefs`` (K, c) of ``fitted`` (the latency last) with the
@@ -88,8 +79,11 @@ def prediction(data: GapData, problem: selection.Problem, chosen: list[str], *,
     if progress:
         progress("on the chip: the final model with causal features")
     view = data.causal_view()
-    fitted = fitted_families(chosen)
+    # Fitted as ``delta6 calibrate`` fits: the applied families and the rig's latency (whether
+    # or not the ladder has it; a latency the user states, which a log does not tell, is not
+    # fitted there), never a thermal drift or a harness, which a calibration cannot follow.
     # The latency in the calibration's form: its first-order column, kept in the rig's range.
+    fitted = applied + [LATENCY]
     terms = [terms_mod.first_order_latency() if n == LATENCY else problem.terms[n]
              for n in fitted]
     keep = problem.x is not None

@@ -316,11 +316,14 @@ def _compliance(data: GapData) -> np.ndarray:
     return np.concatenate([axial * 1e-6, bending, tilt], axis=-1)  # axial in um/N
 
 
+def _first_order_latency(data: GapData) -> np.ndarray:
+    return -np.gradient(data.model, data.t, axis=0)[:, :, None]
+
+
 def _latency(data: GapData) -> np.ndarray:
     # Reference(t) = true(t - tau) ~ true - tau dW/dt + tau^2/2 d2W/dt2.
-    d1 = np.gradient(data.model, data.t, axis=0)
-    d2 = np.gradient(d1, data.t, axis=0)
-    return np.stack([-d1, 0.5 * d2], axis=-1)
+    first = _first_order_latency(data)                          # -dW/dt
+    return np.concatenate([first, -0.5 * np.gradient(first, data.t, axis=0)], axis=-1)
 
 
 def _backlash_summary(coef: np.ndarray) -> dict:
@@ -965,10 +968,6 @@ def design_scales(design) -> tuple[np.ndarray, float]:
     bend = (ref.la_mm * ref.lb_mm) / (design.la_mm * design.lb_mm)
     # Exactly 1 at or below the shipped design: its fits stay bit for bit what they were.
     return np.where(torque > 1.0 + 1e-9, torque, 1.0), bend if bend > 1.0 + 1e-9 else 1.0
-
-
-def _first_order_latency(data: GapData) -> np.ndarray:
-    return -np.gradient(data.model, data.t, axis=0)[:, :, None]
 
 
 def first_order_latency() -> Term:
